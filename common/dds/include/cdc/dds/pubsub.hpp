@@ -1,0 +1,177 @@
+// Typed topics, writers, readers and loaned samples over the Cyclone C API.
+#pragma once
+
+#include "cdc/dds/entity.hpp"
+#include "cdc/dds/error.hpp"
+#include "cdc/dds/participant.hpp"
+#include "cdc/dds/qos.hpp"
+#include "cdc/dds/types.hpp"
+
+#include <atomic>
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+namespace cdc::dds {
+
+// Polls until pred() holds or timeout passes; returns pred()'s last value.
+template <class Pred>
+bool wait_until(Pred pred, std::chrono::milliseconds timeout) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (!pred()) {
+    if (std::chrono::steady_clock::now() >= deadline) {
+      return pred();
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return true;
+}
+
+template <class T>
+class Topic {
+ public:
+  Topic(const Participant& participant, const std::string& name)
+      : name_(name),
+        topic_(check(dds_create_topic(participant.handle(), TypeSupport<T>::descriptor(),
+                                      name.c_str(), nullptr, nullptr),
+                     "create topic '" + name + "'")) {}
+
+  dds_entity_t handle() const noexcept { return topic_.handle(); }
+  const std::string& name() const noexcept { return name_; }
+
+ private:
+  std::string name_;
+  Entity topic_;
+};
+
+template <class T>
+class Writer {
+ public:
+  Writer(const Participant& participant, const Topic<T>& topic, const Qos& qos)
+      : topic_name_(topic.name()),
+        writer_(check(dds_create_writer(participant.handle(), topic.handle(), qos.get(), nullptr),
+                      "create writer on '" + topic.name() + "'")) {}
+
+  void write(const T& sample) {
+    check(dds_write(writer_.handle(), &sample), "write on '" + topic_name_ + "'");
+    samples_written_.fetch_add(1, std::memory_order_relaxed);
+  }
+
+  // Disposes the instance the sample's key fields name.
+  void dispose(const T& sample) {
+    check(dds_dispose(writer_.handle(), &sample), "dispose on '" + topic_name_ + "'");
+  }
+
+  // Tells readers this writer is alive (MANUAL_BY_TOPIC liveliness); writes do this too.
+  void assert_liveliness() {
+    check(dds_assert_liveliness(writer_.handle()), "assert liveliness on '" + topic_name_ + "'");
+  }
+
+  uint32_t matched_readers() const {
+    dds_publication_matched_status_t st{};
+    check(dds_get_publication_matched_status(writer_.handle(), &st), "publication matched status");
+    return st.current_count;
+  }
+
+  // Waits until at least n readers match. The first sample written before matching is lost
+  // on a volatile topic: call this before the first write where that matters.
+  bool wait_for_readers(uint32_t n, std::chrono::milliseconds timeout) const {
+    return wait_until([&] { return matched_readers() >= n; }, timeout);
+  }
+
+  uint64_t samples_written() const noexcept { return samples_written_.load(); }
+  dds_entity_t handle() const noexcept { return writer_.handle(); }
+  const std::string& topic_name() const noexcept { return topic_name_; }
+
+ private:
+  std::string topic_name_;
+  Entity writer_;
+  std::atomic<uint64_t> samples_written_{0};
+};
+
+// Samples lent by the reader: valid until this object is destroyed (the loan is returned then).
+template <class T>
+class Samples {
+ public:
+  Samples(dds_entity_t reader, size_t max) : reader_(reader), ptrs_(max, nullptr), infos_(max) {}
+  ~Samples() {
+    if (count_ > 0) {
+      dds_return_loan(reader_, ptrs_.data(), static_cast<int32_t>(count_));
+    }
+  }
+  Samples(const Samples&) = delete;
+  Samples& operator=(const Samples&) = delete;
+  Samples(Samples&& other) noexcept
+      : reader_(other.reader_), ptrs_(std::move(other.ptrs_)), infos_(std::move(other.infos_)),
+        count_(std::exchange(other.count_, 0)) {}
+  Samples& operator=(Samples&&) = delete;
+
+  size_t size() const noexcept { return count_; }
+  bool empty() const noexcept { return count_ == 0; }
+  // False for samples that only carry an instance state change (dispose, no writers).
+  bool valid(size_t i) const noexcept { return infos_[i].valid_data; }
+  const T& operator[](size_t i) const noexcept { return *static_cast<const T*>(ptrs_[i]); }
+  const dds_sample_info_t& info(size_t i) const noexcept { return infos_[i]; }
+
+  template <class F>
+  void for_each_valid(F&& f) const {
+    for (size_t i = 0; i < count_; ++i) {
+      if (infos_[i].valid_data) {
+        f((*this)[i], infos_[i]);
+      }
+    }
+  }
+
+ private:
+  template <class>
+  friend class Reader;
+  dds_entity_t reader_;
+  std::vector<void*> ptrs_;
+  std::vector<dds_sample_info_t> infos_;
+  size_t count_ = 0;
+};
+
+template <class T>
+class Reader {
+ public:
+  Reader(const Participant& participant, const Topic<T>& topic, const Qos& qos)
+      : topic_name_(topic.name()),
+        reader_(check(dds_create_reader(participant.handle(), topic.handle(), qos.get(), nullptr),
+                      "create reader on '" + topic.name() + "'")) {}
+
+  // Takes up to max samples (removing them from the reader's cache).
+  Samples<T> take(size_t max = 64) {
+    Samples<T> s(reader_.handle(), max);
+    const dds_return_t n = check(dds_take(reader_.handle(), s.ptrs_.data(), s.infos_.data(), max,
+                                          static_cast<uint32_t>(max)),
+                                 "take on '" + topic_name_ + "'");
+    s.count_ = static_cast<size_t>(n);
+    samples_taken_.fetch_add(s.count_, std::memory_order_relaxed);
+    return s;
+  }
+
+  uint32_t matched_writers() const {
+    dds_subscription_matched_status_t st{};
+    check(dds_get_subscription_matched_status(reader_.handle(), &st), "subscription matched status");
+    return st.current_count;
+  }
+
+  bool wait_for_writers(uint32_t n, std::chrono::milliseconds timeout) const {
+    return wait_until([&] { return matched_writers() >= n; }, timeout);
+  }
+
+  uint64_t samples_taken() const noexcept { return samples_taken_.load(); }
+  dds_entity_t handle() const noexcept { return reader_.handle(); }
+  const std::string& topic_name() const noexcept { return topic_name_; }
+
+ private:
+  std::string topic_name_;
+  Entity reader_;
+  std::atomic<uint64_t> samples_taken_{0};
+};
+
+}  // namespace cdc::dds

@@ -1,0 +1,25 @@
+// Topic names of cdc-slam: the one place they are spelled. Pattern cdc/<area>/<name>.
+#pragma once
+
+namespace cdc::dds::topics {
+
+inline constexpr const char* kLidar = "cdc/sensor/lidar";
+inline constexpr const char* kImu = "cdc/sensor/imu";
+inline constexpr const char* kOdometry = "cdc/frontend/odometry";
+inline constexpr const char* kKeyframe = "cdc/frontend/keyframe";
+inline constexpr const char* kDescriptor = "cdc/place/descriptor";
+inline constexpr const char* kLoopClosure = "cdc/loop/closure";
+inline constexpr const char* kCloudRequest = "cdc/loop/cloud_request";
+inline constexpr const char* kCloudReply = "cdc/loop/cloud_reply";
+inline constexpr const char* kCentralOptimized = "cdc/central/optimized";
+inline constexpr const char* kCentralAck = "cdc/central/ack";
+inline constexpr const char* kCorrection = "cdc/backend/correction";
+inline constexpr const char* kMode = "cdc/backend/mode";
+inline constexpr const char* kSeparator = "cdc/peer/separator";
+inline constexpr const char* kWorldTransform = "cdc/peer/world_transform";
+inline constexpr const char* kRobotStatus = "cdc/status/robot";
+inline constexpr const char* kGroundTruth = "cdc/sim/ground_truth";
+inline constexpr const char* kRadio = "cdc/sim/radio";
+inline constexpr const char* kProgress = "cdc/sim/progress";
+
+}  // namespace cdc::dds::topics

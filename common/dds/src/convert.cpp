@@ -1,0 +1,39 @@
+#include "cdc/dds/convert.hpp"
+
+namespace cdc::dds {
+
+Eigen::Isometry3d to_eigen(const cdc_msg_Pose& pose) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = to_eigen(pose.orientation).normalized().toRotationMatrix();
+  T.translation() = to_eigen(pose.position);
+  return T;
+}
+
+cdc_msg_Pose to_msg(const Eigen::Isometry3d& T) {
+  cdc_msg_Pose p{};
+  p.position = to_msg(Eigen::Vector3d(T.translation()));
+  Eigen::Quaterniond q(T.rotation());
+  q.normalize();
+  p.orientation = to_msg(q);
+  return p;
+}
+
+Matrix6d information_to_eigen(const cdc_msg_Information6& info) {
+  Matrix6d m;
+  for (int r = 0; r < 6; ++r) {
+    for (int c = 0; c < 6; ++c) {
+      m(r, c) = info[r * 6 + c];
+    }
+  }
+  return m;
+}
+
+void information_to_msg(const Matrix6d& info, cdc_msg_Information6& out) {
+  for (int r = 0; r < 6; ++r) {
+    for (int c = 0; c < 6; ++c) {
+      out[r * 6 + c] = info(r, c);
+    }
+  }
+}
+
+}  // namespace cdc::dds

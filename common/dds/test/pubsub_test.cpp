@@ -1,0 +1,218 @@
+// Participants, typed pub/sub, waitsets and conversions over Cyclone on the loopback configuration.
+#include "cdc/dds/cloud_convert.hpp"
+#include "cdc/dds/convert.hpp"
+#include "cdc/dds/error.hpp"
+#include "cdc/dds/participant.hpp"
+#include "cdc/dds/pubsub.hpp"
+#include "cdc/dds/topics.hpp"
+#include "cdc/dds/validate.hpp"
+#include "cdc/dds/waitset.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <string>
+#include <thread>
+#include <unistd.h>
+
+namespace cdc::dds {
+namespace {
+
+using namespace std::chrono_literals;
+
+ParticipantOptions test_options() {
+  ParticipantOptions o;
+  o.domain_id = domain_from_env(0);
+  return o;
+}
+
+std::string unique_topic(const std::string& base) {
+  return "cdc/test/" + base + "_" + std::to_string(::getpid());
+}
+
+TEST(Participant, RefusesToStartWithoutExplicitConfiguration) {
+  const char* saved = std::getenv("CYCLONEDDS_URI");
+  ASSERT_NE(saved, nullptr) << "ctest must run DDS tests with CYCLONEDDS_URI set to the loopback configuration";
+  const std::string keep = saved;
+  ::unsetenv("CYCLONEDDS_URI");
+  try {
+    Participant p(test_options());
+    ::setenv("CYCLONEDDS_URI", keep.c_str(), 1);
+    FAIL() << "a participant started without a configuration";
+  } catch (const DdsError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("no Cyclone DDS configuration"));
+  }
+  ::setenv("CYCLONEDDS_URI", "", 1);
+  EXPECT_THROW(Participant p(test_options()), DdsError);
+  ::setenv("CYCLONEDDS_URI", keep.c_str(), 1);
+}
+
+TEST(Participant, TestsRunOnTheLoopbackConfiguration) {
+  const std::string uri = std::getenv("CYCLONEDDS_URI");
+  EXPECT_THAT(uri, ::testing::EndsWith("deploy/cyclonedds/loopback.xml"));
+  Participant p(test_options());
+  EXPECT_GT(p.handle(), 0);
+  EXPECT_EQ(p.config(), uri);
+}
+
+TEST(Participant, RejectsABadDomainEnvironment) {
+  ::setenv("CDC_DDS_DOMAIN", "999", 1);
+  EXPECT_THROW(domain_from_env(0), DdsError);
+  ::unsetenv("CDC_DDS_DOMAIN");
+  EXPECT_EQ(domain_from_env(5), 5u);
+}
+
+struct KeyframeSample {
+  explicit KeyframeSample(size_t n) {
+    cloud.resize(n);
+    for (size_t i = 0; i < n; ++i) {
+      cloud[i].x = static_cast<float>(i);
+      cloud[i].y = static_cast<float>(i) * 0.5f;
+      cloud[i].z = -1.0f;
+      cloud[i].intensity = 0.25f;
+    }
+    from_pcl(cloud, storage);
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() = Eigen::Vector3d(1, 2, 3);
+    T.linear() = Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    msg.robot_id = 2;
+    msg.keyframe_id = 5;
+    msg.incarnation = 77;
+    msg.stamp_ns = 123;
+    msg.T_odom_keyframe = to_msg(T);
+    msg.T_prev_keyframe = to_msg(Eigen::Isometry3d::Identity());
+    information_to_msg(Matrix6d::Identity() * 10.0, msg.information);
+    borrow(msg.cloud, storage);
+    msg.point_count = static_cast<uint32_t>(n);
+  }
+  pcl::PointCloud<pcl::PointXYZI> cloud;
+  std::vector<cdc_msg_PointXYZI> storage;
+  cdc_msg_Keyframe msg{};
+};
+
+TEST(PubSub, KeyframeWithCloudRoundTripsThroughAWaitset) {
+  Participant p(test_options());
+  Topic<cdc_msg_Keyframe> topic(p, unique_topic("keyframe"));
+  Writer<cdc_msg_Keyframe> writer(p, topic, qos::keyed_state());
+  Reader<cdc_msg_Keyframe> reader(p, topic, qos::keyed_state());
+  ASSERT_TRUE(writer.wait_for_readers(1, 5s));
+
+  ReadCondition rc(reader.handle());
+  WaitSet ws(p);
+  ws.attach(rc.handle(), 1);
+
+  KeyframeSample sample(1000);
+  writer.write(sample.msg);
+  EXPECT_EQ(writer.samples_written(), 1u);
+
+  const auto tags = ws.wait(5s);
+  ASSERT_EQ(tags.size(), 1u);
+  EXPECT_EQ(tags[0], 1);
+  auto taken = reader.take();
+  ASSERT_EQ(taken.size(), 1u);
+  ASSERT_TRUE(taken.valid(0));
+  const cdc_msg_Keyframe& got = taken[0];
+  EXPECT_TRUE(validate(got, ValidationLimits{}));
+  EXPECT_EQ(got.robot_id, 2u);
+  EXPECT_EQ(got.keyframe_id, 5u);
+  EXPECT_EQ(got.incarnation, 77u);
+  EXPECT_LT((to_eigen(got.T_odom_keyframe).matrix() - to_eigen(sample.msg.T_odom_keyframe).matrix()).norm(), 1e-12);
+  EXPECT_DOUBLE_EQ(information_to_eigen(got.information)(3, 3), 10.0);
+  pcl::PointCloud<pcl::PointXYZI> back;
+  to_pcl(got.cloud, back);
+  ASSERT_EQ(back.size(), 1000u);
+  EXPECT_FLOAT_EQ(back[999].x, 999.0f);
+  EXPECT_FLOAT_EQ(back[999].y, 499.5f);
+  EXPECT_FLOAT_EQ(back[10].intensity, 0.25f);
+}
+
+TEST(PubSub, MalformedSampleIsRejectedAtTheReaderBoundary) {
+  Participant p(test_options());
+  Topic<cdc_msg_Keyframe> topic(p, unique_topic("bad_keyframe"));
+  Writer<cdc_msg_Keyframe> writer(p, topic, qos::event_stream());
+  Reader<cdc_msg_Keyframe> reader(p, topic, qos::event_stream());
+  ASSERT_TRUE(writer.wait_for_readers(1, 5s));
+
+  KeyframeSample good(10);
+  KeyframeSample bad(10);
+  bad.msg.keyframe_id = 6;
+  bad.msg.T_odom_keyframe.orientation.w = std::numeric_limits<double>::quiet_NaN();
+  KeyframeSample lying(10);
+  lying.msg.keyframe_id = 7;
+  lying.msg.point_count = 11;
+  writer.write(good.msg);
+  writer.write(bad.msg);
+  writer.write(lying.msg);
+
+  RejectionCounter rejected;
+  std::vector<uint32_t> accepted;
+  ASSERT_TRUE(wait_until(
+      [&] {
+        reader.take().for_each_valid([&](const cdc_msg_Keyframe& k, const dds_sample_info_t&) {
+          const Validation v = validate(k, ValidationLimits{});
+          if (!rejected.record(topic.name(), v)) {
+            accepted.push_back(k.keyframe_id);
+          }
+        });
+        return accepted.size() + rejected.total() == 3;
+      },
+      5000ms));
+  EXPECT_EQ(accepted, std::vector<uint32_t>{5});
+  EXPECT_EQ(rejected.count(topic.name()), 2u);
+  EXPECT_THAT(rejected.last_reason(), ::testing::HasSubstr("length mismatch"));
+}
+
+TEST(PubSub, TransientLocalStateReachesALateJoiner) {
+  Participant p(test_options());
+  Topic<cdc_msg_ModeState> topic(p, unique_topic("mode"));
+  Writer<cdc_msg_ModeState> writer(p, topic, qos::keyed_state());
+  cdc_msg_ModeState m{};
+  m.robot_id = 1;
+  m.mode = cdc_msg_MODE_DISTRIBUTED;
+  m.reason = cdc_msg_REASON_OUT_OF_RANGE;
+  m.transition_count = 3;
+  writer.write(m);
+  m.transition_count = 4;
+  writer.write(m);  // keep-last 1 per instance: only this one survives
+
+  Reader<cdc_msg_ModeState> late(p, topic, qos::keyed_state());
+  std::vector<uint32_t> seen;
+  ASSERT_TRUE(wait_until(
+      [&] {
+        late.take().for_each_valid([&](const cdc_msg_ModeState& s, const dds_sample_info_t&) {
+          seen.push_back(s.transition_count);
+        });
+        return !seen.empty();
+      },
+      5000ms));
+  EXPECT_EQ(seen, std::vector<uint32_t>{4});
+}
+
+TEST(WaitSet, GuardConditionWakesTheWaiter) {
+  Participant p(test_options());
+  GuardCondition guard(p);
+  WaitSet ws(p);
+  ws.attach(guard.handle(), 9);
+  EXPECT_TRUE(ws.wait(20ms).empty());
+  std::thread t([&] {
+    std::this_thread::sleep_for(50ms);
+    guard.trigger();
+  });
+  const auto start = std::chrono::steady_clock::now();
+  const auto tags = ws.wait(5s);
+  t.join();
+  ASSERT_EQ(tags.size(), 1u);
+  EXPECT_EQ(tags[0], 9);
+  EXPECT_LT(std::chrono::steady_clock::now() - start, 4s);
+  EXPECT_TRUE(guard.triggered());
+  guard.reset();
+  EXPECT_FALSE(guard.triggered());
+}
+
+}  // namespace
+}  // namespace cdc::dds

@@ -1,0 +1,240 @@
+// Boundary validation: malformed samples are rejected with a reason that names the problem.
+#include "cdc/dds/convert.hpp"
+#include "cdc/dds/validate.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <vector>
+
+namespace cdc::dds {
+namespace {
+
+using ::testing::HasSubstr;
+
+cdc_msg_Pose identity_pose() { return to_msg(Eigen::Isometry3d::Identity()); }
+
+void identity_information(cdc_msg_Information6& info) {
+  for (int i = 0; i < 36; ++i) {
+    info[i] = (i % 7 == 0) ? 100.0 : 0.0;
+  }
+}
+
+struct KeyframeFixture {
+  KeyframeFixture() : points(3, cdc_msg_PointXYZI{1.0f, 2.0f, 3.0f, 0.5f}) {
+    msg.robot_id = 1;
+    msg.keyframe_id = 7;
+    msg.incarnation = 42;
+    msg.T_odom_keyframe = identity_pose();
+    msg.T_prev_keyframe = identity_pose();
+    identity_information(msg.information);
+    borrow(msg.cloud, points);
+    msg.point_count = 3;
+  }
+  cdc_msg_Keyframe msg{};
+  std::vector<cdc_msg_PointXYZI> points;
+};
+
+TEST(Validation, AcceptsAWellFormedKeyframe) {
+  KeyframeFixture f;
+  const Validation v = validate(f.msg, ValidationLimits{});
+  EXPECT_TRUE(v) << v.reason();
+}
+
+TEST(Validation, RejectsNaNPosition) {
+  KeyframeFixture f;
+  f.msg.T_odom_keyframe.position.y = std::numeric_limits<double>::quiet_NaN();
+  const Validation v = validate(f.msg, ValidationLimits{});
+  ASSERT_FALSE(v);
+  EXPECT_THAT(v.reason(), HasSubstr("T_odom_keyframe.position"));
+  EXPECT_THAT(v.reason(), HasSubstr("non-finite"));
+}
+
+TEST(Validation, RejectsNaNPoint) {
+  KeyframeFixture f;
+  f.points[2].z = std::numeric_limits<float>::infinity();
+  const Validation v = validate(f.msg, ValidationLimits{});
+  ASSERT_FALSE(v);
+  EXPECT_THAT(v.reason(), HasSubstr("cloud[2]"));
+}
+
+TEST(Validation, RejectsNonUnitQuaternion) {
+  KeyframeFixture f;
+  f.msg.T_prev_keyframe.orientation = cdc_msg_Quat{0.0, 0.0, 0.5, 1.0};
+  const Validation v = validate(f.msg, ValidationLimits{});
+  ASSERT_FALSE(v);
+  EXPECT_THAT(v.reason(), HasSubstr("T_prev_keyframe.orientation: not a unit quaternion"));
+}
+
+TEST(Validation, QuaternionWithinToleranceIsAccepted) {
+  KeyframeFixture f;
+  f.msg.T_prev_keyframe.orientation = cdc_msg_Quat{0.0, 0.0, 0.0, 1.0005};
+  EXPECT_TRUE(validate(f.msg, ValidationLimits{}));
+}
+
+TEST(Validation, RejectsLengthMismatch) {
+  KeyframeFixture f;
+  f.msg.point_count = 4;  // declared 4, three sent
+  const Validation v = validate(f.msg, ValidationLimits{});
+  ASSERT_FALSE(v);
+  EXPECT_THAT(v.reason(), HasSubstr("declared 4 elements but 3 received (length mismatch)"));
+}
+
+TEST(Validation, RejectsOversizedCloud) {
+  KeyframeFixture f;
+  ValidationLimits limits;
+  limits.max_cloud_points = 2;
+  const Validation v = validate(f.msg, limits);
+  ASSERT_FALSE(v);
+  EXPECT_THAT(v.reason(), HasSubstr("exceed the limit of 2"));
+}
+
+TEST(Validation, RejectsUnknownRobotId) {
+  KeyframeFixture f;
+  ValidationLimits limits;
+  limits.robot_count = 3;
+  f.msg.robot_id = 3;
+  const Validation v = validate(f.msg, limits);
+  ASSERT_FALSE(v);
+  EXPECT_THAT(v.reason(), HasSubstr("unknown robot id 3"));
+}
+
+TEST(Validation, RejectsNaNInformation) {
+  KeyframeFixture f;
+  f.msg.information[8] = std::numeric_limits<double>::quiet_NaN();
+  const Validation v = validate(f.msg, ValidationLimits{});
+  ASSERT_FALSE(v);
+  EXPECT_THAT(v.reason(), HasSubstr("information[1][2]"));
+}
+
+TEST(Validation, RejectsAsymmetricOrNonPositiveInformation) {
+  KeyframeFixture f;
+  f.msg.information[1] = 5.0;
+  EXPECT_THAT(validate(f.msg, ValidationLimits{}).reason(), HasSubstr("not symmetric"));
+  KeyframeFixture g;
+  g.msg.information[35] = 0.0;
+  EXPECT_THAT(validate(g.msg, ValidationLimits{}).reason(), HasSubstr("diagonal entry 5"));
+}
+
+TEST(Validation, LidarScanTimeOffsetsAndCounts) {
+  std::vector<cdc_msg_LidarPoint> pts(2, cdc_msg_LidarPoint{1, 1, 1, 0.2f, 0.05f, 3});
+  cdc_msg_LidarScan scan{};
+  scan.robot_id = 0;
+  scan.duration_ns = 100'000'000;
+  borrow(scan.points, pts);
+  scan.point_count = 2;
+  EXPECT_TRUE(validate(scan, ValidationLimits{}));
+  pts[1].time_offset = 0.2f;  // after the sweep ended
+  EXPECT_THAT(validate(scan, ValidationLimits{}).reason(), HasSubstr("points[1].time_offset"));
+  pts[1].time_offset = 0.01f;
+  pts[0].x = std::nanf("");
+  EXPECT_THAT(validate(scan, ValidationLimits{}).reason(), HasSubstr("points[0]: non-finite"));
+}
+
+TEST(Validation, ImuStampsMustIncrease) {
+  std::vector<cdc_msg_ImuSample> s(3);
+  for (size_t i = 0; i < s.size(); ++i) {
+    s[i].stamp_ns = static_cast<int64_t>(i) * 5'000'000;
+    s[i].linear_acceleration = cdc_msg_Vec3{0, 0, 9.81};
+  }
+  cdc_msg_ImuBatch b{};
+  borrow(b.samples, s);
+  b.sample_count = 3;
+  EXPECT_TRUE(validate(b, ValidationLimits{}));
+  s[2].stamp_ns = s[1].stamp_ns;
+  EXPECT_THAT(validate(b, ValidationLimits{}).reason(), HasSubstr("samples[2].stamp_ns"));
+}
+
+TEST(Validation, DescriptorShape) {
+  std::vector<float> key(20, 1.0f);
+  std::vector<uint8_t> cells(20 * 60, 3);
+  cdc_msg_Descriptor d{};
+  d.robot_id = 2;
+  d.rings = 20;
+  d.sectors = 60;
+  d.max_range = 80.0f;
+  d.quant_scale = 0.1f;
+  d.pose_hint = identity_pose();
+  borrow(d.ring_key, key);
+  borrow(d.cells, cells);
+  EXPECT_TRUE(validate(d, ValidationLimits{}));
+  d.sectors = 61;
+  EXPECT_THAT(validate(d, ValidationLimits{}).reason(), HasSubstr("cells: declared 1220"));
+}
+
+TEST(Validation, LoopClosureChecks) {
+  cdc_msg_LoopClosure l{};
+  l.robot_a = 0;
+  l.keyframe_a = 3;
+  l.robot_b = 1;
+  l.keyframe_b = 9;
+  l.T_a_b = identity_pose();
+  identity_information(l.information);
+  EXPECT_TRUE(validate(l, ValidationLimits{}));
+  l.robot_b = 0;
+  l.keyframe_b = 3;
+  EXPECT_THAT(validate(l, ValidationLimits{}).reason(), HasSubstr("to itself"));
+  l.keyframe_b = 4;
+  const int bad_status = 7;  // what a corrupt or newer sender could put on the wire
+  std::memcpy(&l.status, &bad_status, sizeof bad_status);
+  EXPECT_THAT(validate(l, ValidationLimits{}).reason(), HasSubstr("status: unknown enumerator 7"));
+}
+
+TEST(Validation, OptimizedPosesMustBelongToTheirRobot) {
+  std::vector<cdc_msg_KeyframePose> poses{{2, 0, identity_pose()}, {1, 1, identity_pose()}};
+  cdc_msg_OptimizedPoses m{};
+  m.robot_id = 2;
+  m.T_world_robot = identity_pose();
+  borrow(m.poses, poses);
+  EXPECT_THAT(validate(m, ValidationLimits{}).reason(), HasSubstr("poses[1].robot_id: 1 in a message about robot 2"));
+  poses[1].robot_id = 2;
+  EXPECT_TRUE(validate(m, ValidationLimits{}));
+}
+
+TEST(Validation, ExtraNodeIdsAreAccepted) {
+  cdc_msg_RobotStatus s{};
+  s.robot_id = 200;  // a ground-station central
+  ValidationLimits limits;
+  EXPECT_FALSE(validate(s, limits));
+  limits.extra_node_ids = {200};
+  EXPECT_TRUE(validate(s, limits));
+}
+
+TEST(RejectionCounter, CountsPerTopicAndKeepsTheLastReason) {
+  RejectionCounter c;
+  EXPECT_FALSE(c.record("cdc/a", Validation::ok()));
+  EXPECT_TRUE(c.record("cdc/a", Validation::fail("bad x")));
+  EXPECT_TRUE(c.record("cdc/b", Validation::fail("bad y")));
+  EXPECT_TRUE(c.record("cdc/a", Validation::fail("bad z")));
+  EXPECT_EQ(c.total(), 3u);
+  EXPECT_EQ(c.count("cdc/a"), 2u);
+  EXPECT_EQ(c.count("cdc/none"), 0u);
+  EXPECT_EQ(c.last_reason(), "cdc/a: bad z");
+  EXPECT_EQ(c.by_topic().size(), 2u);
+}
+
+TEST(Convert, PoseAndInformationRoundTrip) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(1, -2, 3);
+  const cdc_msg_Pose p = to_msg(T);
+  // Message order is x, y, z, w.
+  const Eigen::Quaterniond q(T.rotation());
+  EXPECT_DOUBLE_EQ(p.orientation.w, q.w());
+  EXPECT_DOUBLE_EQ(p.orientation.x, q.x());
+  EXPECT_LT((to_eigen(p).matrix() - T.matrix()).norm(), 1e-12);
+
+  Matrix6d info = Matrix6d::Identity();
+  info(0, 5) = info(5, 0) = 0.25;
+  info(2, 3) = 7;  // row-major placement check
+  cdc_msg_Information6 raw{};
+  information_to_msg(info, raw);
+  EXPECT_DOUBLE_EQ(raw[2 * 6 + 3], 7.0);
+  EXPECT_EQ(information_to_eigen(raw), info);
+}
+
+}  // namespace
+}  // namespace cdc::dds

@@ -1,0 +1,196 @@
+#include "cdc/eval/evaluation.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+namespace cdc::eval {
+namespace {
+
+nlohmann::json stats_json(const geometry::ErrorStats& s) {
+  return {{"rmse", s.rmse}, {"mean", s.mean}, {"median", s.median}, {"std", s.std},
+          {"min", s.min},   {"max", s.max},   {"count", s.count}};
+}
+
+std::array<int, 2> choose_axes(const std::vector<Evaluation>& evals, const std::string& plane) {
+  if (plane == "xy") return {0, 1};
+  if (plane == "xz") return {0, 2};
+  if (plane == "yz") return {1, 2};
+  if (plane != "auto") {
+    throw std::invalid_argument("plane must be xy, xz, yz or auto, not '" + plane + "'");
+  }
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::max());
+  Eigen::Vector3d hi = -lo;
+  for (const auto& e : evals) {
+    for (const auto& p : e.gt_matched) {
+      lo = lo.cwiseMin(p.translation());
+      hi = hi.cwiseMax(p.translation());
+    }
+  }
+  const Eigen::Vector3d ext = hi - lo;
+  std::array<int, 3> idx{0, 1, 2};
+  std::sort(idx.begin(), idx.end(), [&](int a, int b) { return ext[a] > ext[b]; });
+  std::array<int, 2> axes{idx[0], idx[1]};
+  std::sort(axes.begin(), axes.end());
+  return axes;
+}
+
+std::string xml_escape(const std::string& in) {
+  std::string out;
+  for (char c : in) {
+    switch (c) {
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '&': out += "&amp;"; break;
+      case '"': out += "&quot;"; break;
+      default: out += c;
+    }
+  }
+  return out;
+}
+
+std::string fmt(double v, int prec = 3) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", prec, v);
+  return buf;
+}
+
+}  // namespace
+
+Evaluation evaluate(const std::string& name, const geometry::Trajectory& est, const geometry::Trajectory& gt,
+                    const EvalOptions& options) {
+  Evaluation e;
+  e.name = name;
+  e.estimated_poses = est.size();
+  e.ground_truth_poses = gt.size();
+  const auto pairs = geometry::associate(est, gt, options.max_dt_ns);
+  e.matched = pairs.size();
+  if (pairs.size() < 2) {
+    throw std::runtime_error(name + ": only " + std::to_string(pairs.size()) +
+                             " poses match the ground truth in time (tolerance " +
+                             std::to_string(static_cast<double>(options.max_dt_ns) / 1e6) + " ms); check time stamps or --max-dt");
+  }
+  geometry::Poses pe, pg;
+  geometry::Trajectory gt_sub;
+  for (auto [i, j] : pairs) {
+    pe.push_back(est[i].pose);
+    pg.push_back(gt[j].pose);
+    gt_sub.push_back(gt[j]);
+  }
+  e.gt_length_m = geometry::path_length(gt_sub);
+  e.ate = geometry::compute_ate(pe, pg, options.align);
+  if (!e.ate.alignment.ok) {
+    throw std::runtime_error(name + ": alignment failed (too few or collinear matched positions); try --align none");
+  }
+  e.rpe_frames = geometry::compute_rpe_frames(pe, pg, options.rpe_delta_frames);
+  e.rpe_distance = geometry::compute_rpe_distance(pe, pg, options.rpe_delta_m);
+  e.drift = geometry::compute_kitti_drift(pe, pg);
+  for (const auto& p : pe) {
+    e.est_aligned.push_back(geometry::apply(e.ate.alignment, p));
+  }
+  e.gt_matched = std::move(pg);
+  return e;
+}
+
+nlohmann::json to_json(const Evaluation& e, const EvalOptions& options) {
+  nlohmann::json j;
+  j["name"] = e.name;
+  j["poses"] = {{"estimated", e.estimated_poses}, {"ground_truth", e.ground_truth_poses}, {"matched", e.matched}};
+  j["gt_length_m"] = e.gt_length_m;
+  j["alignment"] = {{"mode", geometry::to_string(options.align)}, {"scale", e.ate.alignment.scale}};
+  j["ate_m"] = stats_json(e.ate.translation);
+  j["ate_rot_deg"] = stats_json(e.ate.rotation_deg);
+  j["rpe_frames"] = {{"delta", e.rpe_frames.delta},
+                     {"trans_m", stats_json(e.rpe_frames.translation)},
+                     {"rot_deg", stats_json(e.rpe_frames.rotation_deg)}};
+  j["rpe_distance"] = {{"delta", e.rpe_distance.delta},
+                       {"trans_m", stats_json(e.rpe_distance.translation)},
+                       {"rot_deg", stats_json(e.rpe_distance.rotation_deg)}};
+  j["kitti_drift"] = {{"trans_pct", e.drift.translation_pct},
+                      {"rot_deg_per_100m", e.drift.rotation_deg_per_100m},
+                      {"segments", e.drift.segments}};
+  return j;
+}
+
+std::string format_table(const std::vector<Evaluation>& evaluations) {
+  std::ostringstream s;
+  char line[512];
+  std::snprintf(line, sizeof line, "%-24s %7s %9s %9s %9s %9s %10s %10s %9s %11s\n", "trajectory", "matched",
+                "length_m", "ATE_rmse", "ATE_mean", "ATE_max", "RPE1_t_m", "RPE1_r_deg", "drift_%", "drift_d/100m");
+  s << line;
+  for (const auto& e : evaluations) {
+    std::snprintf(line, sizeof line, "%-24s %7zu %9s %9s %9s %9s %10s %10s %9s %11s\n", e.name.c_str(), e.matched,
+                  fmt(e.gt_length_m, 1).c_str(), fmt(e.ate.translation.rmse, 4).c_str(),
+                  fmt(e.ate.translation.mean, 4).c_str(), fmt(e.ate.translation.max, 4).c_str(),
+                  fmt(e.rpe_frames.translation.rmse, 4).c_str(), fmt(e.rpe_frames.rotation_deg.rmse, 4).c_str(),
+                  e.drift.segments > 0 ? fmt(e.drift.translation_pct, 3).c_str() : "n/a",
+                  e.drift.segments > 0 ? fmt(e.drift.rotation_deg_per_100m, 4).c_str() : "n/a");
+    s << line;
+  }
+  return s.str();
+}
+
+std::string render_svg(const std::vector<Evaluation>& evaluations, const std::string& plane, const std::string& title) {
+  static const std::array<const char*, 6> kColors = {"#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
+  const auto axes = choose_axes(evaluations, plane);
+  const char* names = "xyz";
+  double xmin = std::numeric_limits<double>::max(), ymin = xmin, xmax = -xmin, ymax = -xmin;
+  auto extend = [&](const geometry::Poses& ps) {
+    for (const auto& p : ps) {
+      xmin = std::min(xmin, p.translation()[axes[0]]);
+      xmax = std::max(xmax, p.translation()[axes[0]]);
+      ymin = std::min(ymin, p.translation()[axes[1]]);
+      ymax = std::max(ymax, p.translation()[axes[1]]);
+    }
+  };
+  for (const auto& e : evaluations) {
+    extend(e.gt_matched);
+    extend(e.est_aligned);
+  }
+  const double w = 800, h = 800, margin = 60;
+  const double span = std::max({xmax - xmin, ymax - ymin, 1e-6});
+  const double scale = (w - 2 * margin) / span;
+  auto px = [&](double x) { return margin + (x - xmin) * scale; };
+  auto py = [&](double y) { return h - margin - (y - ymin) * scale; };  // y up
+  auto polyline = [&](const geometry::Poses& ps, const char* color, const char* dash) {
+    std::ostringstream s;
+    s << "<polyline fill=\"none\" stroke=\"" << color << "\" stroke-width=\"1.5\"" << dash << " points=\"";
+    for (const auto& p : ps) {
+      s << fmt(px(p.translation()[axes[0]]), 1) << ',' << fmt(py(p.translation()[axes[1]]), 1) << ' ';
+    }
+    s << "\"/>\n";
+    return s.str();
+  };
+  std::ostringstream svg;
+  svg << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << h + 40
+      << "\" font-family=\"sans-serif\" font-size=\"13\">\n"
+      << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
+      << "<text x=\"" << margin << "\" y=\"30\" font-size=\"16\">" << xml_escape(title) << "</text>\n";
+  // Scale bar: a round length near a fifth of the span.
+  const double bar = std::pow(10.0, std::floor(std::log10(span / 5.0)));
+  svg << "<line x1=\"" << margin << "\" y1=\"" << h - 20 << "\" x2=\"" << margin + bar * scale << "\" y2=\"" << h - 20
+      << "\" stroke=\"black\" stroke-width=\"2\"/>\n"
+      << "<text x=\"" << margin << "\" y=\"" << h - 5 << "\">" << fmt(bar, bar < 1 ? 2 : 0) << " m ("
+      << names[axes[0]] << " right, " << names[axes[1]] << " up)</text>\n";
+  double legend_y = h + 15;
+  size_t k = 0;
+  for (const auto& e : evaluations) {
+    const char* color = kColors[k % kColors.size()];
+    svg << polyline(e.gt_matched, "#555555", " stroke-dasharray=\"4 3\"");
+    svg << polyline(e.est_aligned, color, "");
+    svg << "<rect x=\"" << margin + 260 * static_cast<double>(k % 3) << "\" y=\"" << legend_y - 10
+        << "\" width=\"14\" height=\"4\" fill=\"" << color << "\"/>"
+        << "<text x=\"" << margin + 20 + 260 * static_cast<double>(k % 3) << "\" y=\"" << legend_y << "\">" << xml_escape(e.name)
+        << " (ATE " << fmt(e.ate.translation.rmse, 3) << " m)</text>\n";
+    ++k;
+  }
+  svg << "<text x=\"" << w - 220 << "\" y=\"" << legend_y << "\" fill=\"#555555\">- - ground truth</text>\n";
+  svg << "</svg>\n";
+  return svg.str();
+}
+
+}  // namespace cdc::eval

@@ -1,0 +1,35 @@
+// Starts and ends helper processes for multi-process tests. Only ever signals the PIDs it
+// started itself.
+#pragma once
+
+#include <chrono>
+#include <optional>
+#include <string>
+#include <sys/types.h>
+#include <vector>
+
+namespace cdc::test {
+
+class ChildProcess {
+ public:
+  // Starts argv[0] with the given arguments and the current environment.
+  static ChildProcess spawn(const std::vector<std::string>& argv);
+
+  ChildProcess() = default;
+  ~ChildProcess();  // SIGKILLs and reaps a child still running
+  ChildProcess(ChildProcess&& other) noexcept;
+  ChildProcess& operator=(ChildProcess&& other) noexcept;
+  ChildProcess(const ChildProcess&) = delete;
+  ChildProcess& operator=(const ChildProcess&) = delete;
+
+  pid_t pid() const noexcept { return pid_; }
+  bool running() const noexcept { return pid_ > 0; }
+  void signal(int sig) const;
+  // Waits for exit; returns the raw wait status, or nullopt on timeout.
+  std::optional<int> wait(std::chrono::milliseconds timeout);
+
+ private:
+  pid_t pid_ = -1;
+};
+
+}  // namespace cdc::test

@@ -1,0 +1,56 @@
+// Test helper: a DDS process whose writer offers MANUAL_BY_TOPIC liveliness with a lease and
+// asserts it from its work loop, like the central optimiser's result writer. Exits 0 on
+// SIGINT/SIGTERM through the shutdown guard condition.
+#include "cdc/dds/participant.hpp"
+#include "cdc/dds/pubsub.hpp"
+#include "cdc/dds/shutdown.hpp"
+#include "cdc/dds/waitset.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <exception>
+
+int main(int argc, char** argv) {
+  cdc::dds::ShutdownSignal::install();
+  CLI::App app{"Test helper: a writer with MANUAL_BY_TOPIC liveliness, asserted periodically"};
+  std::string topic_name;
+  int lease_ms = 1000;
+  int period_ms = 100;
+  uint32_t domain = 0;
+  app.add_option("--topic", topic_name, "topic name")->required();
+  app.add_option("--lease-ms", lease_ms, "liveliness lease [ms]")->check(CLI::Range(10, 60000));
+  app.add_option("--period-ms", period_ms, "assertion period [ms]")->check(CLI::Range(1, 60000));
+  app.add_option("--domain", domain, "DDS domain id")->check(CLI::Range(0, 232));
+  CLI11_PARSE(app, argc, argv);
+
+  try {
+    cdc::dds::ParticipantOptions opts;
+    opts.domain_id = domain;
+    cdc::dds::Participant participant(opts);
+    cdc::dds::Topic<cdc_msg_RobotStatus> topic(participant, topic_name);
+    cdc::dds::Writer<cdc_msg_RobotStatus> writer(participant, topic,
+                                                 cdc::dds::qos::monitored_writer(std::chrono::milliseconds(lease_ms)));
+    cdc::dds::GuardCondition stop(participant);
+    cdc::dds::ShutdownSignal::add_guard(&stop);
+    cdc::dds::WaitSet ws(participant);
+    ws.attach(stop.handle(), 0);
+
+    cdc_msg_RobotStatus status{};
+    status.robot_id = 0;
+    status.is_central = true;
+    status.last_keyframe_id = -1;
+    std::printf("writer ready\n");
+    std::fflush(stdout);
+    while (!cdc::dds::ShutdownSignal::requested()) {
+      writer.write(status);  // a write asserts liveliness
+      ws.wait(std::chrono::milliseconds(period_ms));
+    }
+    cdc::dds::ShutdownSignal::remove_guard(&stop);
+    std::printf("writer stopped by signal %d\n", cdc::dds::ShutdownSignal::signal_number());
+    return 0;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "liveliness_writer: %s\n", e.what());
+    return 1;
+  }
+}
