@@ -1,0 +1,35 @@
+// g2o pose-graph files: 3D VERTEX_SE3:QUAT / EDGE_SE3:QUAT and 2D VERTEX_SE2 / EDGE_SE2 (lifted
+// into 3D). Multi-robot files key poses as GTSAM symbols (('a' + robot) << 56 | index); they are
+// read into cdc keys (robot << 56 | index).
+#pragma once
+
+#include "cdc/graph/pose_graph.hpp"
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace cdc::graph {
+
+class G2oError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Information given to the out-of-plane directions (z, roll, pitch) of a lifted 2D edge.
+inline constexpr double kPlanarLiftInformation = 1e6;
+
+// Reads a file; poses without a VERTEX line are initialised later (see chordal_initialise or
+// initialise_from_odometry). Throws G2oError naming file and line.
+PoseGraph read_g2o(const std::string& path);
+
+// Reads every *.g2o file of a folder into one graph (an edge listed in two files is kept once).
+PoseGraph read_g2o_folder(const std::string& folder);
+
+// Writes 3D (or SE2 lines when graph.dimension == 2). Keys are written as cdc keys.
+void write_g2o(const std::string& path, const PoseGraph& graph);
+
+// GTSAM symbol key ('a' + robot) << 56 | index -> cdc key; plain keys pass unchanged.
+Key from_g2o_key(uint64_t raw);
+
+}  // namespace cdc::graph

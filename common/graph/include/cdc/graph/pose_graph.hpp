@@ -1,0 +1,44 @@
+// The pose-graph model of cdc-slam: keyed SE(3) poses and prior / odometry / loop factors with
+// 6x6 information over (tx, ty, tz, rx, ry, rz).
+#pragma once
+
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <map>
+#include <vector>
+
+namespace cdc::graph {
+
+using Key = uint64_t;
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
+// Robot in the top byte, keyframe index below: (robot << 56) | index.
+constexpr Key make_key(uint32_t robot, uint64_t index) { return (uint64_t{robot} << 56) | index; }
+constexpr uint32_t robot_of(Key key) { return static_cast<uint32_t>(key >> 56); }
+constexpr uint64_t index_of(Key key) { return key & ((uint64_t{1} << 56) - 1); }
+
+enum class FactorKind { kPrior, kOdometry, kLoop };
+
+struct Factor {
+  FactorKind kind = FactorKind::kLoop;
+  Key a = 0;                                          // for a prior: the constrained pose
+  Key b = 0;                                          // for a prior: equal to a
+  Eigen::Isometry3d measurement = Eigen::Isometry3d::Identity();  // T_a_b, or T_world_a for a prior
+  Matrix6d information = Matrix6d::Identity();
+  bool robust = false;                                // robust loss (loop closures)
+  bool inter_robot() const { return robot_of(a) != robot_of(b); }
+};
+
+struct PoseGraph {
+  std::map<Key, Eigen::Isometry3d> poses;  // current estimate T_world_key
+  std::vector<Factor> factors;
+  int dimension = 3;                       // 2 for planar graphs lifted into 3D
+
+  void add_prior(Key key, const Eigen::Isometry3d& T_world_key, const Matrix6d& information);
+  // Between factor; kind is odometry when b follows a on the same robot, loop otherwise.
+  void add_between(Key a, Key b, const Eigen::Isometry3d& T_a_b, const Matrix6d& information);
+  size_t count(FactorKind kind) const;
+};
+
+}  // namespace cdc::graph

@@ -1,0 +1,43 @@
+// Non-linear least-squares solve of a pose graph with Ceres (LM, sparse normal Cholesky through
+// SuiteSparse, quaternion manifold).
+#pragma once
+
+#include "cdc/graph/pose_graph.hpp"
+
+#include <set>
+#include <string>
+
+namespace cdc::graph {
+
+enum class Objective {
+  kFullInformation,  // r = sqrt(Omega) (t_err, 2 vec(q_err)), as in Ceres' pose_graph_3d
+  kSeSync            // SE-Sync's isotropic chordal objective (see objective.hpp)
+};
+
+struct SolverOptions {
+  Objective objective = Objective::kFullInformation;
+  int max_iterations = 100;
+  double max_time_s = 1e6;
+  double function_tolerance = 1e-12;
+  double gradient_tolerance = 1e-12;
+  double parameter_tolerance = 1e-12;
+  double robust_loss_scale = 0.0;   // > 0: Cauchy loss with this scale on factors marked robust
+  int threads = 1;
+  bool full_report = false;         // fill SolveResult::report with Ceres' full report
+};
+
+struct SolveResult {
+  bool converged = false;
+  int iterations = 0;
+  double time_s = 0;
+  double initial_cost = 0;  // objective before, without the 1/2 factor
+  double final_cost = 0;    // objective after, without the 1/2 factor
+  std::string message;      // Ceres' termination message
+  std::string report;       // Ceres' full report when requested
+};
+
+// Optimises graph.poses in place. Keys in `fixed` stay constant; when the graph has no prior and
+// nothing is fixed, the first pose is held fixed (gauge).
+SolveResult solve(PoseGraph& graph, const SolverOptions& options, const std::set<Key>& fixed = {});
+
+}  // namespace cdc::graph

@@ -1,0 +1,279 @@
+#include "cdc/graph/g2o.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <set>
+#include <sstream>
+#include <utility>
+
+namespace cdc::graph {
+namespace {
+
+struct LineReader {
+  const std::string& path;
+  size_t line;
+  std::istringstream in;
+
+  [[noreturn]] void fail(const std::string& msg) const {
+    throw G2oError(path + ":" + std::to_string(line) + ": " + msg);
+  }
+  double number(const char* what) {
+    std::string tok;
+    if (!(in >> tok)) {
+      fail(std::string("missing ") + what);
+    }
+    double v = 0;
+    auto [p, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), v);
+    if (ec != std::errc() || p != tok.data() + tok.size() || !std::isfinite(v)) {
+      fail(std::string(what) + ": '" + tok + "' is not a finite number");
+    }
+    return v;
+  }
+  uint64_t id(const char* what) {
+    std::string tok;
+    if (!(in >> tok)) {
+      fail(std::string("missing ") + what);
+    }
+    uint64_t v = 0;
+    auto [p, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), v);
+    if (ec != std::errc() || p != tok.data() + tok.size()) {
+      fail(std::string(what) + ": '" + tok + "' is not a vertex id");
+    }
+    return v;
+  }
+  void expect_end() {
+    std::string extra;
+    if (in >> extra) {
+      fail("unexpected extra value '" + extra + "'");
+    }
+  }
+};
+
+Eigen::Quaterniond read_quat(LineReader& r) {
+  const double qx = r.number("qx");
+  const double qy = r.number("qy");
+  const double qz = r.number("qz");
+  const double qw = r.number("qw");
+  Eigen::Quaterniond q(qw, qx, qy, qz);
+  if (std::abs(q.norm() - 1.0) > 1e-2) {
+    r.fail("quaternion norm " + std::to_string(q.norm()) + " is not 1");
+  }
+  return q.normalized();
+}
+
+Eigen::Isometry3d planar(double x, double y, double theta) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = Eigen::Vector3d(x, y, 0);
+  T.linear() = Eigen::AngleAxisd(theta, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  return T;
+}
+
+void check_information(LineReader& r, const Matrix6d& info) {
+  Eigen::SelfAdjointEigenSolver<Matrix6d> es(info);
+  if (es.eigenvalues().minCoeff() <= 0.0) {
+    r.fail("information matrix is not positive definite (smallest eigenvalue " +
+           std::to_string(es.eigenvalues().minCoeff()) + ")");
+  }
+}
+
+void parse_into(const std::string& path, PoseGraph& graph, std::set<std::pair<Key, Key>>* seen_edges) {
+  std::ifstream file(path);
+  if (!file) {
+    throw G2oError(path + ": cannot open file");
+  }
+  std::string text;
+  size_t n = 0;
+  bool saw_2d = false, saw_3d = false;
+  while (std::getline(file, text)) {
+    ++n;
+    LineReader r{path, n, std::istringstream(text)};
+    std::string tag;
+    if (!(r.in >> tag) || tag[0] == '#') {
+      continue;
+    }
+    if (tag == "VERTEX_SE3:QUAT") {
+      const Key k = from_g2o_key(r.id("vertex id"));
+      const double x = r.number("x");  // one statement each: argument order is unspecified
+      const double y = r.number("y");
+      const double z = r.number("z");
+      const Eigen::Vector3d t(x, y, z);
+      const Eigen::Quaterniond q = read_quat(r);
+      r.expect_end();
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      T.linear() = q.toRotationMatrix();
+      T.translation() = t;
+      graph.poses[k] = T;
+      saw_3d = true;
+    } else if (tag == "VERTEX_SE2") {
+      const Key k = from_g2o_key(r.id("vertex id"));
+      const double x = r.number("x");
+      const double y = r.number("y");
+      const double th = r.number("theta");
+      r.expect_end();
+      graph.poses[k] = planar(x, y, th);
+      saw_2d = true;
+    } else if (tag == "EDGE_SE3:QUAT") {
+      const Key a = from_g2o_key(r.id("from id"));
+      const Key b = from_g2o_key(r.id("to id"));
+      const double tx = r.number("tx");
+      const double ty = r.number("ty");
+      const double tz = r.number("tz");
+      const Eigen::Vector3d t(tx, ty, tz);
+      const Eigen::Quaterniond q = read_quat(r);
+      Matrix6d info;
+      for (int i = 0; i < 6; ++i) {
+        for (int j = i; j < 6; ++j) {
+          info(i, j) = info(j, i) = r.number("information entry");
+        }
+      }
+      r.expect_end();
+      if (a == b) {
+        r.fail("edge from a vertex to itself");
+      }
+      check_information(r, info);
+      saw_3d = true;
+      if (seen_edges != nullptr && !seen_edges->insert({a, b}).second) {
+        continue;  // an inter-robot edge listed by both robots
+      }
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      T.linear() = q.toRotationMatrix();
+      T.translation() = t;
+      graph.add_between(a, b, T, info);
+    } else if (tag == "EDGE_SE2") {
+      const Key a = from_g2o_key(r.id("from id"));
+      const Key b = from_g2o_key(r.id("to id"));
+      const double dx = r.number("dx");
+      const double dy = r.number("dy");
+      const double dth = r.number("dtheta");
+      const double i11 = r.number("I11");
+      const double i12 = r.number("I12");
+      const double i13 = r.number("I13");
+      const double i22 = r.number("I22");
+      const double i23 = r.number("I23");
+      const double i33 = r.number("I33");
+      r.expect_end();
+      if (a == b) {
+        r.fail("edge from a vertex to itself");
+      }
+      // (x, y, theta) -> (tx, ty, tz, rx, ry, rz): theta is rz; z, roll, pitch held planar.
+      Matrix6d info = Matrix6d::Zero();
+      info(0, 0) = i11;
+      info(0, 1) = info(1, 0) = i12;
+      info(1, 1) = i22;
+      info(0, 5) = info(5, 0) = i13;
+      info(1, 5) = info(5, 1) = i23;
+      info(5, 5) = i33;
+      info(2, 2) = info(3, 3) = info(4, 4) = kPlanarLiftInformation;
+      check_information(r, info);
+      saw_2d = true;
+      if (seen_edges != nullptr && !seen_edges->insert({a, b}).second) {
+        continue;
+      }
+      graph.add_between(a, b, planar(dx, dy, dth), info);
+    } else if (tag == "FIX") {
+      continue;  // the solver fixes the gauge itself
+    } else {
+      r.fail("unsupported record '" + tag + "' (expected VERTEX_SE3:QUAT, EDGE_SE3:QUAT, VERTEX_SE2, EDGE_SE2)");
+    }
+  }
+  if (saw_2d && saw_3d) {
+    throw G2oError(path + ": mixes 2D and 3D records");
+  }
+  if (saw_2d) {
+    graph.dimension = 2;
+  }
+}
+
+}  // namespace
+
+Key from_g2o_key(uint64_t raw) {
+  const uint64_t top = raw >> 56;
+  if (top >= 'a' && top <= 'z') {
+    return make_key(static_cast<uint32_t>(top - 'a'), index_of(raw));
+  }
+  return raw;
+}
+
+PoseGraph read_g2o(const std::string& path) {
+  PoseGraph g;
+  parse_into(path, g, nullptr);
+  if (g.factors.empty() && g.poses.empty()) {
+    throw G2oError(path + ": no vertices or edges");
+  }
+  return g;
+}
+
+PoseGraph read_g2o_folder(const std::string& folder) {
+  namespace fs = std::filesystem;
+  if (!fs::is_directory(folder)) {
+    throw G2oError(folder + ": not a folder");
+  }
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(folder)) {
+    if (e.is_regular_file() && e.path().extension() == ".g2o") {
+      files.push_back(e.path());
+    }
+  }
+  if (files.empty()) {
+    throw G2oError(folder + ": no .g2o files");
+  }
+  std::sort(files.begin(), files.end());
+  PoseGraph g;
+  std::set<std::pair<Key, Key>> seen;
+  for (const auto& f : files) {
+    parse_into(f.string(), g, &seen);
+  }
+  return g;
+}
+
+void write_g2o(const std::string& path, const PoseGraph& graph) {
+  std::ofstream out(path);
+  if (!out) {
+    throw G2oError(path + ": cannot create file");
+  }
+  out << std::setprecision(17);
+  for (const auto& [k, T] : graph.poses) {
+    const Eigen::Quaterniond q(T.rotation());
+    const Eigen::Vector3d t = T.translation();
+    if (graph.dimension == 2) {
+      out << "VERTEX_SE2 " << k << ' ' << t.x() << ' ' << t.y() << ' ' << std::atan2(T(1, 0), T(0, 0)) << '\n';
+    } else {
+      out << "VERTEX_SE3:QUAT " << k << ' ' << t.x() << ' ' << t.y() << ' ' << t.z() << ' ' << q.x() << ' ' << q.y()
+          << ' ' << q.z() << ' ' << q.w() << '\n';
+    }
+  }
+  for (const Factor& f : graph.factors) {
+    if (f.kind == FactorKind::kPrior) {
+      continue;  // g2o has no prior record; the reader anchors the first pose
+    }
+    const Eigen::Isometry3d& T = f.measurement;
+    const Eigen::Vector3d t = T.translation();
+    const Matrix6d& I = f.information;
+    if (graph.dimension == 2) {
+      out << "EDGE_SE2 " << f.a << ' ' << f.b << ' ' << t.x() << ' ' << t.y() << ' ' << std::atan2(T(1, 0), T(0, 0))
+          << ' ' << I(0, 0) << ' ' << I(0, 1) << ' ' << I(0, 5) << ' ' << I(1, 1) << ' ' << I(1, 5) << ' ' << I(5, 5)
+          << '\n';
+    } else {
+      const Eigen::Quaterniond q(T.rotation());
+      out << "EDGE_SE3:QUAT " << f.a << ' ' << f.b << ' ' << t.x() << ' ' << t.y() << ' ' << t.z() << ' ' << q.x()
+          << ' ' << q.y() << ' ' << q.z() << ' ' << q.w();
+      for (int i = 0; i < 6; ++i) {
+        for (int j = i; j < 6; ++j) {
+          out << ' ' << I(i, j);
+        }
+      }
+      out << '\n';
+    }
+  }
+  if (!out) {
+    throw G2oError(path + ": write failed");
+  }
+}
+
+}  // namespace cdc::graph

@@ -1,0 +1,32 @@
+#include "cdc/graph/pose_graph.hpp"
+
+#include <algorithm>
+
+namespace cdc::graph {
+
+void PoseGraph::add_prior(Key key, const Eigen::Isometry3d& T_world_key, const Matrix6d& information) {
+  Factor f;
+  f.kind = FactorKind::kPrior;
+  f.a = f.b = key;
+  f.measurement = T_world_key;
+  f.information = information;
+  factors.push_back(f);
+}
+
+void PoseGraph::add_between(Key a, Key b, const Eigen::Isometry3d& T_a_b, const Matrix6d& information) {
+  Factor f;
+  const bool odometry = robot_of(a) == robot_of(b) && index_of(b) == index_of(a) + 1;
+  f.kind = odometry ? FactorKind::kOdometry : FactorKind::kLoop;
+  f.a = a;
+  f.b = b;
+  f.measurement = T_a_b;
+  f.information = information;
+  f.robust = !odometry;
+  factors.push_back(f);
+}
+
+size_t PoseGraph::count(FactorKind kind) const {
+  return static_cast<size_t>(std::count_if(factors.begin(), factors.end(), [&](const Factor& f) { return f.kind == kind; }));
+}
+
+}  // namespace cdc::graph

@@ -1,0 +1,91 @@
+// Ceres residuals of the pose graph (internal to cdc_graph). Poses are parameterised as
+// t[3] and q[4] (Eigen storage x, y, z, w, on ceres::EigenQuaternionManifold).
+#pragma once
+
+#include <ceres/ceres.h>
+#include <ceres/autodiff_manifold.h>
+#include <ceres/rotation.h>
+
+#include <Eigen/Geometry>
+
+namespace cdc::graph::detail {
+
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
+// Between factor, full information (the residual of Ceres' pose_graph_3d example):
+//   T_ab_est = inv(T_a) T_b,  r = sqrt(Omega) [ t_ab_est - t_ab ; 2 vec(q_ab^-1 q_ab_est) ].
+struct BetweenResidual {
+  BetweenResidual(const Eigen::Isometry3d& T_a_b, const Matrix6d& sqrt_information)
+      : t_ab(T_a_b.translation()), q_ab(T_a_b.rotation()), sqrt_info(sqrt_information) {}
+
+  template <typename T>
+  bool operator()(const T* ta, const T* qa, const T* tb, const T* qb, T* out) const {
+    Eigen::Map<const Eigen::Matrix<T, 3, 1>> p_a(ta), p_b(tb);
+    Eigen::Map<const Eigen::Quaternion<T>> q_a(qa), q_b(qb);
+    const Eigen::Quaternion<T> q_a_inv = q_a.conjugate();
+    const Eigen::Quaternion<T> q_ab_est = q_a_inv * q_b;
+    const Eigen::Matrix<T, 3, 1> p_ab_est = q_a_inv * (p_b - p_a);
+    const Eigen::Quaternion<T> dq = q_ab.template cast<T>().conjugate() * q_ab_est;
+    Eigen::Map<Eigen::Matrix<T, 6, 1>> r(out);
+    r.template head<3>() = p_ab_est - t_ab.template cast<T>();
+    r.template tail<3>() = T(2.0) * dq.vec();
+    r.applyOnTheLeft(sqrt_info.template cast<T>());
+    return true;
+  }
+
+  static ceres::CostFunction* create(const Eigen::Isometry3d& T_a_b, const Matrix6d& sqrt_information) {
+    return new ceres::AutoDiffCostFunction<BetweenResidual, 6, 3, 4, 3, 4>(new BetweenResidual(T_a_b, sqrt_information));
+  }
+
+  Eigen::Vector3d t_ab;
+  Eigen::Quaterniond q_ab;
+  Matrix6d sqrt_info;
+};
+
+// Manifold of rotations about z for planar graphs lifted into 3D: x (+) d = x * (0, 0, sin(d/2),
+// cos(d/2)) in Eigen's (x, y, z, w) storage.
+struct YawOnlyQuaternion {
+  template <typename T>
+  bool Plus(const T* x, const T* delta, T* out) const {
+    Eigen::Map<const Eigen::Quaternion<T>> q(x);
+    const Eigen::Quaternion<T> d(cos(delta[0] / T(2)), T(0), T(0), sin(delta[0] / T(2)));
+    Eigen::Map<Eigen::Quaternion<T>> result(out);
+    result = q * d;
+    return true;
+  }
+  template <typename T>
+  bool Minus(const T* y, const T* x, T* out) const {
+    Eigen::Map<const Eigen::Quaternion<T>> qy(y), qx(x);
+    const Eigen::Quaternion<T> d = qx.conjugate() * qy;
+    out[0] = T(2) * atan2(d.z(), d.w());
+    return true;
+  }
+};
+
+// Prior on one pose: r = sqrt(Omega) [ t - t_prior ; 2 vec(q_prior^-1 q) ].
+struct PriorResidual {
+  PriorResidual(const Eigen::Isometry3d& T_prior, const Matrix6d& sqrt_information)
+      : t0(T_prior.translation()), q0(T_prior.rotation()), sqrt_info(sqrt_information) {}
+
+  template <typename T>
+  bool operator()(const T* t, const T* q, T* out) const {
+    Eigen::Map<const Eigen::Matrix<T, 3, 1>> p(t);
+    Eigen::Map<const Eigen::Quaternion<T>> qq(q);
+    const Eigen::Quaternion<T> dq = q0.template cast<T>().conjugate() * qq;
+    Eigen::Map<Eigen::Matrix<T, 6, 1>> r(out);
+    r.template head<3>() = p - t0.template cast<T>();
+    r.template tail<3>() = T(2.0) * dq.vec();
+    r.applyOnTheLeft(sqrt_info.template cast<T>());
+    return true;
+  }
+
+  static ceres::CostFunction* create(const Eigen::Isometry3d& T_prior, const Matrix6d& sqrt_information) {
+    return new ceres::AutoDiffCostFunction<PriorResidual, 6, 3, 4>(new PriorResidual(T_prior, sqrt_information));
+  }
+
+  Eigen::Vector3d t0;
+  Eigen::Quaterniond q0;
+  Matrix6d sqrt_info;
+};
+
+}  // namespace cdc::graph::detail
