@@ -124,6 +124,7 @@ SolveResult solve(PoseGraph& graph, const SolverOptions& options, const std::set
   sopts.gradient_tolerance = options.gradient_tolerance;
   sopts.parameter_tolerance = options.parameter_tolerance;
   sopts.num_threads = options.threads;
+  sopts.initial_trust_region_radius = options.initial_trust_region_radius;
   sopts.logging_type = options.full_report ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
   ceres::Solver::Summary summary;
   ceres::Solve(sopts, &problem, &summary);
@@ -139,6 +140,9 @@ SolveResult solve(PoseGraph& graph, const SolverOptions& options, const std::set
   result.time_s = summary.total_time_in_seconds;
   result.final_cost = objective(graph, options.objective);
   result.message = summary.message;
+  for (const auto& it : summary.iterations) {
+    result.trace.emplace_back(it.cumulative_time_in_seconds, it.cost);
+  }
   if (options.full_report) {
     result.report = summary.FullReport();
   }

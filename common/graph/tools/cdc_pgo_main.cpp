@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
   bool json = false, sesync_weights = false, verbose = false;
   int max_iterations = 100;
   double tolerance = 1e-10;
+  double radius = 1e12;
   app.add_option("input", input, "a .g2o file, or a folder of per-robot .g2o files")->required()->check(CLI::ExistingPath);
   app.add_option("--init", init, "initial values: chordal (rotation relaxation), odometry (chained), file (VERTEX lines)")
       ->check(CLI::IsMember({"chordal", "odometry", "file"}))
@@ -29,6 +30,8 @@ int main(int argc, char** argv) {
   app.add_option("--max-iterations", max_iterations, "solver iteration limit")->check(CLI::PositiveNumber)
       ->capture_default_str();
   app.add_option("--tolerance", tolerance, "relative cost-change tolerance at which the solver stops")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--trust-region", radius, "initial trust-region radius (1 / initial LM damping)")
       ->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--out", out_path, "write the optimised graph to this .g2o file");
   app.add_flag("--json", json, "print one JSON line instead of text");
@@ -60,11 +63,15 @@ int main(int argc, char** argv) {
     cdc::graph::SolverOptions opts;
     opts.max_iterations = max_iterations;
     opts.function_tolerance = tolerance;
+    opts.initial_trust_region_radius = radius;
     opts.objective = sesync_weights ? cdc::graph::Objective::kSeSync : cdc::graph::Objective::kFullInformation;
     opts.full_report = verbose;
     const cdc::graph::SolveResult r = cdc::graph::solve(graph, opts);
     if (verbose) {
-      std::cerr << r.report << '\n';
+      std::cerr << r.report << "\niteration  time_s  objective\n";
+      for (size_t i = 0; i < r.trace.size(); ++i) {
+        std::fprintf(stderr, "%9zu  %6.3f  %.10g\n", i, r.trace[i].first, 2.0 * r.trace[i].second);
+      }
     }
     const double total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     const double full = cdc::graph::full_information_cost(graph);

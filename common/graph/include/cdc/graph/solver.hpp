@@ -6,6 +6,7 @@
 
 #include <set>
 #include <string>
+#include <vector>
 
 namespace cdc::graph {
 
@@ -23,6 +24,11 @@ struct SolverOptions {
   double parameter_tolerance = 1e-12;
   double robust_loss_scale = 0.0;   // > 0: Cauchy loss with this scale on factors marked robust
   int threads = 1;
+  // Levenberg-Marquardt's initial trust-region radius (1 / initial damping). Ceres' default is
+  // 1e4; from a good initial estimate (chordal) nearly Gauss-Newton steps converge in a few
+  // iterations (parking-garage: 2 instead of 18), and LM still shrinks the region after a
+  // rejected step.
+  double initial_trust_region_radius = 1e12;
   bool full_report = false;         // fill SolveResult::report with Ceres' full report
 };
 
@@ -34,6 +40,8 @@ struct SolveResult {
   double final_cost = 0;    // objective after, without the 1/2 factor
   std::string message;      // Ceres' termination message
   std::string report;       // Ceres' full report when requested
+  // Per iteration (0 = start): solver time since the start [s] and Ceres' cost (with its 1/2).
+  std::vector<std::pair<double, double>> trace;
 };
 
 // Optimises graph.poses in place. Keys in `fixed` stay constant; when the graph has no prior and

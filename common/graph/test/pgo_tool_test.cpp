@@ -1,0 +1,111 @@
+// cdc-pgo on the published pose-graph benchmarks: SE-Sync's objective reaches the published
+// optimum f* (../shared/data/pose-graphs/optimal-costs.csv).
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <sys/wait.h>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Published {
+  std::string dataset, file, fstar_text;
+  double fstar = 0;
+};
+
+std::string data_dir() {
+  const char* env = std::getenv("CDC_DATA_DIR");
+  return env != nullptr ? env : "../shared/data";
+}
+
+std::vector<Published> published_optima() {
+  std::vector<Published> out;
+  std::ifstream in(data_dir() + "/pose-graphs/optimal-costs.csv");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#' || line.rfind("dataset,", 0) == 0) {
+      continue;
+    }
+    std::stringstream s(line);
+    std::vector<std::string> cols;
+    std::string c;
+    while (std::getline(s, c, ',')) {
+      cols.push_back(c);
+    }
+    if (cols.size() == 6 && cols[2] != "-") {
+      out.push_back({cols[0], cols[2], cols[5], std::stod(cols[5])});
+    }
+  }
+  return out;
+}
+
+// Half a unit in the last published digit of "6.432e3" or "5.23482e1".
+double half_unit(const std::string& text) {
+  const auto e = text.find_first_of("eE");
+  const std::string mantissa = text.substr(0, e);
+  const int exponent = e == std::string::npos ? 0 : std::stoi(text.substr(e + 1));
+  const auto dot = mantissa.find('.');
+  const int decimals = dot == std::string::npos ? 0 : static_cast<int>(mantissa.size() - dot - 1);
+  return 0.5 * std::pow(10.0, exponent - decimals);
+}
+
+nlohmann::json run_pgo(const std::string& args) {
+  const std::string cmd = std::string(std::getenv("CDC_PGO_BIN")) + " " + args;
+  FILE* p = ::popen(cmd.c_str(), "r");
+  std::string out;
+  std::array<char, 4096> buf{};
+  size_t n = 0;
+  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) {
+    out.append(buf.data(), n);
+  }
+  const int status = ::pclose(p);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << cmd << "\n" << out;
+  return nlohmann::json::parse(out);
+}
+
+TEST(PgoTool, ReachesThePublishedOptimaWithSeSyncWeights) {
+  const auto optima = published_optima();
+  if (optima.empty()) {
+    GTEST_SKIP() << "reference data absent: CDC_DATA_DIR/pose-graphs/optimal-costs.csv not found";
+  }
+  ASSERT_NE(std::getenv("CDC_PGO_BIN"), nullptr);
+  for (const Published& p : optima) {
+    const std::string path = data_dir() + "/pose-graphs/" + p.file;
+    ASSERT_TRUE(fs::exists(path)) << path;
+    const auto j = run_pgo(path + " --sesync-weights --json");
+    const double f = j["sesync_objective"].get<double>();
+    // The published figure stands for [f* - h, f* + h]; f must be within 1e-4 of that interval.
+    const double h = half_unit(p.fstar_text);
+    const double lo = (p.fstar - h) * (1.0 - 1e-4);
+    const double hi = (p.fstar + h) * (1.0 + 1e-4);
+    std::printf("%-15s f = %.7g, published f* = %s, relative difference %.2e, %d iterations, %.3f s\n",
+                p.dataset.c_str(), f, p.fstar_text.c_str(), std::abs(f - p.fstar) / p.fstar,
+                j["iterations"].get<int>(), j["time_s"].get<double>());
+    EXPECT_GE(f, lo) << p.dataset;
+    EXPECT_LE(f, hi) << p.dataset;
+  }
+}
+
+TEST(PgoTool, WritesAGraphThatReadsBackAtTheSameCost) {
+  const std::string path = data_dir() + "/pose-graphs/3d/smallGrid3D.g2o";
+  if (!fs::exists(path)) {
+    GTEST_SKIP() << "reference data absent: " << path;
+  }
+  const std::string out = (fs::temp_directory_path() / ("cdc_pgo_out_" + std::to_string(::getpid()) + ".g2o")).string();
+  const auto first = run_pgo(path + " --json --out " + out);
+  const auto again = run_pgo(out + " --init file --json");
+  fs::remove(out);
+  EXPECT_NEAR(again["initial_cost"].get<double>(), first["cost"].get<double>(), 1e-6 * first["cost"].get<double>());
+  EXPECT_LE(again["iterations"].get<int>(), 1);
+}
+
+}  // namespace
