@@ -42,6 +42,40 @@ struct BetweenResidual {
   Matrix6d sqrt_info;
 };
 
+// Inter-robot factor seen by a robot that moves rigidly: its pose is C * T_mine (C the rigid
+// correction being solved for), the other robot's pose is fixed. mine_is_a tells which end of
+// the factor T_a_b is the robot's own.
+struct RigidCorrectionResidual {
+  RigidCorrectionResidual(const Eigen::Isometry3d& T_mine, const Eigen::Isometry3d& T_other,
+                          const Eigen::Isometry3d& T_a_b, const Matrix6d& sqrt_information, bool mine_is_a)
+      : mine(T_mine), other(T_other), between(T_a_b, sqrt_information), a_is_mine(mine_is_a) {}
+
+  template <typename T>
+  bool operator()(const T* ct, const T* cq, T* out) const {
+    Eigen::Map<const Eigen::Matrix<T, 3, 1>> c_t(ct);
+    Eigen::Map<const Eigen::Quaternion<T>> c_q(cq);
+    const Eigen::Quaternion<T> q_mine = c_q * Eigen::Quaterniond(mine.rotation()).template cast<T>();
+    const Eigen::Matrix<T, 3, 1> t_mine = c_q * mine.translation().template cast<T>() + c_t;
+    const Eigen::Quaterniond q_other_d(other.rotation());
+    const Eigen::Quaternion<T> q_other = q_other_d.template cast<T>();
+    const Eigen::Matrix<T, 3, 1> t_other = other.translation().template cast<T>();
+    if (a_is_mine) {
+      return between(t_mine.data(), q_mine.coeffs().data(), t_other.data(), q_other.coeffs().data(), out);
+    }
+    return between(t_other.data(), q_other.coeffs().data(), t_mine.data(), q_mine.coeffs().data(), out);
+  }
+
+  static ceres::CostFunction* create(const Eigen::Isometry3d& T_mine, const Eigen::Isometry3d& T_other,
+                                     const Eigen::Isometry3d& T_a_b, const Matrix6d& sqrt_information, bool mine_is_a) {
+    return new ceres::AutoDiffCostFunction<RigidCorrectionResidual, 6, 3, 4>(
+        new RigidCorrectionResidual(T_mine, T_other, T_a_b, sqrt_information, mine_is_a));
+  }
+
+  Eigen::Isometry3d mine, other;
+  BetweenResidual between;
+  bool a_is_mine;
+};
+
 // Manifold of rotations about z for planar graphs lifted into 3D: x (+) d = x * (0, 0, sin(d/2),
 // cos(d/2)) in Eigen's (x, y, z, w) storage.
 struct YawOnlyQuaternion {

@@ -108,4 +108,22 @@ TEST(PgoTool, WritesAGraphThatReadsBackAtTheSameCost) {
   EXPECT_LE(again["iterations"].get<int>(), 1);
 }
 
+TEST(PgoTool, DistributedReachesOnePercentOfCentralizedWithinThirtyRounds) {
+  const std::string base = data_dir() + "/multi-robot/dgs";
+  if (!fs::exists(base)) {
+    GTEST_SKIP() << "reference data absent: " << base;
+  }
+  for (int robots : {2, 4, 9}) {
+    const std::string folder = base + "/example_" + std::to_string(robots) + "robots";
+    const auto j = run_pgo(folder + " --distributed --json");
+    std::printf("%d robots: 1%% of centralized after %d rounds, %d rounds run, gap %.2e, ATE to centralized %.3f m\n",
+                robots, j["rounds_to_1pct"].get<int>(), j["rounds"].get<int>(), j["gap_to_centralized"].get<double>(),
+                j["ate_to_centralized_m"].get<double>());
+    EXPECT_GE(j["rounds_to_1pct"].get<int>(), 0) << robots << " robots never came within 1 %";
+    EXPECT_LE(j["rounds_to_1pct"].get<int>(), 30);
+    EXPECT_LT(j["gap_to_centralized"].get<double>(), 0.01);
+    EXPECT_EQ(j["bytes_per_robot"].size(), static_cast<size_t>(robots));
+  }
+}
+
 }  // namespace
