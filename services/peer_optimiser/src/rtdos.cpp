@@ -1,0 +1,57 @@
+#include "cdc/peer_optimiser/rtdos.hpp"
+
+namespace cdc::peer {
+
+const char* to_string(Mode mode) noexcept {
+  return mode == Mode::kCentralized ? "CENTRALIZED" : "DISTRIBUTED";
+}
+
+const char* to_string(SwitchReason reason) noexcept {
+  switch (reason) {
+    case SwitchReason::kStartup: return "startup";
+    case SwitchReason::kLivelinessLost: return "liveliness lost";
+    case SwitchReason::kOutOfRange: return "out of range";
+    case SwitchReason::kBackInRange: return "back in range";
+  }
+  return "?";
+}
+
+Rtdos::Rtdos(const RtdosParams& params, Nanos start) : params_(params), last_switch_(start) {}
+
+Transition Rtdos::switch_to(Mode to, SwitchReason why, const RtdosInput& in) {
+  Transition t{mode_, to, why, in.now, in.distance_m};
+  mode_ = to;
+  last_reason_ = why;
+  last_switch_ = in.now;
+  in_range_since_.reset();
+  ++transitions_;
+  return t;
+}
+
+std::optional<Transition> Rtdos::update(const RtdosInput& in) {
+  const bool masked = in.now - last_switch_ < params_.mask;
+  if (mode_ == Mode::kCentralized) {
+    if (!in.central_alive) {
+      return switch_to(Mode::kDistributed, SwitchReason::kLivelinessLost, in);  // never masked
+    }
+    if (!masked && in.distance_m && *in.distance_m > params_.range_m) {
+      return switch_to(Mode::kDistributed, SwitchReason::kOutOfRange, in);
+    }
+    return std::nullopt;
+  }
+  // DISTRIBUTED: return only after a continuous dwell in range with the central alive.
+  const bool in_range = !in.distance_m || *in.distance_m < params_.range_m - params_.hysteresis_m;
+  if (!in.central_alive || !in_range) {
+    in_range_since_.reset();
+    return std::nullopt;
+  }
+  if (!in_range_since_) {
+    in_range_since_ = in.now;
+  }
+  if (!masked && in.now - *in_range_since_ >= params_.dwell) {
+    return switch_to(Mode::kCentralized, SwitchReason::kBackInRange, in);
+  }
+  return std::nullopt;
+}
+
+}  // namespace cdc::peer

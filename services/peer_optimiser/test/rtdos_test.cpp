@@ -1,0 +1,139 @@
+#include "cdc/peer_optimiser/rtdos.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+namespace cdc::peer {
+namespace {
+
+using namespace std::chrono_literals;
+
+RtdosParams params() {
+  RtdosParams p;
+  p.range_m = 100;
+  p.hysteresis_m = 10;
+  p.dwell = 3s;
+  p.mask = 2s;
+  return p;
+}
+
+RtdosInput at(Nanos t, bool alive, std::optional<double> d) { return RtdosInput{t, alive, d}; }
+
+// Drives the machine to CENTRALIZED at time t0 + dwell (central alive, distance 50 m).
+Rtdos centralized_at_3s() {
+  Rtdos m(params());
+  EXPECT_FALSE(m.update(at(0s, true, 50.0)));
+  EXPECT_FALSE(m.update(at(2s, true, 50.0)));
+  auto t = m.update(at(3s, true, 50.0));
+  EXPECT_TRUE(t);
+  EXPECT_EQ(m.mode(), Mode::kCentralized);
+  return m;
+}
+
+TEST(Rtdos, StartsDistributedAndJoinsAfterTheDwell) {
+  Rtdos m(params());
+  EXPECT_EQ(m.mode(), Mode::kDistributed);
+  EXPECT_EQ(m.last_reason(), SwitchReason::kStartup);
+  EXPECT_FALSE(m.update(at(0s, false, std::nullopt)));   // no central yet
+  EXPECT_FALSE(m.update(at(1s, true, std::nullopt)));    // alive: the dwell starts now
+  EXPECT_FALSE(m.update(at(3900ms, true, std::nullopt)));
+  const auto t = m.update(at(4s, true, std::nullopt));
+  ASSERT_TRUE(t);
+  EXPECT_EQ(t->from, Mode::kDistributed);
+  EXPECT_EQ(t->to, Mode::kCentralized);
+  EXPECT_EQ(t->reason, SwitchReason::kBackInRange);
+  EXPECT_EQ(t->when, Nanos(4s));
+  EXPECT_EQ(m.transitions(), 1u);
+}
+
+TEST(Rtdos, LivelinessLossSwitchesAtOnceEvenInsideTheMask) {
+  Rtdos m = centralized_at_3s();
+  const auto t = m.update(at(3100ms, false, 50.0));  // 100 ms after the last switch: masked for range
+  ASSERT_TRUE(t);
+  EXPECT_EQ(t->to, Mode::kDistributed);
+  EXPECT_EQ(t->reason, SwitchReason::kLivelinessLost);
+}
+
+TEST(Rtdos, OutOfRangeSwitchesAtCr0) {
+  Rtdos m = centralized_at_3s();
+  EXPECT_FALSE(m.update(at(10s, true, 99.9)));
+  EXPECT_FALSE(m.update(at(11s, true, 100.0)));  // not beyond CR_0
+  const auto t = m.update(at(12s, true, 100.1));
+  ASSERT_TRUE(t);
+  EXPECT_EQ(t->reason, SwitchReason::kOutOfRange);
+  EXPECT_DOUBLE_EQ(*t->distance_m, 100.1);
+}
+
+TEST(Rtdos, MaskBlocksRangeTriggersRightAfterASwitch) {
+  Rtdos m = centralized_at_3s();                 // switched at 3 s; mask until 5 s
+  EXPECT_FALSE(m.update(at(4s, true, 150.0)));   // out of range but masked
+  const auto t = m.update(at(5s, true, 150.0));
+  ASSERT_TRUE(t);
+  EXPECT_EQ(t->reason, SwitchReason::kOutOfRange);
+}
+
+TEST(Rtdos, ReturnNeedsHysteresisAndAContinuousDwell) {
+  Rtdos m = centralized_at_3s();
+  ASSERT_TRUE(m.update(at(10s, true, 120.0)));   // out at 10 s
+  EXPECT_FALSE(m.update(at(20s, true, 95.0)));   // below CR_0 but not below CR_0 - hysteresis
+  EXPECT_FALSE(m.update(at(30s, true, 95.0)));
+  EXPECT_FALSE(m.update(at(31s, true, 89.0)));   // dwell starts
+  EXPECT_FALSE(m.update(at(33s, true, 89.0)));
+  EXPECT_FALSE(m.update(at(33500ms, true, 91.0)));  // left the inner zone: dwell restarts
+  EXPECT_FALSE(m.update(at(34s, true, 80.0)));
+  EXPECT_FALSE(m.update(at(36900ms, true, 80.0)));
+  const auto t = m.update(at(37s, true, 80.0));
+  ASSERT_TRUE(t);
+  EXPECT_EQ(t->reason, SwitchReason::kBackInRange);
+}
+
+TEST(Rtdos, ReturnNeedsALiveCentral) {
+  Rtdos m = centralized_at_3s();
+  ASSERT_TRUE(m.update(at(4s, false, 50.0)));     // lost
+  EXPECT_FALSE(m.update(at(10s, false, 50.0)));
+  EXPECT_FALSE(m.update(at(20s, false, 50.0)));   // in range but no central
+  EXPECT_FALSE(m.update(at(21s, true, 50.0)));    // alive again: dwell starts
+  EXPECT_FALSE(m.update(at(23s, true, 50.0)));
+  EXPECT_FALSE(m.update(at(23500ms, false, 50.0)));  // lost during the dwell: restart
+  EXPECT_FALSE(m.update(at(24s, true, 50.0)));
+  EXPECT_FALSE(m.update(at(26s, true, 50.0)));
+  const auto t = m.update(at(27s, true, 50.0));
+  ASSERT_TRUE(t);
+  EXPECT_EQ(t->reason, SwitchReason::kBackInRange);
+}
+
+TEST(Rtdos, NoFlappingOnADistanceOscillatingAroundCr0) {
+  Rtdos m = centralized_at_3s();
+  std::vector<Transition> seen;
+  // 60 s of distance 100 +- 4 m, 10 Hz: it crosses CR_0 every half period.
+  for (int i = 0; i < 600; ++i) {
+    const Nanos t = 10s + Nanos(i * 100ms);
+    const double d = 100.0 + 4.0 * std::sin(0.5 * i);
+    if (auto tr = m.update(at(t, true, d))) {
+      seen.push_back(*tr);
+    }
+  }
+  ASSERT_EQ(seen.size(), 1u);  // out once, never back: it never went below CR_0 - hysteresis
+  EXPECT_EQ(seen[0].reason, SwitchReason::kOutOfRange);
+  EXPECT_EQ(m.mode(), Mode::kDistributed);
+}
+
+TEST(Rtdos, LeavingAndReturningRepeatedlyCountsEveryTransition) {
+  Rtdos m = centralized_at_3s();
+  int switches = 0;
+  for (int cycle = 0; cycle < 3; ++cycle) {
+    const Nanos base = Nanos(std::chrono::seconds(10 + 30 * cycle));
+    switches += m.update(at(base, true, 150.0)) ? 1 : 0;        // out
+    for (int s = 1; s <= 10; ++s) {
+      switches += m.update(at(base + Nanos(std::chrono::seconds(s)), true, 50.0)) ? 1 : 0;  // back after dwell
+    }
+  }
+  EXPECT_EQ(switches, 6);
+  EXPECT_EQ(m.transitions(), 7u);  // plus the initial join
+  EXPECT_EQ(m.mode(), Mode::kCentralized);
+}
+
+}  // namespace
+}  // namespace cdc::peer
