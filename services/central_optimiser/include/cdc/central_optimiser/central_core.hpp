@@ -1,0 +1,148 @@
+// The central optimiser's synchronous core: one global pose graph for every robot (paper
+// eq. 3-6: a prior on robot 0's first keyframe only, odometry, intra- and inter-robot loops).
+// No DDS, no threads: the node feeds it validated inputs and publishes what it returns.
+#pragma once
+
+#include "cdc/graph/pose_graph.hpp"
+#include "cdc/graph/solver.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+namespace cdc::central {
+
+using graph::Key;
+using graph::Matrix6d;
+
+struct KeyframeIn {
+  uint32_t robot = 0;
+  uint32_t incarnation = 0;
+  uint32_t id = 0;
+  int64_t stamp_ns = 0;
+  Eigen::Isometry3d T_odom_keyframe = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_prev_keyframe = Eigen::Isometry3d::Identity();  // from id - 1
+  Matrix6d information = Matrix6d::Identity();
+};
+
+struct LoopIn {
+  uint32_t sender = 0;
+  uint32_t sender_incarnation = 0;
+  uint32_t seq = 0;
+  uint32_t robot_a = 0, keyframe_a = 0, robot_b = 0, keyframe_b = 0;
+  bool withdrawn = false;
+  Eigen::Isometry3d T_a_b = Eigen::Isometry3d::Identity();
+  Matrix6d information = Matrix6d::Identity();
+};
+
+enum class Outcome { kAccepted, kDuplicate, kRejected };
+
+struct AddResult {
+  Outcome outcome = Outcome::kAccepted;
+  std::string reason;  // for rejections
+};
+
+struct CentralConfig {
+  uint32_t robot_count = 3;
+  int max_iterations_per_update = 10;
+  double max_time_per_update_s = 0.05;
+  double loop_robust_scale = 1.0;  // Cauchy scale on loop factors (0: none)
+  size_t max_pending_loops = 100'000;
+};
+
+struct RobotEstimate {
+  uint32_t robot = 0;
+  uint32_t incarnation = 0;
+  Eigen::Isometry3d T_world_robot = Eigen::Isometry3d::Identity();
+  std::vector<std::pair<uint32_t, Eigen::Isometry3d>> poses;  // keyframe id -> T_world_keyframe
+};
+
+struct Acknowledgement {
+  uint32_t robot = 0;
+  uint32_t incarnation = 0;
+  int64_t highest_contiguous_keyframe = -1;
+  int64_t highest_contiguous_loop_seq = -1;  // loops sent by this robot incarnation
+};
+
+struct UpdateStats {
+  bool solved = false;
+  int iterations = 0;
+  double time_s = 0;
+  double cost = 0;  // full-information cost after the update
+  size_t poses = 0;
+  size_t factors = 0;
+};
+
+struct Counters {
+  uint64_t keyframes_accepted = 0, keyframes_duplicate = 0, keyframes_rejected = 0;
+  uint64_t loops_accepted = 0, loops_duplicate = 0, loops_rejected = 0, loops_withdrawn = 0;
+};
+
+class CentralCore {
+ public:
+  explicit CentralCore(const CentralConfig& config);
+
+  AddResult add_keyframe(const KeyframeIn& kf);
+  AddResult add_loop(const LoopIn& loop);
+  // A robot's own estimate of T_world_robot (from its distributed back-end, on rejoin): used as the
+  // initial placement of its keyframes until loops place it.
+  void add_world_hint(uint32_t robot, uint32_t incarnation, const Eigen::Isometry3d& T_world_robot);
+
+  // Re-optimises the anchored part of the graph, warm-started, within the configured budget.
+  UpdateStats optimise();
+  // Solves to convergence (no budget), for final results.
+  UpdateStats optimise_fully();
+
+  // Robots placed in the world, with their current incarnation's keyframes.
+  std::vector<RobotEstimate> estimates() const;
+  std::vector<Acknowledgement> acknowledgements() const;
+  // The anchored graph (for writing g2o and comparing optima).
+  const graph::PoseGraph& graph() const noexcept { return graph_; }
+  uint64_t version() const noexcept { return version_; }
+  const Counters& counters() const noexcept { return counters_; }
+  // Keyframes held per robot incarnation (in the graph or waiting for a predecessor).
+  size_t keyframes_held(uint32_t robot, uint32_t incarnation) const;
+  bool dirty() const noexcept { return dirty_; }
+
+ private:
+  struct Session {
+    uint32_t robot = 0;
+    uint32_t incarnation = 0;
+    uint32_t index = 0;  // session number of this robot: key = (robot, index << 32 | id)
+    std::map<uint32_t, KeyframeIn> keyframes;
+    std::set<uint32_t> in_graph;
+    bool placed = false;
+    std::optional<Eigen::Isometry3d> hint;  // T_world_robot from the robot
+    Eigen::Isometry3d T_world_odom = Eigen::Isometry3d::Identity();  // once placed
+    std::set<uint32_t> loop_seqs;  // loops sent by this session
+  };
+  struct StoredLoop {
+    LoopIn in;
+    bool in_graph = false;
+    size_t factor_index = 0;
+  };
+
+  Session* session(uint32_t robot, uint32_t incarnation, bool create);
+  Session* current_session(uint32_t robot);
+  Key key(const Session& s, uint32_t id) const { return graph::make_key(s.robot, (uint64_t{s.index} << 32) | id); }
+  void insert_ready_keyframes(Session& s);
+  void try_insert_loops();
+  void place(Session& s, const Eigen::Isometry3d& T_world_odom);
+  UpdateStats solve_with(const graph::SolverOptions& options);
+
+  CentralConfig config_;
+  std::map<uint32_t, std::vector<Session>> sessions_;  // per robot, by arrival of incarnations
+  std::vector<StoredLoop> loops_;
+  std::set<std::tuple<uint32_t, uint32_t, uint32_t>> loop_ids_;  // (sender, incarnation, seq)
+  graph::PoseGraph graph_;
+  uint64_t version_ = 0;
+  bool dirty_ = false;
+  Counters counters_;
+};
+
+}  // namespace cdc::central

@@ -1,0 +1,288 @@
+#include "cdc/central_optimiser/central_core.hpp"
+
+#include <algorithm>
+#include <chrono>
+
+namespace cdc::central {
+namespace {
+
+constexpr double kAnchorInformation = 1e8;
+
+int64_t highest_contiguous(const std::set<uint32_t>& ids) {
+  int64_t h = -1;
+  for (uint32_t id : ids) {
+    if (static_cast<int64_t>(id) != h + 1) {
+      break;
+    }
+    h = id;
+  }
+  return h;
+}
+
+}  // namespace
+
+CentralCore::CentralCore(const CentralConfig& config) : config_(config) {}
+
+CentralCore::Session* CentralCore::session(uint32_t robot, uint32_t incarnation, bool create) {
+  auto& list = sessions_[robot];
+  for (Session& s : list) {
+    if (s.incarnation == incarnation) {
+      return &s;
+    }
+  }
+  if (!create) {
+    return nullptr;
+  }
+  Session s;
+  s.robot = robot;
+  s.incarnation = incarnation;
+  s.index = static_cast<uint32_t>(list.size());
+  list.push_back(std::move(s));
+  return &list.back();
+}
+
+CentralCore::Session* CentralCore::current_session(uint32_t robot) {
+  auto it = sessions_.find(robot);
+  if (it == sessions_.end() || it->second.empty()) {
+    return nullptr;
+  }
+  return &it->second.back();
+}
+
+AddResult CentralCore::add_keyframe(const KeyframeIn& kf) {
+  if (kf.robot >= config_.robot_count) {
+    ++counters_.keyframes_rejected;
+    return {Outcome::kRejected, "unknown robot id " + std::to_string(kf.robot)};
+  }
+  Session* s = session(kf.robot, kf.incarnation, true);
+  if (s->keyframes.count(kf.id) != 0) {
+    ++counters_.keyframes_duplicate;
+    return {Outcome::kDuplicate, {}};
+  }
+  s->keyframes.emplace(kf.id, kf);
+  ++counters_.keyframes_accepted;
+  // The world frame is robot 0's first odometry frame: its first keyframe anchors the graph.
+  const bool anchor = kf.robot == 0 && s->index == 0 && kf.id == 0;
+  if (anchor && !s->placed) {
+    graph_.add_prior(key(*s, 0), kf.T_odom_keyframe, Matrix6d::Identity() * kAnchorInformation);
+    graph_.poses[key(*s, 0)] = kf.T_odom_keyframe;
+    s->in_graph.insert(0);
+    s->placed = true;
+    s->T_world_odom = Eigen::Isometry3d::Identity();
+  }
+  if (s->placed) {
+    insert_ready_keyframes(*s);
+  }
+  try_insert_loops();
+  dirty_ = true;
+  return {};
+}
+
+void CentralCore::insert_ready_keyframes(Session& s) {
+  for (auto& [id, kf] : s.keyframes) {
+    if (s.in_graph.count(id) != 0) {
+      continue;
+    }
+    if (id == 0) {
+      graph_.poses[key(s, 0)] = s.T_world_odom * kf.T_odom_keyframe;
+      s.in_graph.insert(0);
+      continue;
+    }
+    if (s.in_graph.count(id - 1) == 0) {
+      continue;  // waits for its predecessor (ids arrive in order, so later ones wait too)
+    }
+    const Key prev = key(s, id - 1), cur = key(s, id);
+    graph_.poses[cur] = graph_.poses.at(prev) * kf.T_prev_keyframe;  // chained from the optimised predecessor
+    graph_.add_between(prev, cur, kf.T_prev_keyframe, kf.information);
+    s.in_graph.insert(id);
+  }
+}
+
+void CentralCore::place(Session& s, const Eigen::Isometry3d& T_world_odom) {
+  s.placed = true;
+  s.T_world_odom = T_world_odom;
+  insert_ready_keyframes(s);
+}
+
+void CentralCore::try_insert_loops() {
+  bool progress = true;
+  while (progress) {
+    progress = false;
+    for (StoredLoop& l : loops_) {
+      if (l.in_graph || l.in.withdrawn) {
+        continue;
+      }
+      Session* sa = current_session(l.in.robot_a);
+      Session* sb = current_session(l.in.robot_b);
+      if (sa == nullptr || sb == nullptr || sa->keyframes.count(l.in.keyframe_a) == 0 ||
+          sb->keyframes.count(l.in.keyframe_b) == 0) {
+        continue;
+      }
+      // Place a session the first time a loop ties it to the anchored graph.
+      if (sa->placed && !sb->placed && sa->in_graph.count(l.in.keyframe_a) != 0) {
+        const Eigen::Isometry3d T_world_b = graph_.poses.at(key(*sa, l.in.keyframe_a)) * l.in.T_a_b;
+        place(*sb, sb->hint.value_or(T_world_b * sb->keyframes.at(l.in.keyframe_b).T_odom_keyframe.inverse()));
+        progress = true;
+      } else if (sb->placed && !sa->placed && sb->in_graph.count(l.in.keyframe_b) != 0) {
+        const Eigen::Isometry3d T_world_a = graph_.poses.at(key(*sb, l.in.keyframe_b)) * l.in.T_a_b.inverse();
+        place(*sa, sa->hint.value_or(T_world_a * sa->keyframes.at(l.in.keyframe_a).T_odom_keyframe.inverse()));
+        progress = true;
+      }
+      if (sa->in_graph.count(l.in.keyframe_a) != 0 && sb->in_graph.count(l.in.keyframe_b) != 0) {
+        graph_.add_between(key(*sa, l.in.keyframe_a), key(*sb, l.in.keyframe_b), l.in.T_a_b, l.in.information);
+        l.in_graph = true;
+        l.factor_index = graph_.factors.size() - 1;
+        progress = true;
+        dirty_ = true;
+      }
+    }
+  }
+}
+
+AddResult CentralCore::add_loop(const LoopIn& loop) {
+  for (uint32_t r : {loop.sender, loop.robot_a, loop.robot_b}) {
+    if (r >= config_.robot_count) {
+      ++counters_.loops_rejected;
+      return {Outcome::kRejected, "unknown robot id " + std::to_string(r)};
+    }
+  }
+  if (loop.withdrawn) {
+    for (StoredLoop& l : loops_) {
+      if (!l.in.withdrawn && l.in.robot_a == loop.robot_a && l.in.keyframe_a == loop.keyframe_a &&
+          l.in.robot_b == loop.robot_b && l.in.keyframe_b == loop.keyframe_b) {
+        if (l.in_graph) {
+          graph_.factors.erase(graph_.factors.begin() + static_cast<std::ptrdiff_t>(l.factor_index));
+          for (StoredLoop& other : loops_) {
+            if (other.in_graph && other.factor_index > l.factor_index) {
+              --other.factor_index;
+            }
+          }
+        }
+        l.in.withdrawn = true;
+        l.in_graph = false;
+        ++counters_.loops_withdrawn;
+        dirty_ = true;
+      }
+    }
+    session(loop.sender, loop.sender_incarnation, true)->loop_seqs.insert(loop.seq);
+    return {};
+  }
+  if (!loop_ids_.insert({loop.sender, loop.sender_incarnation, loop.seq}).second) {
+    ++counters_.loops_duplicate;
+    return {Outcome::kDuplicate, {}};
+  }
+  if (loops_.size() >= config_.max_pending_loops) {
+    ++counters_.loops_rejected;
+    return {Outcome::kRejected, "loop store full (" + std::to_string(config_.max_pending_loops) + ")"};
+  }
+  session(loop.sender, loop.sender_incarnation, true)->loop_seqs.insert(loop.seq);
+  loops_.push_back({loop, false, 0});
+  ++counters_.loops_accepted;
+  try_insert_loops();
+  dirty_ = true;
+  return {};
+}
+
+void CentralCore::add_world_hint(uint32_t robot, uint32_t incarnation, const Eigen::Isometry3d& T_world_robot) {
+  if (robot >= config_.robot_count) {
+    return;
+  }
+  session(robot, incarnation, true)->hint = T_world_robot;
+}
+
+UpdateStats CentralCore::solve_with(const graph::SolverOptions& options) {
+  UpdateStats st;
+  st.poses = graph_.poses.size();
+  st.factors = graph_.factors.size();
+  if (graph_.factors.empty()) {
+    return st;
+  }
+  const graph::SolveResult r = graph::solve(graph_, options);
+  st.solved = true;
+  st.iterations = r.iterations;
+  st.time_s = r.time_s;
+  st.cost = r.final_cost;
+  ++version_;
+  dirty_ = false;
+  return st;
+}
+
+UpdateStats CentralCore::optimise() {
+  graph::SolverOptions o;
+  o.max_iterations = config_.max_iterations_per_update;
+  o.max_time_s = config_.max_time_per_update_s;
+  o.function_tolerance = 1e-8;
+  o.robust_loss_scale = config_.loop_robust_scale;
+  return solve_with(o);
+}
+
+UpdateStats CentralCore::optimise_fully() {
+  graph::SolverOptions o;
+  o.max_iterations = 200;
+  o.function_tolerance = 1e-12;
+  o.robust_loss_scale = config_.loop_robust_scale;
+  return solve_with(o);
+}
+
+std::vector<RobotEstimate> CentralCore::estimates() const {
+  std::vector<RobotEstimate> out;
+  for (const auto& [robot, list] : sessions_) {
+    if (list.empty()) {
+      continue;
+    }
+    const Session& s = list.back();
+    RobotEstimate e;
+    e.robot = robot;
+    e.incarnation = s.incarnation;
+    if (s.placed && !s.in_graph.empty()) {
+      for (uint32_t id : s.in_graph) {
+        e.poses.emplace_back(id, graph_.poses.at(key(s, id)));
+      }
+      const uint32_t last = *s.in_graph.rbegin();
+      e.T_world_robot = e.poses.back().second * s.keyframes.at(last).T_odom_keyframe.inverse();
+    } else if (s.hint) {
+      e.T_world_robot = *s.hint;
+      for (const auto& [id, kf] : s.keyframes) {
+        e.poses.emplace_back(id, *s.hint * kf.T_odom_keyframe);
+      }
+    } else {
+      continue;  // not in the world yet
+    }
+    out.push_back(std::move(e));
+  }
+  return out;
+}
+
+std::vector<Acknowledgement> CentralCore::acknowledgements() const {
+  std::vector<Acknowledgement> out;
+  for (const auto& [robot, list] : sessions_) {
+    for (const Session& s : list) {
+      Acknowledgement a;
+      a.robot = robot;
+      a.incarnation = s.incarnation;
+      std::set<uint32_t> ids;
+      for (const auto& [id, _] : s.keyframes) {
+        ids.insert(id);
+      }
+      a.highest_contiguous_keyframe = highest_contiguous(ids);
+      a.highest_contiguous_loop_seq = highest_contiguous(s.loop_seqs);
+      out.push_back(a);
+    }
+  }
+  return out;
+}
+
+size_t CentralCore::keyframes_held(uint32_t robot, uint32_t incarnation) const {
+  auto it = sessions_.find(robot);
+  if (it == sessions_.end()) {
+    return 0;
+  }
+  for (const Session& s : it->second) {
+    if (s.incarnation == incarnation) {
+      return s.keyframes.size();
+    }
+  }
+  return 0;
+}
+
+}  // namespace cdc::central

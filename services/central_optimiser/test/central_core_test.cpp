@@ -1,0 +1,215 @@
+#include "cdc/central_optimiser/central_core.hpp"
+#include "cdc/graph/g2o.hpp"
+#include "cdc/graph/objective.hpp"
+#include "cdc/graph/solver.hpp"
+#include "swarm_stream.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <random>
+#include <unistd.h>
+
+namespace cdc::central {
+namespace {
+
+KeyframeIn to_in(const test::StreamKeyframe& k, uint32_t incarnation = 7) {
+  KeyframeIn in;
+  in.robot = k.robot;
+  in.incarnation = incarnation;
+  in.id = k.id;
+  in.T_odom_keyframe = k.T_odom_keyframe;
+  in.T_prev_keyframe = k.T_prev_keyframe;
+  in.information = k.information;
+  return in;
+}
+
+LoopIn to_in(const test::StreamLoop& l, uint32_t incarnation = 7) {
+  LoopIn in;
+  in.sender = l.sender;
+  in.sender_incarnation = incarnation;
+  in.seq = l.seq;
+  in.robot_a = l.robot_a;
+  in.keyframe_a = l.keyframe_a;
+  in.robot_b = l.robot_b;
+  in.keyframe_b = l.keyframe_b;
+  in.T_a_b = l.T_a_b;
+  in.information = l.information;
+  return in;
+}
+
+// Feeds the stream in production order: at each step every robot's keyframe, then its loops.
+void feed_in_order(CentralCore& core, const test::SwarmStream& s) {
+  size_t next_loop = 0;
+  const size_t n = s.keyframes[0].size();
+  for (size_t k = 0; k < n; ++k) {
+    for (const auto& robot : s.keyframes) {
+      EXPECT_EQ(core.add_keyframe(to_in(robot[k])).outcome, Outcome::kAccepted);
+    }
+    while (next_loop < s.loops.size() && s.loops[next_loop].step <= k) {
+      EXPECT_EQ(core.add_loop(to_in(s.loops[next_loop++])).outcome, Outcome::kAccepted);
+    }
+  }
+}
+
+double max_position_error(const CentralCore& core, const test::SwarmStream& s) {
+  double worst = 0;
+  for (const RobotEstimate& e : core.estimates()) {
+    for (const auto& [id, T] : e.poses) {
+      worst = std::max(worst, (T.translation() - s.keyframes[e.robot][id].T_world_truth.translation()).norm());
+    }
+  }
+  return worst;
+}
+
+test::SwarmStreamOptions small() {
+  test::SwarmStreamOptions o;
+  o.keyframes_per_robot = 250;  // more than one lap (400 m) at 2 m spacing
+  return o;
+}
+
+TEST(CentralCore, PlacesEveryRobotThroughInterRobotLoopsAndTracksTheTruth) {
+  const auto s = test::make_swarm_stream(small());
+  CentralCore core(CentralConfig{});
+  feed_in_order(core, s);
+  const UpdateStats st = core.optimise_fully();
+  ASSERT_TRUE(st.solved);
+  const auto est = core.estimates();
+  ASSERT_EQ(est.size(), 3u);
+  for (const auto& e : est) {
+    EXPECT_EQ(e.poses.size(), 250u) << "robot " << e.robot;
+    // T_world_robot maps the robot's current odometry into W: it takes the latest odometry pose
+    // onto the robot's true current pose (up to the estimation error).
+    const auto& last = s.keyframes[e.robot].back();
+    EXPECT_LT(((e.T_world_robot * last.T_odom_keyframe).translation() - last.T_world_truth.translation()).norm(), 1.0)
+        << "robot " << e.robot;
+  }
+  EXPECT_LT(max_position_error(core, s), 1.0);
+  EXPECT_EQ(core.counters().keyframes_accepted, 750u);
+  EXPECT_EQ(core.counters().loops_accepted, s.loops.size());
+}
+
+TEST(CentralCore, DuplicatesAndOutOfOrderResendsReachTheGraphExactlyOnce) {
+  const auto s = test::make_swarm_stream(small());
+  CentralCore reference(CentralConfig{});
+  feed_in_order(reference, s);
+  reference.optimise_fully();
+
+  // Same data, delivered like a rejoin: robot 2's keyframes in reverse order after everything else,
+  // every loop twice, and loops before the keyframes they name.
+  CentralCore core(CentralConfig{});
+  for (const auto& l : s.loops) {
+    core.add_loop(to_in(l));
+  }
+  for (uint32_t r = 0; r < 2; ++r) {
+    for (const auto& kf : s.keyframes[r]) {
+      core.add_keyframe(to_in(kf));
+    }
+  }
+  for (auto it = s.keyframes[2].rbegin(); it != s.keyframes[2].rend(); ++it) {
+    core.add_keyframe(to_in(*it));
+  }
+  for (const auto& l : s.loops) {
+    EXPECT_EQ(core.add_loop(to_in(l)).outcome, Outcome::kDuplicate);
+  }
+  for (const auto& kf : s.keyframes[1]) {
+    EXPECT_EQ(core.add_keyframe(to_in(kf)).outcome, Outcome::kDuplicate);
+  }
+  core.optimise_fully();
+  EXPECT_EQ(core.counters().keyframes_duplicate, 250u);
+  EXPECT_EQ(core.counters().loops_duplicate, s.loops.size());
+  EXPECT_EQ(core.graph().poses.size(), reference.graph().poses.size());
+  EXPECT_EQ(core.graph().factors.size(), reference.graph().factors.size());
+  const double a = graph::full_information_cost(core.graph());
+  const double b = graph::full_information_cost(reference.graph());
+  EXPECT_NEAR(a, b, 1e-6 * b);
+  for (const auto& ack : core.acknowledgements()) {
+    EXPECT_EQ(ack.highest_contiguous_keyframe, 249);
+  }
+}
+
+TEST(CentralCore, AcknowledgesOnlyContiguousKeyframesAndLoops) {
+  const auto s = test::make_swarm_stream(small());
+  CentralCore core(CentralConfig{});
+  for (uint32_t id : {0u, 1u, 2u, 4u, 5u}) {
+    core.add_keyframe(to_in(s.keyframes[1][id]));
+  }
+  auto acks = core.acknowledgements();
+  ASSERT_EQ(acks.size(), 1u);
+  EXPECT_EQ(acks[0].robot, 1u);
+  EXPECT_EQ(acks[0].incarnation, 7u);
+  EXPECT_EQ(acks[0].highest_contiguous_keyframe, 2);
+  core.add_keyframe(to_in(s.keyframes[1][3]));
+  EXPECT_EQ(core.acknowledgements()[0].highest_contiguous_keyframe, 5);
+  LoopIn l = to_in(s.loops[0]);
+  l.sender = 1;
+  l.seq = 1;  // seq 0 missing
+  core.add_loop(l);
+  EXPECT_EQ(core.acknowledgements()[0].highest_contiguous_loop_seq, -1);
+  l.seq = 0;
+  core.add_loop(l);
+  EXPECT_EQ(core.acknowledgements()[0].highest_contiguous_loop_seq, 1);
+}
+
+TEST(CentralCore, ANewIncarnationIsANewSessionAndOldOnesAreKept) {
+  const auto s = test::make_swarm_stream(small());
+  CentralCore core(CentralConfig{});
+  feed_in_order(core, s);
+  KeyframeIn restarted = to_in(s.keyframes[1][0], 8);  // robot 1's process restarted
+  EXPECT_EQ(core.add_keyframe(restarted).outcome, Outcome::kAccepted);
+  EXPECT_EQ(core.keyframes_held(1, 7), 250u);
+  EXPECT_EQ(core.keyframes_held(1, 8), 1u);
+  EXPECT_EQ(core.acknowledgements().size(), 4u);
+}
+
+TEST(CentralCore, RejectsUnknownRobotsAndWaitsForUnknownKeyframes) {
+  CentralConfig c;
+  c.robot_count = 2;
+  CentralCore core(c);
+  KeyframeIn kf;
+  kf.robot = 2;
+  const AddResult r = core.add_keyframe(kf);
+  EXPECT_EQ(r.outcome, Outcome::kRejected);
+  EXPECT_EQ(r.reason, "unknown robot id 2");
+  LoopIn l;
+  l.robot_a = 0;
+  l.keyframe_a = 3;
+  l.robot_b = 5;
+  EXPECT_EQ(core.add_loop(l).outcome, Outcome::kRejected);
+  l.robot_b = 1;
+  l.keyframe_b = 9;  // neither keyframe known yet: held, not lost
+  EXPECT_EQ(core.add_loop(l).outcome, Outcome::kAccepted);
+  EXPECT_EQ(core.graph().factors.size(), 0u);
+  EXPECT_EQ(core.counters().keyframes_rejected, 1u);
+  EXPECT_EQ(core.counters().loops_rejected, 1u);
+}
+
+TEST(CentralCore, AWithdrawnLoopLeavesTheGraph) {
+  const auto s = test::make_swarm_stream(small());
+  CentralCore core(CentralConfig{});
+  feed_in_order(core, s);
+  const size_t before = core.graph().factors.size();
+  LoopIn w = to_in(s.loops[5]);
+  w.withdrawn = true;
+  w.seq = 10'000;
+  core.add_loop(w);
+  EXPECT_EQ(core.graph().factors.size(), before - 1);
+  EXPECT_EQ(core.counters().loops_withdrawn, 1u);
+}
+
+TEST(CentralCore, AWorldHintPlacesARobotBeforeAnyLoop) {
+  const auto s = test::make_swarm_stream(small());
+  CentralCore core(CentralConfig{});
+  core.add_world_hint(2, 7, s.T_world_odom[2]);
+  for (uint32_t id = 0; id < 10; ++id) {
+    core.add_keyframe(to_in(s.keyframes[2][id]));
+  }
+  const auto est = core.estimates();
+  ASSERT_EQ(est.size(), 1u);
+  EXPECT_LT((est[0].T_world_robot.matrix() - s.T_world_odom[2].matrix()).norm(), 1e-12);
+  EXPECT_EQ(est[0].poses.size(), 10u);
+}
+
+}  // namespace
+}  // namespace cdc::central
