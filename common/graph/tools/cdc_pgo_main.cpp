@@ -25,6 +25,7 @@ int main(int argc, char** argv) {
   int max_iterations = 100;
   double tolerance = 1e-10;
   double radius = 1e12;
+  std::string backend = "suitesparse";
   app.add_option("input", input, "a .g2o file, or a folder of per-robot .g2o files")->required()->check(CLI::ExistingPath);
   app.add_option("--init", init, "initial values: chordal (rotation relaxation), odometry (chained), file (VERTEX lines)")
       ->check(CLI::IsMember({"chordal", "odometry", "file"}))
@@ -37,6 +38,8 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber)->capture_default_str();
   app.add_option("--trust-region", radius, "initial trust-region radius (1 / initial LM damping)")
       ->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--sparse-backend", backend, "sparse Cholesky library")
+      ->check(CLI::IsMember({"suitesparse", "eigen", "cxsparse"}))->capture_default_str();
   app.add_option("--out", out_path, "write the optimised graph to this .g2o file");
   app.add_flag("--json", json, "print one JSON line instead of text");
   app.add_flag("--distributed", distributed,
@@ -75,6 +78,9 @@ int main(int argc, char** argv) {
     opts.max_iterations = max_iterations;
     opts.function_tolerance = tolerance;
     opts.initial_trust_region_radius = radius;
+    opts.sparse_backend = backend == "eigen"     ? cdc::graph::SparseBackend::kEigen
+                          : backend == "cxsparse" ? cdc::graph::SparseBackend::kCxSparse
+                                                  : cdc::graph::SparseBackend::kSuiteSparse;
     opts.objective = sesync_weights ? cdc::graph::Objective::kSeSync : cdc::graph::Objective::kFullInformation;
     opts.full_report = verbose;
     const cdc::graph::SolveResult r = cdc::graph::solve(graph, opts);

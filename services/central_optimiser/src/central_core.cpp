@@ -86,6 +86,7 @@ void CentralCore::insert_ready_keyframes(Session& s) {
     if (id == 0) {
       graph_.poses[key(s, 0)] = s.T_world_odom * kf.T_odom_keyframe;
       s.in_graph.insert(0);
+      touch(s, 0);
       continue;
     }
     if (s.in_graph.count(id - 1) == 0) {
@@ -95,10 +96,12 @@ void CentralCore::insert_ready_keyframes(Session& s) {
     graph_.poses[cur] = graph_.poses.at(prev) * kf.T_prev_keyframe;  // chained from the optimised predecessor
     graph_.add_between(prev, cur, kf.T_prev_keyframe, kf.information);
     s.in_graph.insert(id);
+    touch(s, id);
   }
 }
 
 void CentralCore::place(Session& s, const Eigen::Isometry3d& T_world_odom) {
+  need_full_ = true;
   s.placed = true;
   s.T_world_odom = T_world_odom;
   insert_ready_keyframes(s);
@@ -132,6 +135,8 @@ void CentralCore::try_insert_loops() {
         graph_.add_between(key(*sa, l.in.keyframe_a), key(*sb, l.in.keyframe_b), l.in.T_a_b, l.in.information);
         l.in_graph = true;
         l.factor_index = graph_.factors.size() - 1;
+        touch(*sa, l.in.keyframe_a);
+        touch(*sb, l.in.keyframe_b);
         progress = true;
         dirty_ = true;
       }
@@ -204,6 +209,63 @@ UpdateStats CentralCore::solve_with(const graph::SolverOptions& options) {
   st.cost = r.final_cost;
   ++version_;
   dirty_ = false;
+  touched_.clear();
+  updates_since_full_ = 0;
+  need_full_ = false;
+  st.full = true;
+  return st;
+}
+
+UpdateStats CentralCore::solve_local(const graph::SolverOptions& options) {
+  // Active: every touched key and the `window` keyframes before it on the same robot session.
+  std::set<Key> active;
+  for (Key k : touched_) {
+    const uint64_t idx = graph::index_of(k);
+    const uint64_t id = idx & 0xffffffffu;
+    const uint64_t first = id > config_.window ? id - config_.window : 0;
+    for (uint64_t i = first; i <= id; ++i) {
+      const Key a = graph::make_key(graph::robot_of(k), (idx & ~uint64_t{0xffffffffu}) | i);
+      if (graph_.poses.count(a) != 0) {
+        active.insert(a);
+      }
+    }
+  }
+  graph::PoseGraph local;
+  local.dimension = graph_.dimension;
+  std::set<Key> fixed;
+  for (const graph::Factor& f : graph_.factors) {
+    const bool a_in = active.count(f.a) != 0, b_in = active.count(f.b) != 0;
+    if (!a_in && !b_in) {
+      continue;
+    }
+    local.factors.push_back(f);
+    for (Key k : {f.a, f.b}) {
+      local.poses[k] = graph_.poses.at(k);
+      if (active.count(k) == 0) {
+        fixed.insert(k);
+      }
+    }
+  }
+  UpdateStats st;
+  st.poses = active.size();
+  st.factors = local.factors.size();
+  if (!local.factors.empty()) {
+    if (fixed.empty() && local.count(graph::FactorKind::kPrior) == 0) {
+      fixed.insert(local.poses.begin()->first);
+    }
+    const graph::SolveResult r = graph::solve(local, options, fixed);
+    for (Key k : active) {
+      graph_.poses[k] = local.poses.at(k);
+    }
+    st.solved = true;
+    st.iterations = r.iterations;
+    st.time_s = r.time_s;
+  }
+  st.cost = 0.0;
+  ++version_;
+  ++updates_since_full_;
+  dirty_ = false;
+  touched_.clear();
   return st;
 }
 
@@ -213,7 +275,14 @@ UpdateStats CentralCore::optimise() {
   o.max_time_s = config_.max_time_per_update_s;
   o.function_tolerance = 1e-8;
   o.robust_loss_scale = config_.loop_robust_scale;
-  return solve_with(o);
+  if (need_full_ || updates_since_full_ + 1 >= config_.full_every) {
+    // A full pass is warm-started and bounded: successive passes converge, and the work loop
+    // (which asserts the central's liveliness) is never blocked for long.
+    o.max_iterations = std::min(o.max_iterations, config_.full_pass_iterations);
+    o.max_time_s = config_.full_pass_time_s;
+    return solve_with(o);
+  }
+  return solve_local(o);
 }
 
 UpdateStats CentralCore::optimise_fully() {

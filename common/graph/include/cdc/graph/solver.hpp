@@ -15,7 +15,11 @@ enum class Objective {
   kSeSync            // SE-Sync's isotropic chordal objective (see objective.hpp)
 };
 
+// Sparse Cholesky library behind Ceres' SPARSE_NORMAL_CHOLESKY.
+enum class SparseBackend { kSuiteSparse, kEigen, kCxSparse };
+
 struct SolverOptions {
+  SparseBackend sparse_backend = SparseBackend::kSuiteSparse;
   Objective objective = Objective::kFullInformation;
   int max_iterations = 100;
   double max_time_s = 1e6;

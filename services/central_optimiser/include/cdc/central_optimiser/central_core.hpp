@@ -53,6 +53,13 @@ struct CentralConfig {
   double max_time_per_update_s = 0.05;
   double loop_robust_scale = 1.0;  // Cauchy scale on loop factors (0: none)
   size_t max_pending_loops = 100'000;
+  // Incremental updates re-optimise what changed (new keyframes, loop ends) plus this many
+  // preceding keyframes of the same robot, the rest held fixed; every full_every updates (and
+  // whenever a robot joins the world) the whole graph is re-optimised.
+  uint32_t window = 30;
+  uint32_t full_every = 20;
+  int full_pass_iterations = 3;
+  double full_pass_time_s = 0.3;
 };
 
 struct RobotEstimate {
@@ -71,6 +78,7 @@ struct Acknowledgement {
 
 struct UpdateStats {
   bool solved = false;
+  bool full = false;       // whole graph, or the changed part only
   int iterations = 0;
   double time_s = 0;
   double cost = 0;  // full-information cost after the update
@@ -93,7 +101,8 @@ class CentralCore {
   // initial placement of its keyframes until loops place it.
   void add_world_hint(uint32_t robot, uint32_t incarnation, const Eigen::Isometry3d& T_world_robot);
 
-  // Re-optimises the anchored part of the graph, warm-started, within the configured budget.
+  // Incremental update, warm-started, within the configured budget: the changed part of the
+  // graph, or all of it every full_every updates.
   UpdateStats optimise();
   // Solves to convergence (no budget), for final results.
   UpdateStats optimise_fully();
@@ -134,6 +143,8 @@ class CentralCore {
   void try_insert_loops();
   void place(Session& s, const Eigen::Isometry3d& T_world_odom);
   UpdateStats solve_with(const graph::SolverOptions& options);
+  UpdateStats solve_local(const graph::SolverOptions& options);
+  void touch(const Session& s, uint32_t id) { touched_.insert(key(s, id)); }
 
   CentralConfig config_;
   std::map<uint32_t, std::vector<Session>> sessions_;  // per robot, by arrival of incarnations
@@ -142,6 +153,9 @@ class CentralCore {
   graph::PoseGraph graph_;
   uint64_t version_ = 0;
   bool dirty_ = false;
+  std::set<Key> touched_;        // keys changed since the last update
+  uint32_t updates_since_full_ = 0;
+  bool need_full_ = false;       // a robot joined the world
   Counters counters_;
 };
 

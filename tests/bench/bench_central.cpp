@@ -1,0 +1,105 @@
+// cdc-bench-central: time of one incremental central-optimiser update (warm start, bounded
+// iterations) on a 3-robot graph of 3,000 keyframes, as new keyframes and loops arrive.
+// Last output line: one JSON object.
+#include "cdc/central_optimiser/central_core.hpp"
+#include "swarm_stream.hpp"
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <iostream>
+
+namespace {
+
+cdc::central::KeyframeIn to_in(const cdc::test::StreamKeyframe& k) {
+  cdc::central::KeyframeIn in;
+  in.robot = k.robot;
+  in.id = k.id;
+  in.T_odom_keyframe = k.T_odom_keyframe;
+  in.T_prev_keyframe = k.T_prev_keyframe;
+  in.information = k.information;
+  return in;
+}
+
+cdc::central::LoopIn to_in(const cdc::test::StreamLoop& l) {
+  cdc::central::LoopIn in;
+  in.sender = l.sender;
+  in.seq = l.seq;
+  in.robot_a = l.robot_a;
+  in.keyframe_a = l.keyframe_a;
+  in.robot_b = l.robot_b;
+  in.keyframe_b = l.keyframe_b;
+  in.T_a_b = l.T_a_b;
+  in.information = l.information;
+  return in;
+}
+
+double pct(std::vector<double> v, double p) {
+  std::sort(v.begin(), v.end());
+  return v[static_cast<size_t>(p * static_cast<double>(v.size() - 1))];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"cdc-bench-central: incremental central-optimiser update time on a 3-robot graph"};
+  uint32_t per_robot = 1000;
+  uint32_t updates = 60;
+  app.add_option("--keyframes-per-robot", per_robot, "graph size before timing, per robot")->capture_default_str();
+  app.add_option("--updates", updates, "timed updates (one keyframe per robot each)")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  cdc::test::SwarmStreamOptions o;
+  o.robots = 3;
+  o.keyframes_per_robot = per_robot + updates;
+  const auto stream = cdc::test::make_swarm_stream(o);
+  cdc::central::CentralCore core(cdc::central::CentralConfig{});
+  size_t next_loop = 0;
+  auto feed_step = [&](uint32_t k) {
+    for (const auto& robot : stream.keyframes) {
+      core.add_keyframe(to_in(robot[k]));
+    }
+    while (next_loop < stream.loops.size() && stream.loops[next_loop].step <= k) {
+      core.add_loop(to_in(stream.loops[next_loop++]));
+    }
+  };
+  for (uint32_t k = 0; k < per_robot; ++k) {
+    feed_step(k);
+    if (k % 25 == 24) {
+      core.optimise();  // the central keeps up while the graph grows
+    }
+  }
+  core.optimise_fully();
+  std::vector<double> ms;
+  std::vector<int> iterations;
+  std::vector<double> solver_ms, local_ms, full_ms;
+  for (uint32_t k = per_robot; k < per_robot + updates; ++k) {
+    feed_step(k);
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto st = core.optimise();
+    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    iterations.push_back(st.iterations);
+    solver_ms.push_back(st.time_s * 1e3);
+    (st.full ? full_ms : local_ms).push_back(ms.back());
+  }
+  nlohmann::json j{{"keyframes", core.graph().poses.size()},
+                   {"factors", core.graph().factors.size()},
+                   {"updates", updates},
+                   {"update_ms_median", pct(ms, 0.5)},
+                   {"update_ms_p90", pct(ms, 0.9)},
+                   {"update_ms_max", pct(ms, 1.0)},
+                   {"update_ms_min", pct(ms, 0.0)},
+                   {"iterations_median", iterations[iterations.size() / 2]},
+                   {"ceres_ms_median", pct(solver_ms, 0.5)},
+                   {"local_updates", local_ms.size()},
+                   {"local_update_ms_median", local_ms.empty() ? 0.0 : pct(local_ms, 0.5)},
+                   {"full_updates", full_ms.size()},
+                   {"full_update_ms_median", full_ms.empty() ? 0.0 : pct(full_ms, 0.5)}};
+  std::printf("central update on %zu keyframes: median %.1f ms, p90 %.1f ms, max %.1f ms over %u updates\n",
+              core.graph().poses.size(), pct(ms, 0.5), pct(ms, 0.9), pct(ms, 1.0), updates);
+  std::cout << j.dump() << '\n';
+  return 0;
+}
