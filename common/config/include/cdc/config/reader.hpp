@@ -1,0 +1,67 @@
+// YAML configuration -> plain parameter structs. A Reader collects every problem (missing file,
+// wrong type, value out of range, unknown key) and finish() reports them all at once.
+#pragma once
+
+#include <yaml-cpp/yaml.h>
+
+#include <functional>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace cdc::config {
+
+class ConfigError : public std::runtime_error {
+ public:
+  explicit ConfigError(const std::string& what) : std::runtime_error(what) {}
+};
+
+class Reader {
+ public:
+  // An empty path reads nothing: every get() returns its default.
+  explicit Reader(const std::string& path);
+
+  // Reads `key` ("a.b" for nested maps) into out when present; records an error when the value
+  // has the wrong type or `valid` rejects it (`expectation` says what was expected).
+  template <class T>
+  void get(const std::string& key, T& out, const std::function<bool(const T&)>& valid = nullptr,
+           const std::string& expectation = "") {
+    known_.insert(key);
+    const YAML::Node n = find(key);
+    if (!n) {
+      return;
+    }
+    T v{};
+    try {
+      v = n.as<T>();
+    } catch (const YAML::Exception&) {
+      errors_.push_back(where(key) + ": cannot read '" + YAML::Dump(n) + "' as the expected type");
+      return;
+    }
+    if (valid && !valid(v)) {
+      errors_.push_back(where(key) + ": " + YAML::Dump(n) + " is invalid" +
+                        (expectation.empty() ? std::string() : " (expected " + expectation + ")"));
+      return;
+    }
+    out = v;
+  }
+
+  // Adds an error found by cross-field checks.
+  void error(const std::string& message) { errors_.push_back(path_ + ": " + message); }
+
+  // Throws ConfigError listing every error and every key the program does not know.
+  void finish();
+
+ private:
+  YAML::Node find(const std::string& key) const;
+  std::string where(const std::string& key) const { return path_ + ": " + key; }
+  void collect_keys(const YAML::Node& node, const std::string& prefix, std::vector<std::string>& out) const;
+
+  std::string path_;
+  YAML::Node root_;
+  std::set<std::string> known_;
+  std::vector<std::string> errors_;
+};
+
+}  // namespace cdc::config

@@ -1,0 +1,36 @@
+// DDS glue of the central optimiser: validated keyframes, loops and world hints in; optimised
+// poses (liveliness-monitored writer, asserted from the work loop), acknowledgements and the
+// central's status out.
+#pragma once
+
+#include "cdc/central_optimiser/central_core.hpp"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <string>
+
+namespace cdc::central {
+
+struct CentralNodeOptions {
+  uint32_t domain = 0;
+  std::string dds_config;     // empty: CYCLONEDDS_URI
+  CentralConfig core;
+  uint32_t central_id = 200;  // node id of the central in status messages
+  int central_on_robot = 0;   // the central rides on this robot; -1: fixed position
+  Eigen::Vector3d central_position = Eigen::Vector3d::Zero();
+  int lease_ms = 1000;        // liveliness lease of the results writer
+  int update_period_ms = 100; // least time between optimisations
+  int status_period_ms = 250;
+  std::string graph_out;      // write the final graph (g2o) here at shutdown
+  std::string stats_out;      // write counters (JSON) here at shutdown
+  std::string log_level = "info";
+};
+
+// Loads a YAML configuration file over the defaults; throws config::ConfigError listing problems.
+CentralNodeOptions load_options(const std::string& path);
+
+// Runs until SIGINT/SIGTERM. Returns the process exit code.
+int run_central(const CentralNodeOptions& options);
+
+}  // namespace cdc::central

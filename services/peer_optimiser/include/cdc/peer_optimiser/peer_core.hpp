@@ -1,0 +1,140 @@
+// The peer optimiser's synchronous core: the robot's back-end agent. It decides the mode (RTDOS),
+// relays the central's estimate in CENTRALIZED mode, optimises its own graph with its peers'
+// separator poses in DISTRIBUTED mode, limits every correction it publishes with the paper's
+// adaptive fusion (eq. 8-14), and tells the node what to re-send to a central that lacks it.
+#pragma once
+
+#include "cdc/geometry/fusion.hpp"
+#include "cdc/graph/pose_graph.hpp"
+#include "cdc/peer_optimiser/rtdos.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <set>
+#include <vector>
+
+namespace cdc::peer {
+
+using graph::Key;
+using graph::Matrix6d;
+
+struct PeerConfig {
+  uint32_t robot = 0;
+  uint32_t robot_count = 3;
+  RtdosParams rtdos;
+  geometry::FusionThresholds fusion;
+  double peer_range_m = 1e9;               // separators go only to peers closer than this
+  Nanos round_period{std::chrono::milliseconds(200)};   // distributed optimisation rounds
+  Nanos resend_grace{std::chrono::milliseconds(1500)};  // unacknowledged this long: re-send
+  Nanos resend_period{std::chrono::milliseconds(500)};
+  int distributed_iterations = 5;
+  size_t max_resend_per_step = 500;
+};
+
+struct OwnKeyframe {
+  uint32_t id = 0;
+  uint32_t incarnation = 0;
+  Eigen::Isometry3d T_odom = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_prev = Eigen::Isometry3d::Identity();
+  Matrix6d information = Matrix6d::Identity();
+};
+
+struct LoopRecord {
+  uint32_t sender = 0, sender_incarnation = 0, seq = 0;
+  uint32_t robot_a = 0, keyframe_a = 0, robot_b = 0, keyframe_b = 0;
+  bool withdrawn = false;
+  Eigen::Isometry3d T_a_b = Eigen::Isometry3d::Identity();
+  Matrix6d information = Matrix6d::Identity();
+};
+
+struct CentralResult {
+  uint32_t central_incarnation = 0;
+  uint64_t version = 0;
+  Eigen::Isometry3d T_world_robot = Eigen::Isometry3d::Identity();
+  std::vector<std::pair<uint32_t, Eigen::Isometry3d>> poses;  // own keyframes, T_world_keyframe
+};
+
+struct AckIn {
+  uint32_t central_incarnation = 0;
+  uint32_t robot_incarnation = 0;
+  int64_t keyframe = -1;
+  int64_t loop_seq = -1;
+};
+
+struct Correction {
+  Eigen::Isometry3d T_world_robot;            // limited by the fusion thresholds
+  double lambda = 1.0;                        // the fusion factor applied
+  bool from_central = true;
+  std::vector<std::pair<uint32_t, Eigen::Isometry3d>> poses;  // current estimate of own keyframes
+};
+
+struct SeparatorOut {
+  uint32_t target = 0;
+  std::vector<std::pair<uint32_t, Eigen::Isometry3d>> poses;  // own keyframes the target's loops touch
+};
+
+struct StepOutput {
+  std::optional<Transition> transition;
+  std::optional<Correction> correction;
+  std::vector<SeparatorOut> separators;
+  std::optional<Eigen::Isometry3d> world_transform;  // own estimate for the central (on rejoin)
+  std::vector<uint32_t> resend_keyframes;
+  std::vector<uint32_t> resend_loops;                 // own loop seqs
+};
+
+class PeerCore {
+ public:
+  explicit PeerCore(const PeerConfig& config, Nanos start = Nanos{0});
+
+  void add_keyframe(const OwnKeyframe& kf, Nanos now);
+  void add_loop(const LoopRecord& loop, Nanos now);  // any loop touching this robot
+  void on_central_result(const CentralResult& r);
+  void on_ack(const AckIn& a);
+  void on_separator(uint32_t from, const std::vector<std::pair<uint32_t, Eigen::Isometry3d>>& poses);
+  void on_central_position(const Eigen::Vector3d& p) { central_position_ = p; }
+  void on_peer_position(uint32_t robot, const Eigen::Vector3d& p) { peer_positions_[robot] = p; }
+
+  // One tick of the agent.
+  StepOutput step(Nanos now, bool central_alive);
+
+  Mode mode() const noexcept { return rtdos_.mode(); }
+  const Rtdos& rtdos() const noexcept { return rtdos_; }
+  bool world_valid() const noexcept { return published_.has_value(); }
+  // Current pose in W from the published correction and the latest odometry.
+  std::optional<Eigen::Isometry3d> world_pose() const;
+  std::optional<double> distance_to_central() const;
+  int64_t last_keyframe_id() const;
+  uint64_t distributed_rounds() const noexcept { return rounds_; }
+
+ private:
+  std::optional<Eigen::Isometry3d> distributed_round();
+  void ensure_initial_values();
+  bool lowest_in_group() const;
+
+  PeerConfig config_;
+  Rtdos rtdos_;
+  std::map<uint32_t, OwnKeyframe> keyframes_;
+  std::map<uint32_t, Nanos> keyframe_seen_;
+  std::vector<LoopRecord> loops_;
+  std::map<uint32_t, Nanos> own_loop_seen_;           // own loops by seq
+  std::set<std::tuple<uint32_t, uint32_t, uint32_t>> loop_ids_;
+  std::optional<CentralResult> central_;
+  uint32_t central_incarnation_ = 0;
+  AckIn ack_;
+  std::map<Key, Eigen::Isometry3d> separators_;        // peers' keyframes, T_world
+  std::map<uint32_t, Eigen::Isometry3d> estimate_;     // own keyframes, T_world (distributed)
+  std::optional<Eigen::Isometry3d> target_;            // T_world_robot the back-end believes
+  std::optional<Eigen::Isometry3d> published_;         // what the front-end has been told
+  std::optional<Eigen::Vector3d> central_position_;
+  std::map<uint32_t, Eigen::Vector3d> peer_positions_;
+  Nanos last_round_{0};
+  Nanos last_resend_{0};
+  bool rejoining_ = false;
+  bool placed_by_peers_ = false;  // estimate_ moved into the group's frame through a separator
+  uint64_t rounds_ = 0;
+};
+
+}  // namespace cdc::peer
