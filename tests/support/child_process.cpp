@@ -1,6 +1,7 @@
 #include "child_process.hpp"
 
 #include <csignal>
+#include <fcntl.h>
 #include <cstring>
 #include <stdexcept>
 #include <sys/wait.h>
@@ -12,7 +13,7 @@ extern char** environ;
 
 namespace cdc::test {
 
-ChildProcess ChildProcess::spawn(const std::vector<std::string>& argv) {
+ChildProcess ChildProcess::spawn(const std::vector<std::string>& argv, const std::string& log_path) {
   if (argv.empty()) {
     throw std::invalid_argument("spawn: empty argv");
   }
@@ -31,6 +32,14 @@ ChildProcess ChildProcess::spawn(const std::vector<std::string>& argv) {
     sigset_t none;
     sigemptyset(&none);
     sigprocmask(SIG_SETMASK, &none, nullptr);
+    if (!log_path.empty()) {
+      const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      if (fd >= 0) {
+        ::dup2(fd, 1);
+        ::dup2(fd, 2);
+        ::close(fd);
+      }
+    }
     ::execve(args[0], args.data(), environ);
     _exit(127);
   }

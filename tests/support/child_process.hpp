@@ -5,6 +5,7 @@
 #include <chrono>
 #include <optional>
 #include <string>
+#include <string>
 #include <sys/types.h>
 #include <vector>
 
@@ -12,8 +13,9 @@ namespace cdc::test {
 
 class ChildProcess {
  public:
-  // Starts argv[0] with the given arguments and the current environment.
-  static ChildProcess spawn(const std::vector<std::string>& argv);
+  // Starts argv[0] with the given arguments and the current environment; when log_path is given,
+  // the child's stdout and stderr go to that file.
+  static ChildProcess spawn(const std::vector<std::string>& argv, const std::string& log_path = "");
 
   ChildProcess() = default;
   ~ChildProcess();  // SIGKILLs and reaps a child still running

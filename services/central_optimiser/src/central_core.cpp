@@ -287,8 +287,10 @@ UpdateStats CentralCore::optimise() {
 
 UpdateStats CentralCore::optimise_fully() {
   graph::SolverOptions o;
-  o.max_iterations = 200;
-  o.function_tolerance = 1e-12;
+  o.max_iterations = 500;
+  o.function_tolerance = 1e-14;
+  o.gradient_tolerance = 1e-14;
+  o.parameter_tolerance = 1e-14;
   o.robust_loss_scale = config_.loop_robust_scale;
   return solve_with(o);
 }

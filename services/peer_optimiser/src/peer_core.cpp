@@ -254,7 +254,12 @@ StepOutput PeerCore::step(Nanos now, bool central_alive) {
       last_resend_ = now;
     }
   } else if (round_due) {
-    if (auto T = distributed_round()) {
+    const auto T = distributed_round();
+    // Only an estimate in W becomes a correction: W is known from the central, by being robot 0
+    // (its odometry frame is W), or through a peer's separators. Before that the robot has no world
+    // pose, and its first real estimate is an initialisation, not a correction to limit.
+    const bool in_world = (central_ && !central_->poses.empty()) || config_.robot == 0 || placed_by_peers_;
+    if (T && in_world) {
       target_ = *T;
     }
   }

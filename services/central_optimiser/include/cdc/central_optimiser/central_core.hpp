@@ -51,7 +51,9 @@ struct CentralConfig {
   uint32_t robot_count = 3;
   int max_iterations_per_update = 10;
   double max_time_per_update_s = 0.05;
-  double loop_robust_scale = 1.0;  // Cauchy scale on loop factors (0: none)
+  // Cauchy scale on loop factors in whitened units (0: none). 3 is about the 95 % chi-square
+  // radius of a 6-DoF residual: inlier loops stay quadratic, gross outliers are discounted.
+  double loop_robust_scale = 3.0;
   size_t max_pending_loops = 100'000;
   // Incremental updates re-optimise what changed (new keyframes, loop ends) plus this many
   // preceding keyframes of the same robot, the rest held fixed; every full_every updates (and

@@ -1,0 +1,348 @@
+#include "peer_node.hpp"
+
+#include "cdc/config/reader.hpp"
+#include "cdc/dds/convert.hpp"
+#include "cdc/dds/liveliness.hpp"
+#include "cdc/dds/participant.hpp"
+#include "cdc/dds/pubsub.hpp"
+#include "cdc/dds/shutdown.hpp"
+#include "cdc/dds/topics.hpp"
+#include "cdc/dds/validate.hpp"
+#include "cdc/dds/waitset.hpp"
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include <fstream>
+#include <map>
+
+namespace cdc::peer {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+namespace topics = dds::topics;
+
+struct StoredKeyframe {
+  cdc_msg_Keyframe msg{};                  // sequences detached
+  std::vector<cdc_msg_PointXYZI> cloud;
+};
+
+cdc_msg_SwitchReason to_msg(SwitchReason r) {
+  switch (r) {
+    case SwitchReason::kStartup: return cdc_msg_REASON_STARTUP;
+    case SwitchReason::kLivelinessLost: return cdc_msg_REASON_LIVELINESS_LOST;
+    case SwitchReason::kOutOfRange: return cdc_msg_REASON_OUT_OF_RANGE;
+    case SwitchReason::kBackInRange: return cdc_msg_REASON_BACK_IN_RANGE;
+  }
+  return cdc_msg_REASON_STARTUP;
+}
+
+}  // namespace
+
+PeerNodeOptions load_options(const std::string& path) {
+  PeerNodeOptions o;
+  config::Reader r(path);
+  auto positive_d = [](const double& v) { return v > 0; };
+  auto positive_i = [](const int& v) { return v > 0; };
+  int robots = static_cast<int>(o.core.robot_count);
+  r.get<int>("robots", robots, [](const int& v) { return v >= 1 && v <= 254; }, "1..254");
+  o.core.robot_count = static_cast<uint32_t>(robots);
+  r.get<double>("range_m", o.core.rtdos.range_m, positive_d, "> 0");
+  r.get<double>("hysteresis_m", o.core.rtdos.hysteresis_m, [](const double& v) { return v >= 0; }, ">= 0");
+  int dwell = 3000, mask = 2000, round = 200, grace = 1500, resend = 500;
+  r.get<int>("dwell_ms", dwell, [](const int& v) { return v >= 0; }, ">= 0");
+  r.get<int>("mask_ms", mask, [](const int& v) { return v >= 0; }, ">= 0");
+  r.get<int>("round_period_ms", round, positive_i, "> 0");
+  r.get<int>("resend_grace_ms", grace, [](const int& v) { return v >= 0; }, ">= 0");
+  r.get<int>("resend_period_ms", resend, positive_i, "> 0");
+  o.core.rtdos.dwell = std::chrono::milliseconds(dwell);
+  o.core.rtdos.mask = std::chrono::milliseconds(mask);
+  o.core.round_period = std::chrono::milliseconds(round);
+  o.core.resend_grace = std::chrono::milliseconds(grace);
+  o.core.resend_period = std::chrono::milliseconds(resend);
+  r.get<double>("peer_range_m", o.core.peer_range_m, positive_d, "> 0");
+  r.get<int>("distributed_iterations", o.core.distributed_iterations, positive_i, "> 0");
+  r.get<double>("fusion.pos_max_m", o.core.fusion.pos_max, positive_d, "> 0");
+  double rot_deg = o.core.fusion.rot_max * 180.0 / M_PI;
+  r.get<double>("fusion.rot_max_deg", rot_deg, positive_d, "> 0");
+  o.core.fusion.rot_max = rot_deg * M_PI / 180.0;
+  r.get<int>("tick_ms", o.tick_ms, positive_i, "> 0");
+  r.get<int>("status_period_ms", o.status_period_ms, positive_i, "> 0");
+  r.get<std::string>("log_level", o.log_level);
+  if (o.core.rtdos.hysteresis_m >= o.core.rtdos.range_m) {
+    r.error("hysteresis_m must be smaller than range_m");
+  }
+  r.finish();
+  return o;
+}
+
+int run_peer(const PeerNodeOptions& o) {
+  const uint32_t me = o.core.robot;
+  dds::ParticipantOptions po;
+  po.domain_id = o.domain;
+  po.config = o.dds_config;
+  dds::Participant participant(po);
+
+  dds::Topic<cdc_msg_Keyframe> t_kf(participant, topics::kKeyframe);
+  dds::Topic<cdc_msg_LoopClosure> t_loop(participant, topics::kLoopClosure);
+  dds::Topic<cdc_msg_OptimizedPoses> t_central(participant, topics::kCentralOptimized);
+  dds::Topic<cdc_msg_Acknowledgement> t_ack(participant, topics::kCentralAck);
+  dds::Topic<cdc_msg_SeparatorPoses> t_sep(participant, topics::kSeparator);
+  dds::Topic<cdc_msg_RobotStatus> t_status(participant, topics::kRobotStatus);
+  dds::Topic<cdc_msg_ModeState> t_mode(participant, topics::kMode);
+  dds::Topic<cdc_msg_OptimizedPoses> t_corr(participant, topics::kCorrection);
+  dds::Topic<cdc_msg_WorldTransform> t_world(participant, topics::kWorldTransform);
+
+  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096));
+  dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop, dds::qos::event_stream(4096));
+  dds::Reader<cdc_msg_OptimizedPoses> r_central(participant, t_central, dds::qos::monitored_reader());
+  dds::Reader<cdc_msg_Acknowledgement> r_ack(participant, t_ack, dds::qos::keyed_state());
+  dds::Reader<cdc_msg_SeparatorPoses> r_sep(participant, t_sep, dds::qos::event_stream(256));
+  dds::Reader<cdc_msg_RobotStatus> r_status(participant, t_status, dds::qos::keyed_state());
+  dds::Writer<cdc_msg_ModeState> w_mode(participant, t_mode, dds::qos::keyed_state(8));
+  dds::Writer<cdc_msg_OptimizedPoses> w_corr(participant, t_corr, dds::qos::event_stream(64));
+  dds::Writer<cdc_msg_SeparatorPoses> w_sep(participant, t_sep, dds::qos::event_stream(256));
+  dds::Writer<cdc_msg_WorldTransform> w_world(participant, t_world, dds::qos::keyed_state());
+  dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096));
+  dds::Writer<cdc_msg_LoopClosure> w_loop(participant, t_loop, dds::qos::event_stream(4096));
+  dds::Writer<cdc_msg_RobotStatus> w_status(participant, t_status, dds::qos::keyed_state());
+  dds::LivelinessMonitor central_liveliness(participant, t_central.handle(), "central optimiser");
+
+  dds::GuardCondition stop(participant), liveliness_changed(participant);
+  dds::ShutdownSignal::add_guard(&stop);
+  central_liveliness.set_notify(&liveliness_changed);
+  dds::ReadCondition rc_kf(r_kf.handle()), rc_loop(r_loop.handle()), rc_central(r_central.handle()),
+      rc_sep(r_sep.handle());
+  dds::WaitSet ws(participant);
+  ws.attach(stop.handle(), 0);
+  ws.attach(liveliness_changed.handle(), 1);
+  ws.attach(rc_kf.handle(), 2);
+  ws.attach(rc_loop.handle(), 3);
+  ws.attach(rc_central.handle(), 4);
+  ws.attach(rc_sep.handle(), 5);
+
+  dds::ValidationLimits limits;
+  limits.robot_count = o.core.robot_count;
+  limits.extra_node_ids = {200};  // the central's node id in status messages
+  dds::RejectionCounter rejected;
+  const auto t0 = Clock::now();
+  auto now_ns = [&] { return std::chrono::duration_cast<Nanos>(Clock::now() - t0); };
+  PeerCore core(o.core, now_ns());
+  std::map<uint32_t, StoredKeyframe> own_keyframes;
+  std::map<uint32_t, cdc_msg_LoopClosure> own_loops;
+  uint32_t incarnation = 0;
+  uint64_t resent_keyframes = 0, resent_loops = 0, corrections = 0, separators_sent = 0;
+  auto last_status = Clock::now() - std::chrono::hours(1);
+  auto last_mode = last_status;
+  std::vector<cdc_msg_KeyframePose> pose_storage;
+  spdlog::info("peer optimiser of robot {} up: CR_0 {} m, dwell {} ms, mask {} ms, domain {}", me,
+               o.core.rtdos.range_m, o.core.rtdos.dwell.count() / 1'000'000, o.core.rtdos.mask.count() / 1'000'000,
+               o.domain);
+
+  auto publish_mode = [&](SwitchReason reason) {
+    cdc_msg_ModeState m{};
+    m.robot_id = me;
+    m.incarnation = incarnation;
+    m.stamp_ns = dds::now_ns();
+    m.mode = core.mode() == Mode::kCentralized ? cdc_msg_MODE_CENTRALIZED : cdc_msg_MODE_DISTRIBUTED;
+    m.reason = to_msg(reason);
+    m.distance_to_central = core.distance_to_central().value_or(-1.0);
+    m.transition_count = core.rtdos().transitions();
+    w_mode.write(m);
+  };
+
+  while (!dds::ShutdownSignal::requested()) {
+    ws.wait(std::chrono::milliseconds(o.tick_ms));
+    liveliness_changed.reset();
+    const Nanos now = now_ns();
+    r_kf.take(1024).for_each_valid([&](const cdc_msg_Keyframe& m, const dds_sample_info_t&) {
+      if (m.robot_id != me) {
+        return;
+      }
+      if (rejected.record(topics::kKeyframe, dds::validate(m, limits))) {
+        spdlog::warn("rejected keyframe: {}", rejected.last_reason());
+        return;
+      }
+      incarnation = m.incarnation;
+      StoredKeyframe& s = own_keyframes[m.keyframe_id];
+      s.msg = m;
+      s.cloud.assign(m.cloud._buffer, m.cloud._buffer + m.cloud._length);
+      s.msg.cloud = {};
+      core.add_keyframe(OwnKeyframe{m.keyframe_id, m.incarnation, dds::to_eigen(m.T_odom_keyframe),
+                                    dds::to_eigen(m.T_prev_keyframe), dds::information_to_eigen(m.information)},
+                        now);
+    });
+    r_loop.take(1024).for_each_valid([&](const cdc_msg_LoopClosure& m, const dds_sample_info_t&) {
+      if (m.robot_a != me && m.robot_b != me) {
+        return;
+      }
+      if (rejected.record(topics::kLoopClosure, dds::validate(m, limits))) {
+        spdlog::warn("rejected loop closure: {}", rejected.last_reason());
+        return;
+      }
+      if (m.sender_robot_id == me) {
+        own_loops[m.loop_seq] = m;
+      }
+      core.add_loop(LoopRecord{m.sender_robot_id, m.sender_incarnation, m.loop_seq, m.robot_a, m.keyframe_a, m.robot_b,
+                               m.keyframe_b, m.status == cdc_msg_LOOP_WITHDRAWN, dds::to_eigen(m.T_a_b),
+                               dds::information_to_eigen(m.information)},
+                    now);
+    });
+    r_central.take(64).for_each_valid([&](const cdc_msg_OptimizedPoses& m, const dds_sample_info_t&) {
+      if (m.robot_id != me) {
+        return;
+      }
+      if (rejected.record(topics::kCentralOptimized, dds::validate(m, limits))) {
+        spdlog::warn("rejected central result: {}", rejected.last_reason());
+        return;
+      }
+      CentralResult r;
+      r.central_incarnation = m.sender_incarnation;
+      r.version = m.graph_version;
+      r.T_world_robot = dds::to_eigen(m.T_world_robot);
+      for (uint32_t i = 0; i < m.poses._length; ++i) {
+        r.poses.emplace_back(m.poses._buffer[i].keyframe_id, dds::to_eigen(m.poses._buffer[i].pose));
+      }
+      core.on_central_result(r);
+    });
+    r_ack.take(64).for_each_valid([&](const cdc_msg_Acknowledgement& m, const dds_sample_info_t&) {
+      if (m.robot_id == me && !rejected.record(topics::kCentralAck, dds::validate(m, limits))) {
+        core.on_ack(AckIn{m.central_incarnation, m.robot_incarnation, m.highest_contiguous_keyframe,
+                          m.highest_contiguous_loop_seq});
+      }
+    });
+    r_sep.take(256).for_each_valid([&](const cdc_msg_SeparatorPoses& m, const dds_sample_info_t&) {
+      if (m.target_robot_id != me) {
+        return;
+      }
+      if (rejected.record(topics::kSeparator, dds::validate(m, limits))) {
+        spdlog::warn("rejected separator poses: {}", rejected.last_reason());
+        return;
+      }
+      std::vector<std::pair<uint32_t, Eigen::Isometry3d>> poses;
+      for (uint32_t i = 0; i < m.poses._length; ++i) {
+        poses.emplace_back(m.poses._buffer[i].keyframe_id, dds::to_eigen(m.poses._buffer[i].pose));
+      }
+      core.on_separator(m.robot_id, poses);
+    });
+    r_status.take(64).for_each_valid([&](const cdc_msg_RobotStatus& m, const dds_sample_info_t&) {
+      if (m.robot_id == me || !m.world_valid || rejected.record(topics::kRobotStatus, dds::validate(m, limits))) {
+        return;
+      }
+      const Eigen::Vector3d p = dds::to_eigen(m.T_world_base.position);
+      if (m.is_central) {
+        core.on_central_position(p);
+      } else {
+        core.on_peer_position(m.robot_id, p);
+      }
+    });
+
+    const bool alive = central_liveliness.state() == dds::Liveliness::kAlive;
+    StepOutput out = core.step(now, alive);
+    if (out.transition) {
+      spdlog::info("mode {} -> {} ({}), distance to central {}", to_string(out.transition->from),
+                   to_string(out.transition->to), to_string(out.transition->reason),
+                   out.transition->distance_m ? std::to_string(*out.transition->distance_m) + " m" : "unknown");
+      publish_mode(out.transition->reason);
+      last_mode = Clock::now();
+    } else if (Clock::now() - last_mode >= std::chrono::milliseconds(o.mode_period_ms)) {
+      publish_mode(core.rtdos().last_reason());
+      last_mode = Clock::now();
+    }
+    if (out.world_transform) {
+      cdc_msg_WorldTransform w{};
+      w.robot_id = me;
+      w.incarnation = incarnation;
+      w.stamp_ns = dds::now_ns();
+      w.source = cdc_msg_SOURCE_DISTRIBUTED;
+      w.graph_version = core.distributed_rounds();
+      w.T_world_robot = dds::to_msg(*out.world_transform);
+      w_world.write(w);
+    }
+    for (uint32_t id : out.resend_keyframes) {
+      auto it = own_keyframes.find(id);
+      if (it != own_keyframes.end()) {
+        cdc_msg_Keyframe m = it->second.msg;
+        dds::borrow(m.cloud, it->second.cloud);
+        w_kf.write(m);
+        ++resent_keyframes;
+      }
+    }
+    for (uint32_t seq : out.resend_loops) {
+      auto it = own_loops.find(seq);
+      if (it != own_loops.end()) {
+        w_loop.write(it->second);
+        ++resent_loops;
+      }
+    }
+    if (!out.resend_keyframes.empty() || !out.resend_loops.empty()) {
+      spdlog::info("re-sent {} keyframes and {} loop closures the central had not acknowledged",
+                   out.resend_keyframes.size(), out.resend_loops.size());
+    }
+    for (const SeparatorOut& s : out.separators) {
+      pose_storage.clear();
+      for (const auto& [id, T] : s.poses) {
+        pose_storage.push_back(cdc_msg_KeyframePose{me, id, dds::to_msg(T)});
+      }
+      cdc_msg_SeparatorPoses m{};
+      m.robot_id = me;
+      m.target_robot_id = s.target;
+      m.incarnation = incarnation;
+      m.round = static_cast<uint32_t>(core.distributed_rounds());
+      m.stamp_ns = dds::now_ns();
+      dds::borrow(m.poses, pose_storage);
+      w_sep.write(m);
+      ++separators_sent;
+    }
+    if (out.correction) {
+      pose_storage.clear();
+      for (const auto& [id, T] : out.correction->poses) {
+        pose_storage.push_back(cdc_msg_KeyframePose{me, id, dds::to_msg(T)});
+      }
+      cdc_msg_OptimizedPoses m{};
+      m.robot_id = me;
+      m.sender_robot_id = me;
+      m.sender_incarnation = incarnation;
+      m.graph_version = corrections;
+      m.stamp_ns = dds::now_ns();
+      m.source = out.correction->from_central ? cdc_msg_SOURCE_CENTRAL : cdc_msg_SOURCE_DISTRIBUTED;
+      m.T_world_robot = dds::to_msg(out.correction->T_world_robot);
+      dds::borrow(m.poses, pose_storage);
+      w_corr.write(m);
+      ++corrections;
+    }
+    if (Clock::now() - last_status >= std::chrono::milliseconds(o.status_period_ms)) {
+      cdc_msg_RobotStatus s{};
+      s.robot_id = me;
+      s.incarnation = incarnation;
+      s.stamp_ns = dds::now_ns();
+      const auto pose = core.world_pose();
+      s.world_valid = pose.has_value();
+      s.T_world_base = dds::to_msg(pose.value_or(Eigen::Isometry3d::Identity()));
+      s.last_keyframe_id = core.last_keyframe_id();
+      s.mode = core.mode() == Mode::kCentralized ? cdc_msg_MODE_CENTRALIZED : cdc_msg_MODE_DISTRIBUTED;
+      s.is_central = false;
+      w_status.write(s);
+      last_status = Clock::now();
+    }
+  }
+  dds::ShutdownSignal::remove_guard(&stop);
+  central_liveliness.set_notify(nullptr);
+  if (!o.stats_out.empty()) {
+    nlohmann::json j{{"robot", me},
+                     {"transitions", core.rtdos().transitions()},
+                     {"mode", to_string(core.mode())},
+                     {"keyframes", own_keyframes.size()},
+                     {"resent_keyframes", resent_keyframes},
+                     {"resent_loops", resent_loops},
+                     {"corrections", corrections},
+                     {"separator_messages", separators_sent},
+                     {"distributed_rounds", core.distributed_rounds()},
+                     {"rejected_samples", rejected.total()}};
+    std::ofstream(o.stats_out) << j.dump(2) << '\n';
+  }
+  spdlog::info("stopped (signal {})", dds::ShutdownSignal::signal_number());
+  return 0;
+}
+
+}  // namespace cdc::peer

@@ -1,0 +1,28 @@
+// DDS glue of the peer optimiser: the robot's keyframes and loops, the central's results,
+// acknowledgements and liveliness, peers' separator poses and statuses in; mode, corrections
+// (to the front-end), separator poses, the robot's world transform, re-sends and status out.
+#pragma once
+
+#include "cdc/peer_optimiser/peer_core.hpp"
+
+#include <string>
+
+namespace cdc::peer {
+
+struct PeerNodeOptions {
+  uint32_t domain = 0;
+  std::string dds_config;
+  PeerConfig core;
+  int tick_ms = 50;
+  int status_period_ms = 250;
+  int mode_period_ms = 1000;   // the mode is re-published this often besides every transition
+  std::string stats_out;
+  std::string log_level = "info";
+};
+
+// Loads a YAML configuration over the defaults (robot id comes from the command line).
+PeerNodeOptions load_options(const std::string& path);
+
+int run_peer(const PeerNodeOptions& options);
+
+}  // namespace cdc::peer
