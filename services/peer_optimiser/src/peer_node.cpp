@@ -66,6 +66,9 @@ PeerNodeOptions load_options(const std::string& path) {
   double rot_deg = o.core.fusion.rot_max * 180.0 / M_PI;
   r.get<double>("fusion.rot_max_deg", rot_deg, positive_d, "> 0");
   o.core.fusion.rot_max = rot_deg * M_PI / 180.0;
+  int central_id = static_cast<int>(o.central_id);
+  r.get<int>("central_id", central_id, [](const int& v) { return v >= 0 && v <= 254; }, "0..254");
+  o.central_id = static_cast<uint32_t>(central_id);
   r.get<int>("tick_ms", o.tick_ms, positive_i, "> 0");
   r.get<int>("status_period_ms", o.status_period_ms, positive_i, "> 0");
   r.get<std::string>("log_level", o.log_level);
@@ -123,7 +126,7 @@ int run_peer(const PeerNodeOptions& o) {
 
   dds::ValidationLimits limits;
   limits.robot_count = o.core.robot_count;
-  limits.extra_node_ids = {200};  // the central's node id in status messages
+  limits.extra_node_ids = {o.central_id};
   dds::RejectionCounter rejected;
   const auto t0 = Clock::now();
   auto now_ns = [&] { return std::chrono::duration_cast<Nanos>(Clock::now() - t0); };

@@ -13,6 +13,7 @@ struct PeerNodeOptions {
   uint32_t domain = 0;
   std::string dds_config;
   PeerConfig core;
+  uint32_t central_id = 200;   // the central's node id in status messages
   int tick_ms = 50;
   int status_period_ms = 250;
   int mode_period_ms = 1000;   // the mode is re-published this often besides every transition
