@@ -2,7 +2,7 @@
 // iterations) on a 3-robot graph of 3,000 keyframes, as new keyframes and loops arrive.
 // Last output line: one JSON object.
 #include "cdc/central_optimiser/central_core.hpp"
-#include "swarm_stream.hpp"
+#include "stream_to_central.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -13,29 +13,6 @@
 #include <iostream>
 
 namespace {
-
-cdc::central::KeyframeIn to_in(const cdc::test::StreamKeyframe& k) {
-  cdc::central::KeyframeIn in;
-  in.robot = k.robot;
-  in.id = k.id;
-  in.T_odom_keyframe = k.T_odom_keyframe;
-  in.T_prev_keyframe = k.T_prev_keyframe;
-  in.information = k.information;
-  return in;
-}
-
-cdc::central::LoopIn to_in(const cdc::test::StreamLoop& l) {
-  cdc::central::LoopIn in;
-  in.sender = l.sender;
-  in.seq = l.seq;
-  in.robot_a = l.robot_a;
-  in.keyframe_a = l.keyframe_a;
-  in.robot_b = l.robot_b;
-  in.keyframe_b = l.keyframe_b;
-  in.T_a_b = l.T_a_b;
-  in.information = l.information;
-  return in;
-}
 
 double pct(std::vector<double> v, double p) {
   std::sort(v.begin(), v.end());
@@ -60,10 +37,10 @@ int main(int argc, char** argv) {
   size_t next_loop = 0;
   auto feed_step = [&](uint32_t k) {
     for (const auto& robot : stream.keyframes) {
-      core.add_keyframe(to_in(robot[k]));
+      core.add_keyframe(cdc::test::to_central(robot[k]));
     }
     while (next_loop < stream.loops.size() && stream.loops[next_loop].step <= k) {
-      core.add_loop(to_in(stream.loops[next_loop++]));
+      core.add_loop(cdc::test::to_central(stream.loops[next_loop++]));
     }
   };
   for (uint32_t k = 0; k < per_robot; ++k) {

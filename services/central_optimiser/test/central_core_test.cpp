@@ -2,7 +2,7 @@
 #include "cdc/graph/g2o.hpp"
 #include "cdc/graph/objective.hpp"
 #include "cdc/graph/solver.hpp"
-#include "swarm_stream.hpp"
+#include "stream_to_central.hpp"
 
 #include <gtest/gtest.h>
 
@@ -14,30 +14,8 @@
 namespace cdc::central {
 namespace {
 
-KeyframeIn to_in(const test::StreamKeyframe& k, uint32_t incarnation = 7) {
-  KeyframeIn in;
-  in.robot = k.robot;
-  in.incarnation = incarnation;
-  in.id = k.id;
-  in.T_odom_keyframe = k.T_odom_keyframe;
-  in.T_prev_keyframe = k.T_prev_keyframe;
-  in.information = k.information;
-  return in;
-}
-
-LoopIn to_in(const test::StreamLoop& l, uint32_t incarnation = 7) {
-  LoopIn in;
-  in.sender = l.sender;
-  in.sender_incarnation = incarnation;
-  in.seq = l.seq;
-  in.robot_a = l.robot_a;
-  in.keyframe_a = l.keyframe_a;
-  in.robot_b = l.robot_b;
-  in.keyframe_b = l.keyframe_b;
-  in.T_a_b = l.T_a_b;
-  in.information = l.information;
-  return in;
-}
+KeyframeIn to_in(const test::StreamKeyframe& k, uint32_t incarnation = 7) { return test::to_central(k, incarnation); }
+LoopIn to_in(const test::StreamLoop& l, uint32_t incarnation = 7) { return test::to_central(l, incarnation); }
 
 // Feeds the stream in production order: at each step every robot's keyframe, then its loops.
 void feed_in_order(CentralCore& core, const test::SwarmStream& s) {
