@@ -1,0 +1,174 @@
+#include "cdc/sim/lidar.hpp"
+#include "cdc/sim/world.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace cdc::sim {
+namespace {
+
+// A closed room: walls at x, y = +-10 m, floor at z = 0, ceiling at z = 6 m.
+World room() {
+  Ground g;  // z = 0
+  std::vector<Box> walls = {
+      {Eigen::Vector3d(10.5, 0, 3), Eigen::Vector3d(0.5, 11, 3.5), 0, 0.5f},
+      {Eigen::Vector3d(-10.5, 0, 3), Eigen::Vector3d(0.5, 11, 3.5), 0, 0.5f},
+      {Eigen::Vector3d(0, 10.5, 3), Eigen::Vector3d(11, 0.5, 3.5), 0, 0.5f},
+      {Eigen::Vector3d(0, -10.5, 3), Eigen::Vector3d(11, 0.5, 3.5), 0, 0.5f},
+      {Eigen::Vector3d(0, 0, 6.5), Eigen::Vector3d(11, 11, 0.5), 0, 0.5f},
+  };
+  return World(g, walls, {});
+}
+
+Eigen::Isometry3d at(double x, double y, double z) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = Eigen::Vector3d(x, y, z);
+  return T;
+}
+
+LidarModel exact(LidarModel m) {
+  m.range_sigma_m = 0;
+  m.dropout = 0;
+  return m;
+}
+
+TEST(World, RayAgainstTheGroundPlaneGivesTheAnalyticRange) {
+  Ground g;
+  g.z0 = -2.0;
+  const World w(g, {}, {});
+  const Eigen::Vector3d d = Eigen::Vector3d(std::cos(0.3), 0, -std::sin(0.3));
+  const auto hit = w.cast(Eigen::Vector3d::Zero(), d, 100);
+  ASSERT_TRUE(hit);
+  EXPECT_NEAR(hit->range, 2.0 / std::sin(0.3), 1e-12);
+  EXPECT_NEAR(hit->normal.z(), 1.0, 1e-12);
+  EXPECT_FALSE(w.cast(Eigen::Vector3d::Zero(), Eigen::Vector3d::UnitZ(), 100));  // up: nothing
+}
+
+TEST(World, SlopedGroundAndBoxesAndCylinders) {
+  Ground g;
+  g.gx = 0.1;  // z = 0.1 x
+  Box b{Eigen::Vector3d(20, 0, 0), Eigen::Vector3d(1, 1, 5), M_PI / 4, 0.7f};
+  Cylinder c{0, 15, 0.5, -10, 10, 0.9f};
+  const World w(g, {b}, {c});
+  const Eigen::Vector3d o(0, 0, 1);
+  // Along +x at z = 1 the sloped ground (z = 0.1 x) is met at x = 10 before the box at x ~ 18.6.
+  auto h = w.cast(o, Eigen::Vector3d::UnitX(), 100);
+  ASSERT_TRUE(h);
+  EXPECT_NEAR(h->range, 10.0, 1e-9);
+  // Horizontally along +y: the pole's surface at y = 14.5.
+  h = w.cast(Eigen::Vector3d(0, 0, 5), Eigen::Vector3d::UnitY(), 100);
+  ASSERT_TRUE(h);
+  EXPECT_NEAR(h->range, 14.5, 1e-9);
+  EXPECT_FLOAT_EQ(h->reflectance, 0.9f);
+  // A ray at the rotated box's corner direction hits its vertex at 20 - sqrt(2).
+  h = w.cast(Eigen::Vector3d(0, 0, 2.5), Eigen::Vector3d(1, 0, 0.1).normalized(), 100);
+  ASSERT_TRUE(h);
+}
+
+TEST(Lidar, StaticSensorInARoomSeesEveryWallExactly) {
+  const World w = room();
+  const LidarModel m = exact(LidarModel::vlp16());
+  std::mt19937_64 rng(1);
+  const auto pts = sweep(w, m, [](double) { return at(0, 0, 1.7); }, rng);
+  EXPECT_EQ(pts.size(), m.rays());  // closed room: every ray returns
+  for (const auto& p : pts) {
+    const Eigen::Vector3d q(p.x, p.y, p.z + 1.7);  // world coordinates
+    const bool on_surface = std::abs(std::abs(q.x()) - 10) < 1e-4 || std::abs(std::abs(q.y()) - 10) < 1e-4 ||
+                            std::abs(q.z()) < 1e-4 || std::abs(q.z() - 6) < 1e-4;
+    ASSERT_TRUE(on_surface) << q.transpose();
+    ASSERT_LE(std::max(std::abs(q.x()), std::abs(q.y())), 10 + 1e-4);
+  }
+  EXPECT_EQ(pts.front().ring, 0);
+  EXPECT_FLOAT_EQ(pts.front().time_offset, 0.0f);
+  EXPECT_NEAR(pts.back().time_offset, 0.1 * 1799 / 1800, 1e-6);
+}
+
+TEST(Lidar, RangeNoiseAndDropoutsHaveTheConfiguredSize) {
+  const World w = room();
+  LidarModel m = LidarModel::vlp16();
+  m.range_sigma_m = 0.05;
+  m.dropout = 0.1;
+  std::mt19937_64 rng(2);
+  const auto pts = sweep(w, m, [](double) { return at(0, 0, 1.7); }, rng);
+  EXPECT_NEAR(static_cast<double>(pts.size()) / static_cast<double>(m.rays()), 0.9, 0.01);
+  // Points on the +x wall: the range error along the ray is x / (cos el cos az) - true range.
+  double sum = 0, sq = 0;
+  int n = 0;
+  for (const auto& p : pts) {
+    const Eigen::Vector3d d(p.x, p.y, p.z);
+    const Eigen::Vector3d u = d.normalized();
+    if (u.x() > 0.9 && std::abs(u.z()) < 0.1) {  // beams within +-5.7 deg reach the wall, not floor or ceiling
+      const double truth = 10.0 / u.x();
+      const double err = d.norm() - truth;
+      sum += err;
+      sq += err * err;
+      ++n;
+    }
+  }
+  ASSERT_GT(n, 1000);
+  EXPECT_NEAR(sum / n, 0.0, 0.01);
+  EXPECT_NEAR(std::sqrt(sq / n), 0.05, 0.005);
+}
+
+TEST(Lidar, AMovingSensorsSweepIsDistortedByExactlyTheMotion) {
+  const World w = room();
+  const LidarModel m = exact(LidarModel::vlp16());
+  const double v = 8.0;  // [m/s] along +x
+  std::mt19937_64 rng(3);
+  const auto pts = sweep(w, m, [&](double t) { return at(-2.0 + v * t, 0, 1.7); }, rng);
+  // First and last column look almost the same way (+x wall), 0.1 s apart: each range is the wall
+  // distance at its own instant, so the sweep does not close on itself.
+  const LidarReturn* first = nullptr;
+  const LidarReturn* last = nullptr;
+  for (const auto& p : pts) {
+    if (p.ring == 7) {
+      if (first == nullptr) first = &p;
+      last = &p;
+    }
+  }
+  ASSERT_TRUE(first && last);
+  auto expected = [&](const LidarReturn& p) {
+    const Eigen::Vector3d u = Eigen::Vector3d(p.x, p.y, p.z).normalized();
+    const double x_sensor = -2.0 + v * static_cast<double>(p.time_offset);
+    return (10.0 - x_sensor) / u.x();
+  };
+  const double r_first = Eigen::Vector3d(first->x, first->y, first->z).norm();
+  const double r_last = Eigen::Vector3d(last->x, last->y, last->z).norm();
+  EXPECT_NEAR(r_first, expected(*first), 1e-5);
+  EXPECT_NEAR(r_last, expected(*last), 1e-5);
+  EXPECT_NEAR(r_first - r_last, v * static_cast<double>(last->time_offset) * 1.0, 0.01);  // ~0.8 m of motion
+  EXPECT_GT(r_first - r_last, 0.75);
+}
+
+TEST(World, GeneratedCityKeepsClearOfThePathsAndIsDeterministic) {
+  std::vector<Eigen::Vector3d> path;
+  for (int i = 0; i < 200; ++i) {
+    path.emplace_back(2.0 * i, 20 * std::sin(0.01 * i), 1.7);
+  }
+  WorldOptions o;
+  o.seed = 42;
+  const World a = World::generate({path}, o);
+  const World b = World::generate({path}, o);
+  ASSERT_GT(a.boxes().size(), 20u);
+  ASSERT_EQ(a.boxes().size(), b.boxes().size());
+  for (size_t i = 0; i < a.boxes().size(); ++i) {
+    EXPECT_EQ(a.boxes()[i].center, b.boxes()[i].center);
+  }
+  // Nothing within the clearance of the path: horizontal rays from every path point run free for 2.9 m.
+  for (const auto& p : path) {
+    for (int k = 0; k < 16; ++k) {
+      const double az = 2 * M_PI * k / 16;
+      const Eigen::Vector3d d(std::cos(az), std::sin(az), 0);
+      const Eigen::Vector3d o3(p.x(), p.y(), a.ground().height(p.x(), p.y()) + 1.0);
+      const auto hit = a.cast(o3, d, 2.9);
+      EXPECT_FALSE(hit) << "something within the clearance at " << p.transpose();
+    }
+  }
+  WorldOptions other = o;
+  other.seed = 43;
+  EXPECT_NE(World::generate({path}, other).boxes().front().center, a.boxes().front().center);
+}
+
+}  // namespace
+}  // namespace cdc::sim
