@@ -1,0 +1,92 @@
+// cdc-sim: the swarm simulator's command-line tool.
+#include "cdc/sim/lidar.hpp"
+#include "cdc/sim/world.hpp"
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <random>
+
+namespace {
+
+// A city drive: straight streets joined by right-angle turns, 10 m/s, 1.7 m sensor height.
+std::vector<Eigen::Vector3d> bench_path() {
+  std::vector<Eigen::Vector3d> p;
+  Eigen::Vector3d x(0, 0, 1.7);
+  double heading = 0;
+  for (int leg = 0; leg < 8; ++leg) {
+    for (int i = 0; i < 150; ++i) {
+      x += Eigen::Vector3d(std::cos(heading), std::sin(heading), 0);
+      p.push_back(x);
+    }
+    heading += (leg % 3 == 2 ? -1 : 1) * M_PI / 2;
+  }
+  return p;
+}
+
+Eigen::Isometry3d pose_on(const std::vector<Eigen::Vector3d>& path, double s) {
+  const size_t i = std::min(static_cast<size_t>(s), path.size() - 2);
+  const double f = s - static_cast<double>(i);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = path[i] + f * (path[i + 1] - path[i]);
+  const Eigen::Vector3d d = path[i + 1] - path[i];
+  T.linear() = Eigen::AngleAxisd(std::atan2(d.y(), d.x()), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  return T;
+}
+
+int bench(int sweeps) {
+  const auto path = bench_path();
+  cdc::sim::WorldOptions wo;
+  wo.seed = 7;
+  const cdc::sim::World world = cdc::sim::World::generate({path}, wo);
+  nlohmann::json j;
+  uint64_t total_rays = 0;
+  double total_s = 0;
+  for (const auto& model : {cdc::sim::LidarModel::vlp16(), cdc::sim::LidarModel::hdl64()}) {
+    std::mt19937_64 rng(1);
+    size_t points = 0;
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int k = 0; k < sweeps; ++k) {
+      const double s0 = 1.0 * k;  // 1 m per sweep (10 m/s at 10 Hz)
+      const auto pts = cdc::sim::sweep(world, model, [&](double t) { return pose_on(path, s0 + 10.0 * t); }, rng);
+      points += pts.size();
+    }
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    total_rays += static_cast<uint64_t>(sweeps) * model.rays();
+    total_s += s;
+    j[model.name + "_sweeps_per_s"] = sweeps / s;
+    j[model.name + "_points_per_sweep"] = static_cast<double>(points) / sweeps;
+    std::printf("%s: %.1f sweeps/s (%zu rays per sweep, %.0f points per sweep)\n", model.name.c_str(), sweeps / s,
+                model.rays(), static_cast<double>(points) / sweeps);
+  }
+  j["vlp16_sweeps_per_s"] = j["vlp16_sweeps_per_s"];
+  j["hdl64_sweeps_per_s"] = j["hdl64_sweeps_per_s"];
+  j["rays_per_s"] = static_cast<double>(total_rays) / total_s;
+  j["world_boxes"] = world.boxes().size();
+  j["world_cylinders"] = world.cylinders().size();
+  j["sweeps"] = sweeps;
+  std::cout << j.dump() << '\n';
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "cdc-sim: the swarm simulator. Subcommands:\n"
+      "  bench   ray-casting speed on one core (last line one JSON object)\n"
+      "Dataset generation and players arrive with the rest of the simulator issue."};
+  app.require_subcommand(1);
+  int sweeps = 100;
+  CLI::App* b = app.add_subcommand("bench", "sweeps per second for the VLP-16 and HDL-64E presets on one core");
+  b->add_option("--sweeps", sweeps, "sweeps per preset")->check(CLI::PositiveNumber)->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  if (b->parsed()) {
+    return bench(sweeps);
+  }
+  return 2;
+}
