@@ -1,0 +1,253 @@
+#include "scenario.hpp"
+
+#include "cdc/config/reader.hpp"
+#include "cdc/geometry/trajectory.hpp"
+#include "cdc/sim/kitti.hpp"
+#include "cdc/sim/trajectory.hpp"
+
+#include <cmath>
+#include <cstring>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <random>
+#include <stdexcept>
+
+namespace cdc::sim {
+namespace fs = std::filesystem;
+
+Scenario load_scenario(const std::string& path) {
+  Scenario s;
+  if (!fs::exists(path)) {
+    throw config::ConfigError(path + ": scenario file not found");
+  }
+  config::Reader r(path);
+  auto pos = [](const double& v) { return v > 0; };
+  r.get<std::string>("name", s.name);
+  r.get<uint64_t>("seed", s.seed);
+  r.get<std::string>("trajectories.source", s.source,
+                     [](const std::string& v) { return v == "kitti" || v == "procedural"; }, "kitti or procedural");
+  r.get<std::string>("trajectories.sequence", s.kitti_sequence);
+  r.get<std::string>("trajectories.calib_key", s.calib_key);
+  r.get<int>("trajectories.robots", s.robots, [](const int& v) { return v >= 1 && v <= 64; }, "1..64");
+  r.get<double>("trajectories.overlap", s.overlap, [](const double& v) { return v >= 0 && v < 1; }, "[0, 1)");
+  r.get<double>("trajectories.time_shift_s", s.time_shift_s, [](const double& v) { return v >= 0; }, ">= 0");
+  std::string pattern = "rays";
+  r.get<std::string>("trajectories.pattern", pattern, [](const std::string& v) { return parse_pattern(v).has_value(); },
+                     "rays, loops or crossing");
+  s.mission.pattern = parse_pattern(pattern).value_or(MissionPattern::kRays);
+  r.get<double>("trajectories.speed_mps", s.mission.speed_mps, pos, "> 0");
+  r.get<double>("trajectories.size_m", s.mission.size_m, pos, "> 0");
+  r.get<double>("trajectories.duration_s", s.mission.duration_s, pos, "> 0");
+  s.mission.robots = s.robots;
+  r.get<std::string>("lidar", s.lidar, [](const std::string& v) { return v == "vlp16" || v == "hdl64"; }, "vlp16 or hdl64");
+  r.get<double>("imu_rate_hz", s.imu_rate_hz, [](const double& v) { return v >= 100 && v <= 400; }, "100..400");
+  r.get<double>("duration_s", s.duration_s, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get<int>("radio.central_robot", s.central_robot, [](const int& v) { return v >= -1; }, "-1 or a robot id");
+  std::vector<double> cp{0, 0, 0};
+  r.get<std::vector<double>>("radio.central_position", cp, [](const std::vector<double>& v) { return v.size() == 3; },
+                             "[x, y, z]");
+  s.central_position = Eigen::Vector3d(cp[0], cp[1], cp[2]);
+  r.get<uint32_t>("radio.central_id", s.central_id);
+  r.get<double>("radio.central_range_m", s.central_range_m, pos, "> 0");
+  r.get<double>("radio.robot_range_m", s.robot_range_m, pos, "> 0");
+  r.get<double>("radio.loss_start_fraction", s.radio.loss_start_fraction, [](const double& v) { return v > 0 && v <= 1; },
+                "(0, 1]");
+  r.get<double>("radio.max_loss", s.radio.max_loss, [](const double& v) { return v >= 0 && v <= 1; }, "[0, 1]");
+  r.get<double>("world.clearance_m", s.world.clearance_m, pos, "> 0");
+  r.get<double>("world.spacing_m", s.world.spacing_m, pos, "> 0");
+  s.world.seed = s.seed;
+  if (s.central_robot >= s.robots) {
+    r.error("radio.central_robot " + std::to_string(s.central_robot) + " is not one of the " + std::to_string(s.robots) +
+            " robots");
+  }
+  if (s.central_id < static_cast<uint32_t>(s.robots)) {
+    r.error("radio.central_id " + std::to_string(s.central_id) + " collides with a robot id");
+  }
+  r.finish();
+  return s;
+}
+
+namespace {
+
+void write_file(const fs::path& p, const void* data, size_t bytes) {
+  std::ofstream out(p, std::ios::binary);
+  if (!out || !out.write(static_cast<const char*>(data), static_cast<std::streamsize>(bytes))) {
+    throw std::runtime_error(p.string() + ": cannot write");
+  }
+}
+
+void write_text(const fs::path& p, const std::string& text) { write_file(p, text.data(), text.size()); }
+
+std::vector<geometry::Trajectory> robot_trajectories(const Scenario& s, const GenerateOptions& g) {
+  if (s.source == "procedural") {
+    return procedural_mission(s.mission);
+  }
+  const fs::path poses = fs::path(g.data_dir) / "kitti" / "poses" / (s.kitti_sequence + ".txt");
+  const fs::path calib = fs::path(g.data_dir) / "kitti" / "calib_Tr.txt";
+  for (const auto& p : {poses, calib}) {
+    if (!fs::exists(p)) {
+      throw std::runtime_error(p.string() + ": reference data not found (set --data or CDC_DATA_DIR)");
+    }
+  }
+  const auto seq = kitti_lidar_trajectory(poses.string(), read_kitti_calib(calib.string(), s.calib_key));
+  return split_robots(seq, SplitOptions{s.robots, s.overlap, s.time_shift_s});
+}
+
+SplineTrajectory to_spline(const geometry::Trajectory& t) {
+  std::vector<Eigen::Isometry3d> c;
+  for (const auto& sp : t) {
+    c.push_back(sp.pose);
+  }
+  return SplineTrajectory(c, static_cast<double>(t.front().stamp_ns) * 1e-9, 0.1);
+}
+
+std::vector<RadioNode> radio_nodes(const Scenario& s, const std::vector<SplineTrajectory>& splines) {
+  std::vector<RadioNode> nodes;
+  for (size_t r = 0; r < splines.size(); ++r) {
+    const SplineTrajectory* sp = &splines[r];
+    nodes.push_back({static_cast<uint32_t>(r), s.robot_range_m,
+                     [sp](double t) { return Eigen::Vector3d(sp->pose(t).translation()); }});
+  }
+  if (s.central_robot >= 0) {
+    const SplineTrajectory* sp = &splines[static_cast<size_t>(s.central_robot)];
+    nodes.push_back({s.central_id, s.central_range_m, [sp](double t) { return Eigen::Vector3d(sp->pose(t).translation()); }});
+  } else {
+    const Eigen::Vector3d c = s.central_position;
+    nodes.push_back({s.central_id, s.central_range_m, [c](double) { return c; }});
+  }
+  return nodes;
+}
+
+}  // namespace
+
+std::vector<OutOfRangePeriod> scenario_radio_periods(const Scenario& s, const GenerateOptions& g) {
+  std::vector<SplineTrajectory> splines;
+  double t0 = 1e18, t1 = 0;
+  for (const auto& t : robot_trajectories(s, g)) {
+    splines.push_back(to_spline(t));
+    t0 = std::min(t0, splines.back().start());
+    double e = splines.back().end() - 0.1;
+    if (s.duration_s > 0) {
+      e = std::min(e, splines.back().start() + s.duration_s);
+    }
+    t1 = std::max(t1, e);
+  }
+  return out_of_range_periods(radio_timeline(radio_nodes(s, splines), t0, t1, s.radio));
+}
+
+GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_path, const std::string& out_dir,
+                                 const GenerateOptions& g) {
+  GenerateSummary sum;
+  const auto trajectories = robot_trajectories(s, g);
+  std::vector<SplineTrajectory> splines;
+  std::vector<std::vector<Eigen::Vector3d>> paths;
+  for (const auto& t : trajectories) {
+    splines.push_back(to_spline(t));
+    std::vector<Eigen::Vector3d> path;
+    for (const auto& sp : t) {
+      path.push_back(sp.pose.translation());
+    }
+    paths.push_back(path);
+  }
+  const World world = World::generate(paths, s.world);
+  const LidarModel model = s.lidar == "hdl64" ? LidarModel::hdl64() : LidarModel::vlp16();
+  Eigen::Isometry3d T_lidar_imu = Eigen::Isometry3d::Identity();  // the IMU sits 10 cm behind, 5 cm below
+  T_lidar_imu.translation() = Eigen::Vector3d(-0.10, 0.0, -0.05);
+
+  fs::create_directories(out_dir);
+  double t_end_all = 0, t_start_all = 1e18;
+  for (size_t r = 0; r < splines.size(); ++r) {
+    const SplineTrajectory& sp = splines[r];
+    const fs::path dir = fs::path(out_dir) / ("robot_" + std::to_string(r));
+    fs::create_directories(dir / "velodyne");
+    fs::create_directories(dir / "velodyne_meta");
+    std::mt19937_64 rng(s.seed * 1000 + r);
+    double t_end = sp.end() - model.period_s();
+    if (s.duration_s > 0) {
+      t_end = std::min(t_end, sp.start() + s.duration_s);
+    }
+    std::string times;
+    geometry::Trajectory gt;
+    size_t k = 0;
+    for (double t = sp.start(); t <= t_end + 1e-9; t = sp.start() + 0.1 * static_cast<double>(++k)) {
+      if (g.max_scans > 0 && k >= g.max_scans) {
+        break;
+      }
+      const auto pts = sweep(world, model, [&](double tau) { return sp.pose(t + tau); }, rng);
+      std::vector<float> xyzi;
+      std::vector<uint8_t> meta;
+      xyzi.reserve(pts.size() * 4);
+      meta.reserve(pts.size() * 8);
+      for (const auto& p : pts) {
+        xyzi.insert(xyzi.end(), {p.x, p.y, p.z, p.intensity});
+        uint8_t m[8] = {};
+        std::memcpy(m, &p.time_offset, 4);
+        std::memcpy(m + 4, &p.ring, 2);
+        meta.insert(meta.end(), m, m + 8);
+      }
+      char name[16];
+      std::snprintf(name, sizeof name, "%06zu.bin", k);
+      write_file(dir / "velodyne" / name, xyzi.data(), xyzi.size() * sizeof(float));
+      write_file(dir / "velodyne_meta" / name, meta.data(), meta.size());
+      char line[32];
+      std::snprintf(line, sizeof line, "%.9f\n", t);
+      times += line;
+      gt.push_back({static_cast<int64_t>(std::llround(t * 1e9)), sp.pose(t)});
+      sum.points += pts.size();
+      ++sum.scans;
+    }
+    write_text(dir / "times.txt", times);
+    geometry::write_tum((dir / "groundtruth.tum").string(), gt);
+    // IMU over the scanned span, in the IMU frame mounted at T_lidar_imu on the LiDAR (the body).
+    const double t_imu_end = gt.empty() ? sp.start() : static_cast<double>(gt.back().stamp_ns) * 1e-9 + model.period_s();
+    const auto imu = simulate_imu(sp, T_lidar_imu, sp.start(), t_imu_end, s.imu_rate_hz, ImuNoise{}, s.seed * 1000 + 500 + r);
+    std::string csv = "t,ax,ay,az,gx,gy,gz\n";
+    for (const auto& m : imu) {
+      char line[256];
+      std::snprintf(line, sizeof line, "%.9f,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g\n", m.t, m.accel.x(), m.accel.y(), m.accel.z(),
+                    m.gyro.x(), m.gyro.y(), m.gyro.z());
+      csv += line;
+    }
+    write_text(dir / "imu.csv", csv);
+    const Eigen::Quaterniond q(T_lidar_imu.rotation());
+    char calib[512];
+    std::snprintf(calib, sizeof calib,
+                  "# T_lidar_imu: the IMU's pose in the LiDAR frame (position [m], quaternion x y z w)\n"
+                  "lidar: %s\nimu_rate_hz: %g\nT_lidar_imu: {position: [%g, %g, %g], orientation: [%g, %g, %g, %g]}\n",
+                  model.name.c_str(), s.imu_rate_hz, T_lidar_imu.translation().x(), T_lidar_imu.translation().y(),
+                  T_lidar_imu.translation().z(), q.x(), q.y(), q.z(), q.w());
+    write_text(dir / "calib.yaml", calib);
+    t_start_all = std::min(t_start_all, sp.start());
+    t_end_all = std::max(t_end_all, t_imu_end);
+    ++sum.robots;
+  }
+
+  // Radio: robots and the central node.
+  const auto timeline = radio_timeline(radio_nodes(s, splines), t_start_all, t_end_all, s.radio);
+  write_text(fs::path(out_dir) / "radio.csv", radio_csv(timeline));
+  std::string periods = "a,b,start,end\n";
+  for (const auto& p : out_of_range_periods(timeline)) {
+    char line[96];
+    std::snprintf(line, sizeof line, "%u,%u,%.3f,%.3f\n", p.a, p.b, p.start, p.end);
+    periods += line;
+    ++sum.out_of_range_periods;
+  }
+  write_text(fs::path(out_dir) / "radio_periods.csv", periods);
+  char world_json[256];
+  std::snprintf(world_json, sizeof world_json, "{\"seed\": %llu, \"boxes\": %zu, \"cylinders\": %zu, \"ground\": [%g, %g, %g]}\n",
+                static_cast<unsigned long long>(s.seed), world.boxes().size(), world.cylinders().size(),
+                world.ground().z0, world.ground().gx, world.ground().gy);
+  write_text(fs::path(out_dir) / "world.json", world_json);
+  fs::copy_file(scenario_path, fs::path(out_dir) / "scenario.yaml", fs::copy_options::overwrite_existing);
+  char summary[256];
+  std::snprintf(summary, sizeof summary,
+                "{\"name\": \"%s\", \"robots\": %zu, \"scans\": %zu, \"points\": %zu, \"central_id\": %u, "
+                "\"out_of_range_periods\": %zu}\n",
+                s.name.c_str(), sum.robots, sum.scans, sum.points, s.central_id, sum.out_of_range_periods);
+  write_text(fs::path(out_dir) / "dataset.json", summary);
+  return sum;
+}
+
+}  // namespace cdc::sim

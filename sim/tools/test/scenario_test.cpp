@@ -1,0 +1,124 @@
+#include "cdc/config/reader.hpp"
+#include "scenario.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <unistd.h>
+
+namespace cdc::sim {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string data_dir() {
+  const char* env = std::getenv("CDC_DATA_DIR");
+  return env != nullptr ? env : "../shared/data";
+}
+
+std::string scenarios() { return std::getenv("CDC_SCENARIOS_DIR"); }
+
+std::string read_all(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+class ScenarioFiles : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_NE(std::getenv("CDC_SCENARIOS_DIR"), nullptr);
+    dir_ = fs::temp_directory_path() / ("cdc_scenario_" + std::to_string(::getpid()));
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string write(const std::string& name, const std::string& text) {
+    std::ofstream(dir_ / name) << text;
+    return (dir_ / name).string();
+  }
+  fs::path dir_;
+};
+
+TEST_F(ScenarioFiles, SameScenarioAndSeedGiveByteIdenticalDatasets) {
+  const std::string sc = write("small.yaml",
+                               "name: small\nseed: 3\ntrajectories:\n  source: procedural\n  pattern: crossing\n"
+                               "  robots: 2\n  duration_s: 20\n  size_m: 60\nradio:\n  central_robot: 0\n");
+  GenerateOptions g;
+  g.max_scans = 3;
+  const Scenario s = load_scenario(sc);
+  const auto a = generate_dataset(s, sc, (dir_ / "a").string(), g);
+  generate_dataset(s, sc, (dir_ / "b").string(), g);
+  EXPECT_EQ(a.robots, 2u);
+  EXPECT_EQ(a.scans, 6u);
+  EXPECT_GT(a.points, 6u * 10000u);
+  size_t files = 0;
+  for (const auto& e : fs::recursive_directory_iterator(dir_ / "a")) {
+    if (!e.is_regular_file()) continue;
+    const fs::path rel = fs::relative(e.path(), dir_ / "a");
+    ASSERT_TRUE(fs::exists(dir_ / "b" / rel)) << rel;
+    ASSERT_EQ(read_all(e.path()), read_all(dir_ / "b" / rel)) << rel << " differs";
+    ++files;
+  }
+  EXPECT_EQ(files, 2u * (3 + 3 + 4) + 5);  // per robot: scans, point metadata, times/imu/gt/calib; radio x2, world, scenario, summary
+  for (const char* f : {"robot_0/times.txt", "robot_0/imu.csv", "robot_0/groundtruth.tum", "robot_1/velodyne/000002.bin",
+                        "robot_1/velodyne_meta/000002.bin", "radio.csv", "radio_periods.csv", "world.json", "scenario.yaml"}) {
+    EXPECT_TRUE(fs::exists(dir_ / "a" / f)) << f;
+  }
+  // A different seed gives a different world and different scans.
+  const std::string sc2 = write("small2.yaml", read_all(sc).replace(read_all(sc).find("seed: 3"), 7, "seed: 4"));
+  generate_dataset(load_scenario(sc2), sc2, (dir_ / "c").string(), g);
+  EXPECT_NE(read_all(dir_ / "a/robot_0/velodyne/000000.bin"), read_all(dir_ / "c/robot_0/velodyne/000000.bin"));
+}
+
+TEST_F(ScenarioFiles, BadScenariosNameTheField) {
+  const std::string bad = write("bad.yaml", "trajectories:\n  source: carla\n  robots: 0\nlidar: vlp32\nradio:\n  rnage_m: 3\n");
+  try {
+    load_scenario(bad);
+    FAIL();
+  } catch (const config::ConfigError& e) {
+    const std::string m = e.what();
+    EXPECT_THAT(m, ::testing::HasSubstr("trajectories.source"));
+    EXPECT_THAT(m, ::testing::HasSubstr("trajectories.robots"));
+    EXPECT_THAT(m, ::testing::HasSubstr("lidar"));
+    EXPECT_THAT(m, ::testing::HasSubstr("radio.rnage_m: unknown setting"));
+  }
+  EXPECT_THROW(load_scenario((dir_ / "none.yaml").string()), config::ConfigError);
+  // A KITTI scenario without the reference data names the missing path.
+  const std::string k = write("k.yaml", "trajectories:\n  source: kitti\n  sequence: \"05\"\n");
+  GenerateOptions g;
+  g.data_dir = (dir_ / "no-data").string();
+  EXPECT_THAT([&] { generate_dataset(load_scenario(k), k, (dir_ / "out").string(), g); },
+              ::testing::ThrowsMessage<std::runtime_error>(::testing::HasSubstr("no-data/kitti/poses/05.txt")));
+}
+
+TEST_F(ScenarioFiles, EveryShippedScenarioTakesEachRobotOutOfRangeAtLeastTwice) {
+  size_t checked = 0;
+  for (const auto& e : fs::directory_iterator(scenarios())) {
+    const Scenario s = load_scenario(e.path().string());
+    GenerateOptions g;
+    g.data_dir = data_dir();
+    if (s.source == "kitti" && !fs::exists(fs::path(data_dir()) / "kitti/poses" / (s.kitti_sequence + ".txt"))) {
+      std::printf("%s: reference data absent, not checked\n", e.path().filename().c_str());
+      continue;
+    }
+    const auto periods = scenario_radio_periods(s, g);
+    std::map<uint32_t, int> out;
+    for (const auto& p : periods) {
+      if (p.b == s.central_id) out[p.a]++;
+    }
+    for (int r = 0; r < s.robots; ++r) {
+      if (r == s.central_robot) continue;
+      std::printf("%s: robot %d leaves the central's range %d times\n", s.name.c_str(), r, out[static_cast<uint32_t>(r)]);
+      EXPECT_GE(out[static_cast<uint32_t>(r)], 2) << s.name << " robot " << r;
+    }
+    ++checked;
+  }
+  EXPECT_GE(checked, 1u);
+}
+
+}  // namespace
+}  // namespace cdc::sim
