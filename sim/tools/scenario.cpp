@@ -164,14 +164,16 @@ GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_
     fs::create_directories(dir / "velodyne");
     fs::create_directories(dir / "velodyne_meta");
     std::mt19937_64 rng(s.seed * 1000 + r);
-    double t_end = sp.end() - model.period_s();
+    // Margins at both ends: derivatives of the spline (IMU) look a little before and after.
+    const double t_first = sp.start() + 0.1;
+    double t_end = sp.end() - 2 * model.period_s();
     if (s.duration_s > 0) {
-      t_end = std::min(t_end, sp.start() + s.duration_s);
+      t_end = std::min(t_end, t_first + s.duration_s);
     }
     std::string times;
     geometry::Trajectory gt;
     size_t k = 0;
-    for (double t = sp.start(); t <= t_end + 1e-9; t = sp.start() + 0.1 * static_cast<double>(++k)) {
+    for (double t = t_first; t <= t_end + 1e-9; t = t_first + 0.1 * static_cast<double>(++k)) {
       if (g.max_scans > 0 && k >= g.max_scans) {
         break;
       }
@@ -201,8 +203,9 @@ GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_
     write_text(dir / "times.txt", times);
     geometry::write_tum((dir / "groundtruth.tum").string(), gt);
     // IMU over the scanned span, in the IMU frame mounted at T_lidar_imu on the LiDAR (the body).
-    const double t_imu_end = gt.empty() ? sp.start() : static_cast<double>(gt.back().stamp_ns) * 1e-9 + model.period_s();
-    const auto imu = simulate_imu(sp, T_lidar_imu, sp.start(), t_imu_end, s.imu_rate_hz, ImuNoise{}, s.seed * 1000 + 500 + r);
+    const double t_imu_start = t_first - 0.05;
+    const double t_imu_end = gt.empty() ? t_first : static_cast<double>(gt.back().stamp_ns) * 1e-9 + model.period_s();
+    const auto imu = simulate_imu(sp, T_lidar_imu, t_imu_start, t_imu_end, s.imu_rate_hz, ImuNoise{}, s.seed * 1000 + 500 + r);
     std::string csv = "t,ax,ay,az,gx,gy,gz\n";
     for (const auto& m : imu) {
       char line[256];
@@ -219,7 +222,7 @@ GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_
                   model.name.c_str(), s.imu_rate_hz, T_lidar_imu.translation().x(), T_lidar_imu.translation().y(),
                   T_lidar_imu.translation().z(), q.x(), q.y(), q.z(), q.w());
     write_text(dir / "calib.yaml", calib);
-    t_start_all = std::min(t_start_all, sp.start());
+    t_start_all = std::min(t_start_all, t_imu_start);
     t_end_all = std::max(t_end_all, t_imu_end);
     ++sum.robots;
   }

@@ -4,6 +4,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -67,6 +69,23 @@ TEST_F(ScenarioFiles, SameScenarioAndSeedGiveByteIdenticalDatasets) {
   for (const char* f : {"robot_0/times.txt", "robot_0/imu.csv", "robot_0/groundtruth.tum", "robot_1/velodyne/000002.bin",
                         "robot_1/velodyne_meta/000002.bin", "radio.csv", "radio_periods.csv", "world.json", "scenario.yaml"}) {
     EXPECT_TRUE(fs::exists(dir_ / "a" / f)) << f;
+  }
+  // The IMU agrees with the ground truth it was simulated from: at rest on the ground plane gravity
+  // dominates (|f| near 9.8 m/s^2 give or take the driving accelerations), from the first sample on.
+  {
+    std::ifstream imu(dir_ / "a/robot_0/imu.csv");
+    std::string line;
+    std::getline(imu, line);
+    int n = 0;
+    while (std::getline(imu, line)) {
+      double t, ax, ay, az, gx, gy, gz;
+      ASSERT_EQ(std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf,%lf", &t, &ax, &ay, &az, &gx, &gy, &gz), 7);
+      const double f = std::sqrt(ax * ax + ay * ay + az * az);
+      EXPECT_GT(f, 7.0) << "sample " << n << " at t=" << t;
+      EXPECT_LT(f, 13.0) << "sample " << n << " at t=" << t;
+      ++n;
+    }
+    EXPECT_GT(n, 50);
   }
   // A different seed gives a different world and different scans.
   const std::string sc2 = write("small2.yaml", read_all(sc).replace(read_all(sc).find("seed: 3"), 7, "seed: 4"));
