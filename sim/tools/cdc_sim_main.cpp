@@ -1,6 +1,9 @@
 // cdc-sim: the swarm simulator's command-line tool.
 #include "cdc/config/reader.hpp"
 #include "cdc/sim/lidar.hpp"
+#include "cdc/dds/participant.hpp"
+#include "cdc/dds/shutdown.hpp"
+#include "player.hpp"
 #include "scenario.hpp"
 #include "cdc/sim/world.hpp"
 
@@ -79,10 +82,13 @@ int bench(int sweeps) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  cdc::dds::ShutdownSignal::install();
   CLI::App app{
       "cdc-sim: the swarm simulator. Subcommands:\n"
       "  generate  write a dataset (per robot: velodyne scans with per-point times, IMU, ground truth; radio)\n"
       "  radio     the radio's out-of-range periods of a scenario (no sensor simulation)\n"
+      "  play      publish a dataset over DDS (real time, faster, or lock-stepped)\n"
+      "  play-kitti  publish a real KITTI velodyne folder over DDS, optionally split into robots\n"
       "  bench     ray-casting speed on one core (last line one JSON object)"};
   app.require_subcommand(1);
   const char* env_data = std::getenv("CDC_DATA_DIR");
@@ -94,6 +100,30 @@ int main(int argc, char** argv) {
   gen->add_option("--out", out_dir, "output folder")->required();
   gen->add_option("--max-scans", max_scans, "scans per robot (0: all)")->capture_default_str();
   gen->add_option("--data", data_dir, "reference data folder (CDC_DATA_DIR)")->capture_default_str();
+  cdc::sim::PlayOptions po;
+  int domain = -1;
+  std::string dataset_dir;
+  cdc::sim::KittiPlayOptions ko;
+  auto play_options = [&](CLI::App* c) {
+    c->add_option("--rate", po.rate, "1: real time, 2: twice as fast, 0: as fast as possible")->capture_default_str();
+    c->add_flag("--lockstep", po.lockstep, "wait for each robot's consumer (cdc/sim/progress) before its next scan");
+    c->add_option("--lockstep-timeout", po.lockstep_timeout_s, "[s]")->capture_default_str();
+    c->add_option("--wait-readers", po.wait_readers, "LiDAR readers to wait for before starting");
+    c->add_option("--max-scans", po.max_scans, "scans per robot (0: all)");
+    c->add_option("--domain", domain, "DDS domain id (default: CDC_DDS_DOMAIN or 0)")->check(CLI::Range(0, 232));
+    c->add_option("--dds-config", po.dds_config, "Cyclone DDS configuration (default: CYCLONEDDS_URI)");
+  };
+  CLI::App* play = app.add_subcommand("play", "publish a dataset written by 'cdc-sim generate'");
+  play->add_option("dataset", dataset_dir, "dataset folder")->required();
+  play_options(play);
+  CLI::App* play_k = app.add_subcommand("play-kitti", "publish a real KITTI velodyne folder");
+  play_k->add_option("--velodyne", ko.velodyne_dir, "folder of NNNNNN.bin scans")->required();
+  play_k->add_option("--poses", ko.poses_path, "ground-truth poses of the sequence (optional)");
+  play_k->add_option("--calib", ko.calib_path, "calib_Tr.txt (needed with --poses)");
+  play_k->add_option("--calib-key", ko.calib_key)->capture_default_str();
+  play_k->add_option("--robots", ko.robots, "split the scans into this many robots")->check(CLI::Range(1, 64))
+      ->capture_default_str();
+  play_options(play_k);
   CLI::App* radio = app.add_subcommand("radio", "out-of-range periods of a scenario, as JSON");
   radio->add_option("--scenario", scenario_path, "scenario YAML")->required();
   radio->add_option("--data", data_dir, "reference data folder (CDC_DATA_DIR)")->capture_default_str();
@@ -104,6 +134,16 @@ int main(int argc, char** argv) {
   try {
     if (b->parsed()) {
       return bench(sweeps);
+    }
+    if (play->parsed() || play_k->parsed()) {
+      po.domain = domain >= 0 ? static_cast<uint32_t>(domain) : cdc::dds::domain_from_env(0);
+      if (play_k->parsed() && !ko.poses_path.empty() && ko.calib_path.empty()) {
+        std::cerr << "cdc-sim: --poses needs --calib (the LiDAR-camera calibration)\n";
+        return 2;
+      }
+      const auto sum = play->parsed() ? cdc::sim::play_dataset(dataset_dir, po) : cdc::sim::play_kitti(ko, po);
+      std::printf("played %zu scans, %zu IMU samples\n", sum.scans, sum.imu_samples);
+      return 0;
     }
     const cdc::sim::Scenario sc = cdc::sim::load_scenario(scenario_path);
     cdc::sim::GenerateOptions go;

@@ -189,7 +189,7 @@ GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_
         std::memcpy(m + 4, &p.ring, 2);
         meta.insert(meta.end(), m, m + 8);
       }
-      char name[16];
+      char name[32];
       std::snprintf(name, sizeof name, "%06zu.bin", k);
       write_file(dir / "velodyne" / name, xyzi.data(), xyzi.size() * sizeof(float));
       write_file(dir / "velodyne_meta" / name, meta.data(), meta.size());

@@ -1,0 +1,293 @@
+#include "player.hpp"
+
+#include "cdc/dds/convert.hpp"
+#include "cdc/dds/participant.hpp"
+#include "cdc/dds/pubsub.hpp"
+#include "cdc/dds/shutdown.hpp"
+#include "cdc/dds/topics.hpp"
+#include "cdc/geometry/trajectory.hpp"
+#include "cdc/sim/kitti.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <sstream>
+#include <stdexcept>
+#include <thread>
+
+namespace cdc::sim {
+namespace fs = std::filesystem;
+
+namespace {
+
+struct ScanRef {
+  int64_t stamp_ns;
+  uint32_t robot;
+  uint64_t seq;
+  fs::path bin, meta;  // meta empty: time offsets from azimuth (real KITTI)
+  std::optional<Eigen::Isometry3d> truth;
+};
+
+std::vector<char> read_bytes(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  if (!in) {
+    throw std::runtime_error(p.string() + ": cannot open");
+  }
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// Publishes a merged, time-ordered list of scans (and IMU per robot) with the chosen pacing.
+class Publisher {
+ public:
+  explicit Publisher(const PlayOptions& o)
+      : o_(o),
+        participant_(make_options(o)),
+        t_lidar_(participant_, dds::topics::kLidar),
+        t_imu_(participant_, dds::topics::kImu),
+        t_gt_(participant_, dds::topics::kGroundTruth),
+        t_progress_(participant_, dds::topics::kProgress),
+        w_lidar_(participant_, t_lidar_, dds::qos::sensor_stream(16, true)),
+        w_imu_(participant_, t_imu_, dds::qos::sensor_stream(64, true)),
+        w_gt_(participant_, t_gt_, dds::qos::keyed_state()),
+        r_progress_(participant_, t_progress_, dds::qos::keyed_state()) {
+    if (o.wait_readers > 0 && !w_lidar_.wait_for_readers(o.wait_readers, std::chrono::seconds(30))) {
+      throw std::runtime_error("only " + std::to_string(w_lidar_.matched_readers()) + " of " +
+                               std::to_string(o.wait_readers) + " LiDAR readers appeared");
+    }
+  }
+
+  static dds::ParticipantOptions make_options(const PlayOptions& o) {
+    dds::ParticipantOptions p;
+    p.domain_id = o.domain;
+    p.config = o.dds_config;
+    return p;
+  }
+
+  void publish_imu(uint32_t robot, const std::vector<cdc_msg_ImuSample>& samples) {
+    if (samples.empty()) return;
+    std::vector<cdc_msg_ImuSample> copy = samples;
+    cdc_msg_ImuBatch b{};
+    b.robot_id = robot;
+    b.incarnation = o_.incarnation;
+    b.seq = imu_seq_[robot]++;
+    b.sample_count = static_cast<uint32_t>(copy.size());
+    dds::borrow(b.samples, copy);
+    w_imu_.write(b);
+  }
+
+  void wait_consumed(uint32_t robot, uint64_t seq) {
+    if (!o_.lockstep || seq == 0) return;
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(o_.lockstep_timeout_s);
+    while (true) {
+      r_progress_.take(64).for_each_valid([&](const cdc_msg_ConsumerProgress& p, const dds_sample_info_t&) {
+        consumed_[p.robot_id] = std::max(consumed_[p.robot_id], static_cast<int64_t>(p.last_scan_seq));
+      });
+      auto it = consumed_.find(robot);
+      if (it != consumed_.end() && it->second >= static_cast<int64_t>(seq) - 1) return;
+      if (dds::ShutdownSignal::requested()) throw std::runtime_error("stopped by signal");
+      if (std::chrono::steady_clock::now() > deadline) {
+        throw std::runtime_error("lock-step: robot " + std::to_string(robot) + "'s consumer did not report scan " +
+                                 std::to_string(seq - 1) + " within " + std::to_string(o_.lockstep_timeout_s) + " s");
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    }
+  }
+
+  void publish_scan(const ScanRef& s) {
+    const std::vector<char> xyzi = read_bytes(s.bin);
+    if (xyzi.size() % 16 != 0) {
+      throw std::runtime_error(s.bin.string() + ": size " + std::to_string(xyzi.size()) + " is not a multiple of 16 bytes");
+    }
+    const size_t n = xyzi.size() / 16;
+    std::vector<char> meta;
+    if (!s.meta.empty()) {
+      meta = read_bytes(s.meta);
+      if (meta.size() != n * 8) {
+        throw std::runtime_error(s.meta.string() + ": " + std::to_string(meta.size() / 8) + " entries for " +
+                                 std::to_string(n) + " points");
+      }
+    }
+    std::vector<cdc_msg_LidarPoint> pts(n);
+    for (size_t i = 0; i < n; ++i) {
+      float v[4];
+      std::memcpy(v, xyzi.data() + 16 * i, 16);
+      cdc_msg_LidarPoint& p = pts[i];
+      p.x = v[0];
+      p.y = v[1];
+      p.z = v[2];
+      p.intensity = v[3];
+      if (!meta.empty()) {
+        std::memcpy(&p.time_offset, meta.data() + 8 * i, 4);
+        std::memcpy(&p.ring, meta.data() + 8 * i + 4, 2);
+      } else {  // a counter-clockwise sweep starting behind the sensor: time from azimuth
+        const double az = std::atan2(static_cast<double>(v[1]), static_cast<double>(v[0]));
+        p.time_offset = static_cast<float>(0.1 * (az + M_PI) / (2 * M_PI));
+        p.ring = 0;
+      }
+    }
+    cdc_msg_LidarScan m{};
+    m.robot_id = s.robot;
+    m.incarnation = o_.incarnation;
+    m.seq = s.seq;
+    m.stamp_ns = s.stamp_ns;
+    m.duration_ns = 100'000'000;
+    m.point_count = static_cast<uint32_t>(n);
+    dds::borrow(m.points, pts);
+    w_lidar_.write(m);
+    if (s.truth) {
+      cdc_msg_GroundTruth g{};
+      g.robot_id = s.robot;
+      g.stamp_ns = s.stamp_ns;
+      g.T_world_base = dds::to_msg(*s.truth);
+      w_gt_.write(g);
+    }
+  }
+
+  // Paces by data time (rate > 0) from the first scan.
+  void pace(int64_t stamp_ns) {
+    if (o_.rate <= 0 || o_.lockstep) return;
+    if (!start_) {
+      start_ = std::chrono::steady_clock::now();
+      first_stamp_ = stamp_ns;
+    }
+    const auto due = *start_ + std::chrono::nanoseconds(static_cast<int64_t>(static_cast<double>(stamp_ns - first_stamp_) / o_.rate));
+    std::this_thread::sleep_until(due);
+  }
+
+ private:
+  PlayOptions o_;
+  dds::Participant participant_;
+  dds::Topic<cdc_msg_LidarScan> t_lidar_;
+  dds::Topic<cdc_msg_ImuBatch> t_imu_;
+  dds::Topic<cdc_msg_GroundTruth> t_gt_;
+  dds::Topic<cdc_msg_ConsumerProgress> t_progress_;
+  dds::Writer<cdc_msg_LidarScan> w_lidar_;
+  dds::Writer<cdc_msg_ImuBatch> w_imu_;
+  dds::Writer<cdc_msg_GroundTruth> w_gt_;
+  dds::Reader<cdc_msg_ConsumerProgress> r_progress_;
+  std::map<uint32_t, uint64_t> imu_seq_;
+  std::map<uint32_t, int64_t> consumed_;
+  std::optional<std::chrono::steady_clock::time_point> start_;
+  int64_t first_stamp_ = 0;
+};
+
+std::vector<cdc_msg_ImuSample> read_imu(const fs::path& p) {
+  std::ifstream in(p);
+  if (!in) {
+    throw std::runtime_error(p.string() + ": cannot open");
+  }
+  std::vector<cdc_msg_ImuSample> out;
+  std::string line;
+  size_t n = 0;
+  std::getline(in, line);
+  ++n;
+  while (std::getline(in, line)) {
+    ++n;
+    double t, a[3], g[3];
+    if (std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf,%lf", &t, a, a + 1, a + 2, g, g + 1, g + 2) != 7) {
+      throw std::runtime_error(p.string() + ":" + std::to_string(n) + ": expected t,ax,ay,az,gx,gy,gz");
+    }
+    out.push_back(cdc_msg_ImuSample{static_cast<int64_t>(std::llround(t * 1e9)), {a[0], a[1], a[2]}, {g[0], g[1], g[2]}});
+  }
+  return out;
+}
+
+}  // namespace
+
+PlaySummary play_dataset(const std::string& dir, const PlayOptions& o) {
+  if (!fs::is_directory(dir)) {
+    throw std::runtime_error(dir + ": not a dataset folder");
+  }
+  std::vector<ScanRef> scans;
+  std::map<uint32_t, std::vector<cdc_msg_ImuSample>> imu;
+  for (uint32_t r = 0;; ++r) {
+    const fs::path rd = fs::path(dir) / ("robot_" + std::to_string(r));
+    if (!fs::is_directory(rd)) {
+      if (r == 0) throw std::runtime_error(rd.string() + ": missing (no robot folders in " + dir + ")");
+      break;
+    }
+    const std::vector<int64_t> times = geometry::read_times((rd / "times.txt").string());
+    const geometry::Trajectory gt = geometry::read_tum((rd / "groundtruth.tum").string());
+    imu[r] = read_imu(rd / "imu.csv");
+    for (size_t k = 0; k < times.size() && (o.max_scans == 0 || k < o.max_scans); ++k) {
+      char name[32];
+      std::snprintf(name, sizeof name, "%06zu.bin", k);
+      ScanRef s{times[k], r, k, rd / "velodyne" / name, rd / "velodyne_meta" / name, std::nullopt};
+      if (k < gt.size()) s.truth = gt[k].pose;
+      scans.push_back(std::move(s));
+    }
+  }
+  std::stable_sort(scans.begin(), scans.end(), [](const ScanRef& a, const ScanRef& b) { return a.stamp_ns < b.stamp_ns; });
+  Publisher pub(o);
+  std::map<uint32_t, size_t> imu_next;
+  PlaySummary sum;
+  for (const ScanRef& s : scans) {
+    if (dds::ShutdownSignal::requested()) break;
+    pub.wait_consumed(s.robot, s.seq);
+    pub.pace(s.stamp_ns);
+    // IMU up to this scan's end, then the scan.
+    auto& samples = imu[s.robot];
+    size_t& next = imu_next[s.robot];
+    std::vector<cdc_msg_ImuSample> batch;
+    while (next < samples.size() && samples[next].stamp_ns <= s.stamp_ns + 100'000'000) {
+      batch.push_back(samples[next++]);
+    }
+    pub.publish_imu(s.robot, batch);
+    sum.imu_samples += batch.size();
+    pub.publish_scan(s);
+    ++sum.scans;
+  }
+  return sum;
+}
+
+PlaySummary play_kitti(const KittiPlayOptions& k, const PlayOptions& o) {
+  if (!fs::is_directory(k.velodyne_dir)) {
+    throw std::runtime_error(k.velodyne_dir + ": not a folder of KITTI velodyne scans");
+  }
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(k.velodyne_dir)) {
+    if (e.path().extension() == ".bin") files.push_back(e.path());
+  }
+  if (files.empty()) {
+    throw std::runtime_error(k.velodyne_dir + ": no .bin scans");
+  }
+  std::sort(files.begin(), files.end());
+  geometry::Trajectory gt;
+  if (!k.poses_path.empty()) {
+    gt = kitti_lidar_trajectory(k.poses_path, read_kitti_calib(k.calib_path, k.calib_key));
+  }
+  std::vector<ScanRef> scans;
+  const size_t per_robot = (files.size() + static_cast<size_t>(k.robots) - 1) / static_cast<size_t>(k.robots);
+  for (size_t i = 0; i < files.size(); ++i) {
+    const size_t index = static_cast<size_t>(std::stoul(files[i].stem().string()));  // the frame number
+    const uint32_t robot = static_cast<uint32_t>(i / per_robot);
+    const uint64_t seq = i % per_robot;
+    ScanRef s{static_cast<int64_t>(index) * 100'000'000, robot, seq, files[i], {}, std::nullopt};
+    if (!gt.empty()) {
+      if (index >= gt.size()) throw std::runtime_error(files[i].string() + ": no ground-truth pose for frame " + std::to_string(index));
+      s.truth = gt[index].pose;
+    }
+    scans.push_back(std::move(s));
+    if (o.max_scans > 0 && seq + 1 >= o.max_scans && i + 1 < files.size() && (i + 1) / per_robot == robot) {
+      i = (robot + 1) * per_robot - 1;  // skip the rest of this robot's files
+    }
+  }
+  std::stable_sort(scans.begin(), scans.end(), [](const ScanRef& a, const ScanRef& b) { return a.stamp_ns < b.stamp_ns; });
+  Publisher pub(o);
+  PlaySummary sum;
+  for (const ScanRef& s : scans) {
+    if (dds::ShutdownSignal::requested()) break;
+    pub.wait_consumed(s.robot, s.seq);
+    pub.pace(s.stamp_ns);
+    pub.publish_scan(s);
+    ++sum.scans;
+  }
+  return sum;
+}
+
+}  // namespace cdc::sim

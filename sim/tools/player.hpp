@@ -1,0 +1,39 @@
+// Dataset players: publish a cdc-sim dataset (or a real KITTI velodyne folder) over DDS.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+namespace cdc::sim {
+
+struct PlayOptions {
+  uint32_t domain = 0;
+  std::string dds_config;
+  double rate = 1.0;              // 1: real time; 2: twice as fast; 0: as fast as possible
+  bool lockstep = false;          // wait for each robot's consumer before its next scan
+  double lockstep_timeout_s = 30; // give up when a consumer does not report progress
+  uint32_t wait_readers = 0;      // LiDAR readers to wait for before starting
+  uint32_t incarnation = 1;
+  size_t max_scans = 0;           // per robot; 0: all
+};
+
+struct PlaySummary {
+  size_t scans = 0;
+  size_t imu_samples = 0;
+};
+
+// Plays a folder written by `cdc-sim generate`. Throws std::runtime_error naming what is missing.
+PlaySummary play_dataset(const std::string& dir, const PlayOptions& options);
+
+struct KittiPlayOptions {
+  std::string velodyne_dir;   // NNNNNN.bin files (float32 x, y, z, reflectance)
+  std::string poses_path;     // ground truth of the sequence (optional)
+  std::string calib_path;     // calib_Tr.txt for the LiDAR-frame ground truth
+  std::string calib_key = "Tr_04_10";
+  int robots = 1;             // split the files into this many consecutive robots
+};
+
+// Plays a real KITTI velodyne folder at 10 Hz (time offsets from each point's azimuth).
+PlaySummary play_kitti(const KittiPlayOptions& kitti, const PlayOptions& options);
+
+}  // namespace cdc::sim
