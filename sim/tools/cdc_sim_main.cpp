@@ -142,7 +142,7 @@ int main(int argc, char** argv) {
         return 2;
       }
       const auto sum = play->parsed() ? cdc::sim::play_dataset(dataset_dir, po) : cdc::sim::play_kitti(ko, po);
-      std::printf("played %zu scans, %zu IMU samples\n", sum.scans, sum.imu_samples);
+      std::printf("played %zu scans, %zu IMU samples, %zu radio states\n", sum.scans, sum.imu_samples, sum.radio_states);
       return 0;
     }
     const cdc::sim::Scenario sc = cdc::sim::load_scenario(scenario_path);

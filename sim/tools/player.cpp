@@ -54,7 +54,9 @@ class Publisher {
         w_lidar_(participant_, t_lidar_, dds::qos::sensor_stream(16, true)),
         w_imu_(participant_, t_imu_, dds::qos::sensor_stream(64, true)),
         w_gt_(participant_, t_gt_, dds::qos::keyed_state()),
-        r_progress_(participant_, t_progress_, dds::qos::keyed_state()) {
+        r_progress_(participant_, t_progress_, dds::qos::keyed_state()),
+        t_radio_(participant_, dds::topics::kRadio),
+        w_radio_(participant_, t_radio_, dds::qos::keyed_state()) {
     if (o.wait_readers > 0 && !w_lidar_.wait_for_readers(o.wait_readers, std::chrono::seconds(30))) {
       throw std::runtime_error("only " + std::to_string(w_lidar_.matched_readers()) + " of " +
                                std::to_string(o.wait_readers) + " LiDAR readers appeared");
@@ -170,6 +172,19 @@ class Publisher {
   dds::Writer<cdc_msg_ImuBatch> w_imu_;
   dds::Writer<cdc_msg_GroundTruth> w_gt_;
   dds::Reader<cdc_msg_ConsumerProgress> r_progress_;
+ public:
+  // Publishes the radio links of one timeline instant.
+  void publish_radio(int64_t stamp_ns, std::vector<cdc_msg_RadioLink>& links) {
+    cdc_msg_RadioState m{};
+    m.scenario_id = 0;
+    m.stamp_ns = stamp_ns;
+    dds::borrow(m.links, links);
+    w_radio_.write(m);
+  }
+
+ private:
+  dds::Topic<cdc_msg_RadioState> t_radio_;
+  dds::Writer<cdc_msg_RadioState> w_radio_;
   std::map<uint32_t, uint64_t> imu_seq_;
   std::map<uint32_t, int64_t> consumed_;
   std::optional<std::chrono::steady_clock::time_point> start_;
@@ -193,6 +208,33 @@ std::vector<cdc_msg_ImuSample> read_imu(const fs::path& p) {
       throw std::runtime_error(p.string() + ":" + std::to_string(n) + ": expected t,ax,ay,az,gx,gy,gz");
     }
     out.push_back(cdc_msg_ImuSample{static_cast<int64_t>(std::llround(t * 1e9)), {a[0], a[1], a[2]}, {g[0], g[1], g[2]}});
+  }
+  return out;
+}
+
+// radio.csv -> instants with their links, in time order.
+std::vector<std::pair<int64_t, std::vector<cdc_msg_RadioLink>>> read_radio(const fs::path& p) {
+  std::vector<std::pair<int64_t, std::vector<cdc_msg_RadioLink>>> out;
+  std::ifstream in(p);
+  if (!in) {
+    return out;  // optional
+  }
+  std::string line;
+  size_t n = 1;
+  std::getline(in, line);
+  while (std::getline(in, line)) {
+    ++n;
+    double t, dist, loss;
+    unsigned a, b;
+    int in_range;
+    if (std::sscanf(line.c_str(), "%lf,%u,%u,%d,%lf,%lf", &t, &a, &b, &in_range, &dist, &loss) != 6) {
+      throw std::runtime_error(p.string() + ":" + std::to_string(n) + ": expected t,a,b,in_range,distance,loss");
+    }
+    const int64_t ns = static_cast<int64_t>(std::llround(t * 1e9));
+    if (out.empty() || out.back().first != ns) {
+      out.push_back({ns, {}});
+    }
+    out.back().second.push_back(cdc_msg_RadioLink{a, b, in_range != 0, static_cast<float>(dist), static_cast<float>(loss)});
   }
   return out;
 }
@@ -223,6 +265,8 @@ PlaySummary play_dataset(const std::string& dir, const PlayOptions& o) {
     }
   }
   std::stable_sort(scans.begin(), scans.end(), [](const ScanRef& a, const ScanRef& b) { return a.stamp_ns < b.stamp_ns; });
+  auto radio = read_radio(fs::path(dir) / "radio.csv");
+  size_t radio_next = 0;
   Publisher pub(o);
   std::map<uint32_t, size_t> imu_next;
   PlaySummary sum;
@@ -239,6 +283,11 @@ PlaySummary play_dataset(const std::string& dir, const PlayOptions& o) {
     }
     pub.publish_imu(s.robot, batch);
     sum.imu_samples += batch.size();
+    while (radio_next < radio.size() && radio[radio_next].first <= s.stamp_ns) {
+      pub.publish_radio(radio[radio_next].first, radio[radio_next].second);
+      ++radio_next;
+      ++sum.radio_states;
+    }
     pub.publish_scan(s);
     ++sum.scans;
   }

@@ -20,6 +20,7 @@ struct PlayOptions {
 struct PlaySummary {
   size_t scans = 0;
   size_t imu_samples = 0;
+  size_t radio_states = 0;  // radio timeline instants published on cdc/sim/radio
 };
 
 // Plays a folder written by `cdc-sim generate`. Throws std::runtime_error naming what is missing.

@@ -41,6 +41,8 @@ class SimPlay : public ::testing::Test {
     t_progress_ = std::make_unique<dds::Topic<cdc_msg_ConsumerProgress>>(*participant_, dds::topics::kProgress);
     r_lidar_ = std::make_unique<dds::Reader<cdc_msg_LidarScan>>(*participant_, *t_lidar_, dds::qos::sensor_stream(16, true));
     r_gt_ = std::make_unique<dds::Reader<cdc_msg_GroundTruth>>(*participant_, *t_gt_, dds::qos::event_stream(256));
+    t_radio_ = std::make_unique<dds::Topic<cdc_msg_RadioState>>(*participant_, dds::topics::kRadio);
+    r_radio_ = std::make_unique<dds::Reader<cdc_msg_RadioState>>(*participant_, *t_radio_, dds::qos::event_stream(1024));
     w_progress_ = std::make_unique<dds::Writer<cdc_msg_ConsumerProgress>>(*participant_, *t_progress_, dds::qos::keyed_state());
   }
   void TearDown() override { fs::remove_all(dir_); }
@@ -53,6 +55,8 @@ class SimPlay : public ::testing::Test {
   std::unique_ptr<dds::Reader<cdc_msg_LidarScan>> r_lidar_;
   std::unique_ptr<dds::Reader<cdc_msg_GroundTruth>> r_gt_;
   std::unique_ptr<dds::Writer<cdc_msg_ConsumerProgress>> w_progress_;
+  std::unique_ptr<dds::Topic<cdc_msg_RadioState>> t_radio_;
+  std::unique_ptr<dds::Reader<cdc_msg_RadioState>> r_radio_;
 };
 
 TEST_F(SimPlay, LockStepDeliversEveryScanExactlyOnceInOrder) {
@@ -86,6 +90,13 @@ TEST_F(SimPlay, LockStepDeliversEveryScanExactlyOnceInOrder) {
   }
   const auto st = player.wait(20s);
   ASSERT_TRUE(st && WIFEXITED(*st) && WEXITSTATUS(*st) == 0) << "player failed, see " << (dir_ / "player.log");
+  size_t radio_states = 0, links = 0;
+  r_radio_->take(1024).for_each_valid([&](const cdc_msg_RadioState& m, const dds_sample_info_t&) {
+    ++radio_states;
+    links += m.links._length;
+  });
+  EXPECT_GT(radio_states, 10u) << "no radio timeline on cdc/sim/radio";
+  EXPECT_EQ(links, radio_states * 3u);  // two robots and the central: three links per instant
   std::vector<uint64_t> expected(25);
   for (uint64_t i = 0; i < 25; ++i) expected[i] = i;
   for (uint32_t r = 0; r < 2; ++r) {
