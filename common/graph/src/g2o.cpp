@@ -35,6 +35,7 @@ struct LineReader {
     }
     return v;
   }
+  bool* symbols = nullptr;
   uint64_t id(const char* what) {
     std::string tok;
     if (!(in >> tok)) {
@@ -44,6 +45,9 @@ struct LineReader {
     auto [p, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), v);
     if (ec != std::errc() || p != tok.data() + tok.size()) {
       fail(std::string(what) + ": '" + tok + "' is not a vertex id");
+    }
+    if (symbols != nullptr && (v >> 56) >= 'a' && (v >> 56) <= 'z') {
+      *symbols = true;
     }
     return v;
   }
@@ -82,7 +86,8 @@ void check_information(LineReader& r, const Matrix6d& info) {
   }
 }
 
-void parse_into(const std::string& path, PoseGraph& graph, std::set<std::pair<Key, Key>>* seen_edges) {
+void parse_into(const std::string& path, PoseGraph& graph, std::set<std::pair<Key, Key>>* seen_edges,
+                const G2oReadOptions& options) {
   std::ifstream file(path);
   if (!file) {
     throw G2oError(path + ": cannot open file");
@@ -93,10 +98,12 @@ void parse_into(const std::string& path, PoseGraph& graph, std::set<std::pair<Ke
   while (std::getline(file, text)) {
     ++n;
     LineReader r{path, n, std::istringstream(text)};
+    r.symbols = &graph.symbol_keys;
     std::string tag;
     if (!(r.in >> tag) || tag[0] == '#') {
       continue;
     }
+    try {
     if (tag == "VERTEX_SE3:QUAT") {
       const Key k = from_g2o_key(r.id("vertex id"));
       const double x = r.number("x");  // one statement each: argument order is unspecified
@@ -181,6 +188,14 @@ void parse_into(const std::string& path, PoseGraph& graph, std::set<std::pair<Ke
     } else {
       r.fail("unsupported record '" + tag + "' (expected VERTEX_SE3:QUAT, EDGE_SE3:QUAT, VERTEX_SE2, EDGE_SE2)");
     }
+    } catch (const G2oError& e) {
+      if (!options.skip_malformed) {
+        throw;
+      }
+      if (options.warnings != nullptr) {
+        options.warnings->push_back(std::string(e.what()) + " (line skipped)");
+      }
+    }
   }
   if (saw_2d && saw_3d) {
     throw G2oError(path + ": mixes 2D and 3D records");
@@ -192,6 +207,13 @@ void parse_into(const std::string& path, PoseGraph& graph, std::set<std::pair<Ke
 
 }  // namespace
 
+uint64_t to_g2o_key(const PoseGraph& graph, Key key) {
+  if (!graph.symbol_keys) {
+    return key;
+  }
+  return (uint64_t{'a' + robot_of(key)} << 56) | index_of(key);
+}
+
 Key from_g2o_key(uint64_t raw) {
   const uint64_t top = raw >> 56;
   if (top >= 'a' && top <= 'z') {
@@ -200,16 +222,16 @@ Key from_g2o_key(uint64_t raw) {
   return raw;
 }
 
-PoseGraph read_g2o(const std::string& path) {
+PoseGraph read_g2o(const std::string& path, const G2oReadOptions& options) {
   PoseGraph g;
-  parse_into(path, g, nullptr);
+  parse_into(path, g, nullptr, options);
   if (g.factors.empty() && g.poses.empty()) {
     throw G2oError(path + ": no vertices or edges");
   }
   return g;
 }
 
-PoseGraph read_g2o_folder(const std::string& folder) {
+PoseGraph read_g2o_folder(const std::string& folder, const G2oReadOptions& options) {
   namespace fs = std::filesystem;
   if (!fs::is_directory(folder)) {
     throw G2oError(folder + ": not a folder");
@@ -227,7 +249,7 @@ PoseGraph read_g2o_folder(const std::string& folder) {
   PoseGraph g;
   std::set<std::pair<Key, Key>> seen;
   for (const auto& f : files) {
-    parse_into(f.string(), g, &seen);
+    parse_into(f.string(), g, &seen, options);
   }
   return g;
 }

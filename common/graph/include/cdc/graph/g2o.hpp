@@ -19,12 +19,22 @@ class G2oError : public std::runtime_error {
 // Information given to the out-of-plane directions (z, roll, pitch) of a lifted 2D edge.
 inline constexpr double kPlanarLiftInformation = 1e6;
 
+struct G2oReadOptions {
+  // Skip lines that cannot be parsed instead of failing; each skipped line is reported in warnings
+  // ("file:line: reason"). For external data with damaged lines.
+  bool skip_malformed = false;
+  std::vector<std::string>* warnings = nullptr;
+};
+
 // Reads a file; poses without a VERTEX line are initialised later (see chordal_initialise or
 // initialise_from_odometry). Throws G2oError naming file and line.
-PoseGraph read_g2o(const std::string& path);
+PoseGraph read_g2o(const std::string& path, const G2oReadOptions& options = {});
 
 // Reads every *.g2o file of a folder into one graph (an edge listed in two files is kept once).
-PoseGraph read_g2o_folder(const std::string& folder);
+PoseGraph read_g2o_folder(const std::string& folder, const G2oReadOptions& options = {});
+
+// The id a key had in a g2o file: GTSAM symbols when the graph was read from them.
+uint64_t to_g2o_key(const PoseGraph& graph, Key key);
 
 // Writes 3D (or SE2 lines when graph.dimension == 2). Keys are written as cdc keys.
 void write_g2o(const std::string& path, const PoseGraph& graph);

@@ -34,6 +34,7 @@ struct PoseGraph {
   std::map<Key, Eigen::Isometry3d> poses;  // current estimate T_world_key
   std::vector<Factor> factors;
   int dimension = 3;                       // 2 for planar graphs lifted into 3D
+  bool symbol_keys = false;                // read from GTSAM-symbol keys (('a' + robot) << 56 | index)
 
   void add_prior(Key key, const Eigen::Isometry3d& T_world_key, const Matrix6d& information);
   // Between factor; kind is odometry when b follows a on the same robot, loop otherwise.

@@ -1,0 +1,238 @@
+#include "cdc/graph/pcm.hpp"
+
+#include <Eigen/Cholesky>
+
+#include <algorithm>
+#include <array>
+#include <functional>
+#include <set>
+
+namespace cdc::graph {
+namespace {
+
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+
+Eigen::Matrix3d hat(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
+}
+
+// Adjoint of T for tangent vectors ordered (translation, rotation), right perturbations:
+// T * Exp(d) = Exp(Ad(T) d) * T.
+Matrix6d adjoint(const Eigen::Isometry3d& T) {
+  Matrix6d A = Matrix6d::Zero();
+  A.topLeftCorner<3, 3>() = T.rotation();
+  A.topRightCorner<3, 3>() = hat(T.translation()) * T.rotation();
+  A.bottomRightCorner<3, 3>() = T.rotation();
+  return A;
+}
+
+// T * Exp(d) to first order: rotation by the rotation vector, translation rotated into place.
+Eigen::Isometry3d perturb(const Eigen::Isometry3d& T, const Vector6d& d) {
+  Eigen::Isometry3d D = Eigen::Isometry3d::Identity();
+  const double th = d.tail<3>().norm();
+  if (th > 0) {
+    D.linear() = Eigen::AngleAxisd(th, d.tail<3>() / th).toRotationMatrix();
+  }
+  D.translation() = d.head<3>();
+  return T * D;
+}
+
+Vector6d residual(const Eigen::Isometry3d& E) {
+  Vector6d r;
+  r.head<3>() = E.translation();
+  const Eigen::AngleAxisd aa(E.rotation());
+  r.tail<3>() = aa.axis() * aa.angle();
+  return r;
+}
+
+// Odometry of one robot: cumulative pose T_0k and covariance of T_0k (right perturbation, frame k),
+// propagated to first order along its odometry factors.
+struct Chain {
+  std::map<uint64_t, Eigen::Isometry3d> pose;
+  std::map<uint64_t, Matrix6d> cov;
+
+  // T_ij with its covariance (right perturbation at j).
+  std::pair<Eigen::Isometry3d, Matrix6d> relative(uint64_t i, uint64_t j) const {
+    if (j < i) {
+      const auto [T_ji, S_ji] = relative(j, i);
+      const Matrix6d A = adjoint(T_ji);  // inverse: right perturbation moves by Ad(T_ji)
+      return {T_ji.inverse(), A * S_ji * A.transpose()};
+    }
+    const Eigen::Isometry3d T_ij = pose.at(i).inverse() * pose.at(j);
+    const Matrix6d A = adjoint(T_ij.inverse());
+    // cov_0j = Ad(T_ij^-1) cov_0i Ad(T_ij^-1)^T + cov_ij
+    Matrix6d S = cov.at(j) - A * cov.at(i) * A.transpose();
+    S = 0.5 * (S + S.transpose());
+    return {T_ij, S};
+  }
+};
+
+std::map<uint32_t, Chain> odometry_chains(const PoseGraph& g) {
+  std::map<uint32_t, std::map<uint64_t, const Factor*>> by_start;  // robot -> a index -> factor
+  for (const Factor& f : g.factors) {
+    if (f.kind == FactorKind::kOdometry) {
+      by_start[robot_of(f.a)][index_of(f.a)] = &f;
+    }
+  }
+  std::map<uint32_t, Chain> chains;
+  for (const auto& [robot, edges] : by_start) {
+    Chain& c = chains[robot];
+    uint64_t idx = edges.begin()->first;
+    c.pose[idx] = Eigen::Isometry3d::Identity();
+    c.cov[idx] = Matrix6d::Zero();
+    for (auto it = edges.find(idx); it != edges.end(); it = edges.find(idx)) {
+      const Factor& f = *it->second;
+      const uint64_t next = index_of(f.b);
+      const Matrix6d A = adjoint(f.measurement.inverse());
+      c.pose[next] = c.pose[idx] * f.measurement;
+      c.cov[next] = A * c.cov[idx] * A.transpose() + f.information.inverse();
+      idx = next;
+    }
+  }
+  return chains;
+}
+
+// A loop as seen from the lower robot: T_lowkey_highkey.
+struct Oriented {
+  Key low, high;
+  Eigen::Isometry3d T;
+  Matrix6d cov;
+};
+
+Oriented orient(const Factor& f) {
+  const Matrix6d cov = f.information.inverse();
+  if (robot_of(f.a) <= robot_of(f.b)) {
+    return {f.a, f.b, f.measurement, cov};
+  }
+  const Matrix6d A = adjoint(f.measurement);
+  return {f.b, f.a, f.measurement.inverse(), A * cov * A.transpose()};
+}
+
+double cycle_distance_with(const std::map<uint32_t, Chain>& chains, const Factor& fk, const Factor& fl) {
+  const Oriented k = orient(fk), l = orient(fl);
+  const Chain& A = chains.at(robot_of(k.low));
+  const Chain& B = chains.at(robot_of(k.high));
+  const auto [T_aa, S_aa] = A.relative(index_of(k.low), index_of(l.low));
+  const auto [T_bb, S_bb] = B.relative(index_of(k.high), index_of(l.high));
+  // Cycle: a_i -> b_j -> b_j' should equal a_i -> a_i' -> b_j'.
+  auto cycle = [&](const Eigen::Isometry3d& Tk, const Eigen::Isometry3d& Tl, const Eigen::Isometry3d& Ta,
+                   const Eigen::Isometry3d& Tb) { return residual((Ta * Tl).inverse() * Tk * Tb); };
+  const Vector6d r = cycle(k.T, l.T, T_aa, T_bb);
+  // First-order covariance of the cycle: numerical Jacobians with respect to each measurement.
+  const std::array<const Matrix6d*, 4> covs = {&k.cov, &l.cov, &S_aa, &S_bb};
+  Matrix6d S = Matrix6d::Zero();
+  const double h = 1e-6;
+  for (int m = 0; m < 4; ++m) {
+    Matrix6d J;
+    for (int c = 0; c < 6; ++c) {
+      Vector6d d = Vector6d::Zero();
+      d[c] = h;
+      Eigen::Isometry3d Tk = k.T, Tl = l.T, Ta = T_aa, Tb = T_bb;
+      (m == 0 ? Tk : m == 1 ? Tl : m == 2 ? Ta : Tb) = perturb(m == 0 ? Tk : m == 1 ? Tl : m == 2 ? Ta : Tb, d);
+      J.col(c) = (cycle(Tk, Tl, Ta, Tb) - r) / h;
+    }
+    S += J * (*covs[static_cast<size_t>(m)]) * J.transpose();
+  }
+  return r.dot(S.ldlt().solve(r));
+}
+
+}  // namespace
+
+double Pcm::cycle_distance(const PoseGraph& g, const Factor& k, const Factor& l) {
+  return cycle_distance_with(odometry_chains(g), k, l);
+}
+
+OutlierDecision Pcm::decide(const PoseGraph& g) const {
+  OutlierDecision out;
+  const std::map<uint32_t, Chain> chains = odometry_chains(g);
+  std::map<std::pair<uint32_t, uint32_t>, std::vector<size_t>> pairs;
+  for (size_t f = 0; f < g.factors.size(); ++f) {
+    const Factor& fa = g.factors[f];
+    if (fa.kind == FactorKind::kLoop && fa.inter_robot()) {
+      const uint32_t a = robot_of(fa.a), b = robot_of(fa.b);
+      pairs[{std::min(a, b), std::max(a, b)}].push_back(f);
+    }
+  }
+  for (const auto& [pair, loops] : pairs) {
+    const size_t n = loops.size();
+    std::vector<std::vector<bool>> adj(n, std::vector<bool>(n, false));
+    for (size_t x = 0; x < n; ++x) {
+      for (size_t y = x + 1; y < n; ++y) {
+        const double d2 = cycle_distance_with(chains, g.factors[loops[x]], g.factors[loops[y]]);
+        adj[x][y] = adj[y][x] = d2 <= options_.chi2_threshold;
+      }
+    }
+    const std::vector<size_t> clique = maximum_clique(adj, options_.exact_clique_limit);
+    std::set<size_t> kept(clique.begin(), clique.end());
+    for (size_t x = 0; x < n; ++x) {
+      (kept.count(x) != 0 ? out.accepted : out.rejected).push_back(loops[x]);
+    }
+  }
+  std::sort(out.accepted.begin(), out.accepted.end());
+  std::sort(out.rejected.begin(), out.rejected.end());
+  return out;
+}
+
+std::vector<size_t> maximum_clique(const std::vector<std::vector<bool>>& adj, size_t exact_limit) {
+  const size_t n = adj.size();
+  std::vector<size_t> best;
+  if (n == 0) {
+    return best;
+  }
+  std::vector<size_t> degree(n, 0);
+  for (size_t i = 0; i < n; ++i) {
+    degree[i] = static_cast<size_t>(std::count(adj[i].begin(), adj[i].end(), true));
+  }
+  if (n > exact_limit) {
+    // Greedy: grow a clique from every vertex, always adding the candidate of highest degree.
+    for (size_t s = 0; s < n; ++s) {
+      std::vector<size_t> clique{s};
+      std::vector<size_t> cand;
+      for (size_t v = 0; v < n; ++v) {
+        if (adj[s][v]) cand.push_back(v);
+      }
+      while (!cand.empty()) {
+        const size_t v = *std::max_element(cand.begin(), cand.end(), [&](size_t a, size_t b) { return degree[a] < degree[b]; });
+        clique.push_back(v);
+        std::vector<size_t> next;
+        for (size_t u : cand) {
+          if (u != v && adj[v][u]) next.push_back(u);
+        }
+        cand.swap(next);
+      }
+      if (clique.size() > best.size()) best = clique;
+    }
+    std::sort(best.begin(), best.end());
+    return best;
+  }
+  // Exact: branch and bound over candidates ordered by degree (Carraghan-Pardalos style).
+  std::vector<size_t> current;
+  std::function<void(std::vector<size_t>)> expand = [&](std::vector<size_t> cand) {
+    if (cand.empty()) {
+      if (current.size() > best.size()) best = current;
+      return;
+    }
+    while (!cand.empty()) {
+      if (current.size() + cand.size() <= best.size()) return;  // bound
+      const size_t v = cand.back();
+      cand.pop_back();
+      std::vector<size_t> next;
+      for (size_t u : cand) {
+        if (adj[v][u]) next.push_back(u);
+      }
+      current.push_back(v);
+      expand(next);
+      current.pop_back();
+    }
+  };
+  std::vector<size_t> all(n);
+  for (size_t i = 0; i < n; ++i) all[i] = i;
+  std::sort(all.begin(), all.end(), [&](size_t a, size_t b) { return degree[a] < degree[b]; });  // high degree last
+  expand(all);
+  std::sort(best.begin(), best.end());
+  return best;
+}
+
+}  // namespace cdc::graph

@@ -1,0 +1,137 @@
+#include "cdc/graph/g2o.hpp"
+#include "cdc/graph/pcm.hpp"
+#include "cdc/graph/solver.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <random>
+
+namespace cdc::graph {
+namespace {
+
+Eigen::Isometry3d pose(double x, double y, double yaw) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = Eigen::Vector3d(x, y, 0);
+  T.linear() = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  return T;
+}
+
+// r^T Omega r of one between factor at the graph's current estimate.
+double loop_chi2(const PoseGraph& g, const Factor& f) {
+  const Eigen::Isometry3d est = g.poses.at(f.a).inverse() * g.poses.at(f.b);
+  const Eigen::Quaterniond q(f.measurement.rotation().transpose() * est.rotation());
+  Eigen::Matrix<double, 6, 1> r;
+  r.head<3>() = est.translation() - f.measurement.translation();
+  r.tail<3>() = 2.0 * (q.w() < 0 ? Eigen::Vector3d(-q.vec()) : Eigen::Vector3d(q.vec()));
+  return r.dot(f.information * r);
+}
+
+TEST(MaximumClique, ExactOnASmallGraph) {
+  // 0-1-2 triangle plus 3 tied to 0 and 1 only, 4 isolated: the maximum clique is {0, 1, 2} or {0, 1, 3}.
+  std::vector<std::vector<bool>> a(5, std::vector<bool>(5, false));
+  auto edge = [&](size_t i, size_t j) { a[i][j] = a[j][i] = true; };
+  edge(0, 1), edge(1, 2), edge(0, 2), edge(0, 3), edge(1, 3), edge(2, 3);  // K4 on 0..3
+  EXPECT_EQ(maximum_clique(a), (std::vector<size_t>{0, 1, 2, 3}));
+  a[2][3] = a[3][2] = false;
+  EXPECT_EQ(maximum_clique(a).size(), 3u);
+  EXPECT_EQ(maximum_clique(a, 2).size(), 3u);  // the greedy heuristic finds it too here
+}
+
+TEST(Pcm, RejectsEveryPlantedOutlier) {
+  std::mt19937 rng(4);
+  std::normal_distribution<double> n(0, 0.01);
+  std::uniform_real_distribution<double> u(-20, 20);
+  PoseGraph g;
+  std::vector<Eigen::Isometry3d> truth_a, truth_b;
+  for (int i = 0; i < 40; ++i) {
+    truth_a.push_back(pose(2.0 * i, 0, 0.02 * i));
+    truth_b.push_back(pose(2.0 * i, 6, -0.01 * i));
+  }
+  Matrix6d info = Matrix6d::Identity() * 1e4;
+  for (int i = 0; i + 1 < 40; ++i) {
+    g.add_between(make_key(0, static_cast<uint64_t>(i)), make_key(0, static_cast<uint64_t>(i + 1)),
+                  truth_a[static_cast<size_t>(i)].inverse() * truth_a[static_cast<size_t>(i + 1)] * pose(n(rng), n(rng), n(rng)), info);
+    g.add_between(make_key(1, static_cast<uint64_t>(i)), make_key(1, static_cast<uint64_t>(i + 1)),
+                  truth_b[static_cast<size_t>(i)].inverse() * truth_b[static_cast<size_t>(i + 1)] * pose(n(rng), n(rng), n(rng)), info);
+  }
+  std::vector<size_t> inliers, outliers;
+  for (int k = 0; k < 12; ++k) {
+    const size_t i = static_cast<size_t>(3 * k + 1), j = static_cast<size_t>(3 * k);
+    g.add_between(make_key(0, i), make_key(1, j), truth_a[i].inverse() * truth_b[j] * pose(n(rng), n(rng), n(rng)), info);
+    inliers.push_back(g.factors.size() - 1);
+  }
+  for (int k = 0; k < 8; ++k) {  // wrong places, as perceptual aliasing produces
+    const size_t i = static_cast<size_t>(5 * k + 2), j = static_cast<size_t>(39 - 4 * k);
+    g.add_between(make_key(1, j), make_key(0, i), pose(u(rng), u(rng), u(rng) / 10), info);
+    outliers.push_back(g.factors.size() - 1);
+  }
+  const OutlierDecision d = Pcm().decide(g);
+  EXPECT_EQ(d.accepted, inliers);
+  EXPECT_EQ(d.rejected, outliers);
+}
+
+class PcmData : public ::testing::Test {
+ protected:
+  std::string folder(const std::string& name) {
+    const char* env = std::getenv("CDC_DATA_DIR");
+    return (std::filesystem::path(env != nullptr ? env : "../shared/data") / "multi-robot/pcm" / name).string();
+  }
+};
+
+TEST_F(PcmData, KeepsTheReferenceCountsAndTheKeptSetIsConsistent) {
+  if (!std::filesystem::exists(folder("clean_2robots"))) {
+    GTEST_SKIP() << "reference data absent: " << folder("clean_2robots") << " not found";
+  }
+  const std::vector<std::pair<std::string, std::pair<size_t, size_t>>> sets = {
+      {"clean_2robots", {10, 10}}, {"spoiled_2robots", {10, 20}}, {"spoiled_4robots", {24, 48}}};
+  const double chi2 = PcmOptions{}.chi2_threshold;
+  for (const auto& [name, expected] : sets) {
+    std::vector<std::string> warnings;
+    G2oReadOptions ro;
+    ro.skip_malformed = true;
+    ro.warnings = &warnings;
+    const PoseGraph g = read_g2o_folder(folder(name), ro);
+    const OutlierDecision d = Pcm().decide(g);
+    EXPECT_EQ(d.accepted.size(), expected.first) << name;
+    EXPECT_EQ(d.accepted.size() + d.rejected.size(), expected.second) << name;
+    if (name == "spoiled_2robots") {
+      EXPECT_EQ(warnings.size(), 1u) << "the damaged line of 1.g2o is reported";
+    }
+    // Optimise with only the kept loops: every loop (and odometry) residual within the threshold.
+    PoseGraph kept = g;
+    kept.factors.clear();
+    for (size_t f = 0; f < g.factors.size(); ++f) {
+      if (g.factors[f].kind != FactorKind::kLoop || !g.factors[f].inter_robot() ||
+          std::binary_search(d.accepted.begin(), d.accepted.end(), f)) {
+        kept.factors.push_back(g.factors[f]);
+      }
+    }
+    SolverOptions so;
+    so.robust_loss_scale = 0;
+    PoseGraph solved = kept;
+    solve(solved, so);
+    double worst = 0;
+    for (const Factor& f : solved.factors) {
+      worst = std::max(worst, loop_chi2(solved, f));
+    }
+    std::printf("%s: kept %zu of %zu; worst residual with the kept set %.2f (threshold %.2f)\n", name.c_str(),
+                d.accepted.size(), expected.second, worst, chi2);
+    EXPECT_LE(worst, chi2) << name;
+    // Adding back any one rejected loop leaves some residual beyond the threshold.
+    for (size_t r : d.rejected) {
+      PoseGraph with = kept;
+      with.factors.push_back(g.factors[r]);
+      solve(with, so);
+      double w = 0;
+      for (const Factor& f : with.factors) {
+        w = std::max(w, loop_chi2(with, f));
+      }
+      EXPECT_GT(w, chi2) << name << ": rejected loop " << r << " fits the kept set";
+    }
+  }
+}
+
+}  // namespace
+}  // namespace cdc::graph
