@@ -1,0 +1,66 @@
+#include "cdc/lidar/registration.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+namespace cdc::lidar {
+namespace {
+
+std::vector<Eigen::Vector3f> scene(uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1, 1);
+  std::vector<Eigen::Vector3f> pts;
+  for (int i = 0; i < 6000; ++i) pts.emplace_back(30 * u(rng), 30 * u(rng), -1.8f);           // ground
+  for (int w = 0; w < 6; ++w) {                                                                 // walls
+    const float x0 = 25 * u(rng), y0 = 25 * u(rng), a = 3.1416f * u(rng);
+    for (int i = 0; i < 1500; ++i) {
+      const float s = 8 * u(rng);
+      pts.emplace_back(x0 + s * std::cos(a), y0 + s * std::sin(a), 4 * (u(rng) + 1) - 1.8f);
+    }
+  }
+  for (int p = 0; p < 15; ++p) {  // poles
+    const float x0 = 25 * u(rng), y0 = 25 * u(rng);
+    for (int i = 0; i < 200; ++i) pts.emplace_back(x0 + 0.1f * u(rng), y0 + 0.1f * u(rng), 3 * (u(rng) + 1) - 1.8f);
+  }
+  return pts;
+}
+
+class RegistrationRecovers : public ::testing::TestWithParam<int> {};
+
+TEST_P(RegistrationRecovers, AKnownTransformForwardAndInverse) {
+  std::mt19937 rng(static_cast<uint32_t>(GetParam()));
+  std::uniform_real_distribution<double> u(-1, 1);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();  // T_target_source
+  T.translation() = Eigen::Vector3d(1.5 * u(rng), 1.5 * u(rng), 0.1 * u(rng));
+  T.linear() = Eigen::AngleAxisd(0.3 * u(rng), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const auto target = scene(10 + static_cast<uint32_t>(GetParam()));
+  std::vector<Eigen::Vector3f> source;
+  const Eigen::Isometry3f Ts_t = T.inverse().cast<float>();
+  for (const auto& p : target) source.push_back(Ts_t * p);
+  for (bool inverse : {false, true}) {
+    const auto& s = inverse ? target : source;
+    const auto& t = inverse ? source : target;
+    const Eigen::Isometry3d want = inverse ? T.inverse() : T;
+    Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();
+    guess.linear() = Eigen::AngleAxisd(Eigen::AngleAxisd(want.rotation()).angle() * (want.rotation()(1, 0) >= 0 ? 1 : -1),
+                                       Eigen::Vector3d::UnitZ()).toRotationMatrix();  // yaw known (Scan Context)
+    const RegistrationResult r = register_clouds(s, t, guess, RegistrationParams{});
+    ASSERT_TRUE(r.converged);
+    EXPECT_LT((r.T_target_source.translation() - want.translation()).norm(), 0.05) << (inverse ? "inverse" : "forward");
+    EXPECT_LT(Eigen::AngleAxisd(r.T_target_source.rotation().transpose() * want.rotation()).angle(), 0.005);
+    EXPECT_GT(r.overlap, 0.9);
+    EXPECT_LT(r.fitness, 0.05);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(SeededPerturbations, RegistrationRecovers, ::testing::Values(1, 2, 3));
+
+TEST(Registration, DifferentPlacesDoNotOverlap) {
+  const RegistrationResult r = register_clouds(scene(1), scene(2), Eigen::Isometry3d::Identity(), RegistrationParams{});
+  EXPECT_LT(r.overlap, 0.6);  // the ground matches, the structure does not
+}
+
+}  // namespace
+}  // namespace cdc::lidar
