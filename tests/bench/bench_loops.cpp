@@ -1,0 +1,210 @@
+// cdc-bench-loops: loop-closure precision and recall on simulated three-robot KITTI runs (the
+// paper's split), query time with 3,000 keyframes in the database, descriptor size.
+// Keyframes every 2 m of ground truth; clouds are VLP-16 sweeps of the procedural world at the true
+// pose; odometry has noise. A loop is true when its relative pose is within 1 m / 5 deg of the truth;
+// a keyframe is a true revisit when an earlier keyframe (any robot, not this robot's recent ones)
+// lies within 5 m. Last output line: one JSON object.
+#include "cdc/lidar/scan_context.hpp"
+#include "cdc/loop_closure/loop_core.hpp"
+#include "cdc/sim/kitti.hpp"
+#include "cdc/sim/lidar.hpp"
+#include "cdc/sim/world.hpp"
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <random>
+
+namespace {
+
+using namespace cdc;
+
+struct Kf {
+  uint32_t robot, id;
+  int64_t stamp;
+  Eigen::Isometry3d truth;
+};
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0 : v[v.size() / 2];
+}
+
+nlohmann::json run_sequence(const std::string& data, const std::string& seq, const loops::LoopParams& params,
+                            uint32_t exclude_recent) {
+  const auto full = sim::kitti_lidar_trajectory(data + "/kitti/poses/" + seq + ".txt",
+                                                sim::read_kitti_calib(data + "/kitti/calib_Tr.txt", "Tr_04_10"));
+  const auto robots = sim::split_robots(full, sim::SplitOptions{3, 0.15, 0.0});
+  std::vector<std::vector<Eigen::Vector3d>> paths;
+  std::vector<Kf> kfs;
+  for (uint32_t r = 0; r < robots.size(); ++r) {
+    std::vector<Eigen::Vector3d> path;
+    Eigen::Vector3d last(1e9, 0, 0);
+    uint32_t id = 0;
+    for (const auto& sp : robots[r]) {
+      path.push_back(sp.pose.translation());
+      if ((sp.pose.translation() - last).norm() >= 2.0) {
+        kfs.push_back({r, id++, sp.stamp_ns, sp.pose});
+        last = sp.pose.translation();
+      }
+    }
+    paths.push_back(path);
+  }
+  std::stable_sort(kfs.begin(), kfs.end(), [](const Kf& a, const Kf& b) { return a.stamp < b.stamp; });
+  sim::WorldOptions wo;
+  wo.seed = 5;
+  const sim::World world = sim::World::generate(paths, wo);
+  sim::LidarModel lidar = sim::LidarModel::vlp16();
+  std::mt19937_64 rng(9);
+  std::normal_distribution<double> nt(0, 0.02), nr(0, 0.002);
+  loops::LoopCore core(params);
+  std::map<std::pair<uint32_t, uint32_t>, Eigen::Isometry3d> truth;
+  std::map<uint32_t, Eigen::Isometry3d> prev_truth;
+  std::map<std::tuple<uint32_t, uint32_t, uint32_t, uint32_t>, loops::LoopOut> accepted;
+  std::vector<lidar::ScanContext> contexts;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (const Kf& k : kfs) {
+    const auto pts = sim::sweep(world, lidar, [&](double) { return k.truth; }, rng);
+    loops::KeyframeIn in;
+    in.robot = k.robot;
+    in.id = k.id;
+    if (k.id > 0) {
+      Eigen::Isometry3d noise = Eigen::Isometry3d::Identity();
+      noise.translation() = Eigen::Vector3d(nt(rng), nt(rng), nt(rng));
+      noise.linear() = (Eigen::AngleAxisd(nr(rng), Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(nr(rng), Eigen::Vector3d::UnitY()))
+                           .toRotationMatrix();
+      in.T_prev = prev_truth[k.robot].inverse() * k.truth * noise;
+    }
+    in.information.diagonal() << 2500, 2500, 2500, 250000, 250000, 250000;
+    for (const auto& p : pts) in.cloud.emplace_back(p.x, p.y, p.z);
+    prev_truth[k.robot] = k.truth;
+    truth[{k.robot, k.id}] = k.truth;
+    contexts.push_back(lidar::make_scan_context(in.cloud, params.scan_context));
+    for (const auto& l : core.add_keyframe(std::move(in))) {
+      const auto key = std::make_tuple(l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b);
+      if (l.withdrawn) accepted.erase(key);
+      else accepted[key] = l;
+    }
+  }
+  const double run_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  // Precision.
+  size_t tp = 0;
+  std::set<std::pair<uint32_t, uint32_t>> recalled;
+  for (const auto& [key, l] : accepted) {
+    const Eigen::Isometry3d gt = truth.at({l.robot_a, l.keyframe_a}).inverse() * truth.at({l.robot_b, l.keyframe_b});
+    const Eigen::Isometry3d e = gt.inverse() * l.T_a_b;
+    const bool ok = e.translation().norm() <= 1.0 && Eigen::AngleAxisd(e.rotation()).angle() <= 5.0 * M_PI / 180;
+    tp += ok ? 1 : 0;
+    if (ok) recalled.insert({l.robot_b, l.keyframe_b});
+  }
+  // Recall over true revisits (in processing order).
+  size_t revisits = 0, found = 0;
+  for (size_t i = 0; i < kfs.size(); ++i) {
+    bool revisit = false;
+    for (size_t j = 0; j < i && !revisit; ++j) {
+      if (kfs[j].robot == kfs[i].robot && kfs[j].id + exclude_recent >= kfs[i].id) continue;
+      revisit = (kfs[j].truth.translation() - kfs[i].truth.translation()).norm() <= 5.0;
+    }
+    if (revisit) {
+      ++revisits;
+      found += recalled.count({kfs[i].robot, kfs[i].id});
+    }
+  }
+  // Quantisation: the accept decision of every candidate is the same on quantised descriptors.
+  size_t decisions = 0, changed = 0;
+  for (size_t i = 0; i + 1 < contexts.size(); i += 7) {
+    const lidar::ScanContext qi = lidar::dequantize(lidar::quantize(contexts[i], static_cast<float>(params.scan_context.quant_scale_m)));
+    for (size_t j = i + 1; j < contexts.size(); j += 13) {
+      const lidar::ScanContext qj = lidar::dequantize(lidar::quantize(contexts[j], static_cast<float>(params.scan_context.quant_scale_m)));
+      const bool a = lidar::compare(contexts[j], contexts[i]).distance <= params.max_sc_distance;
+      const bool b = lidar::compare(qj, qi).distance <= params.max_sc_distance;
+      ++decisions;
+      changed += a != b ? 1 : 0;
+    }
+  }
+  nlohmann::json j{{"keyframes", kfs.size()},
+                   {"accepted", accepted.size()},
+                   {"true_positives", tp},
+                   {"precision", accepted.empty() ? 1.0 : static_cast<double>(tp) / static_cast<double>(accepted.size())},
+                   {"revisits", revisits},
+                   {"recall", revisits == 0 ? 1.0 : static_cast<double>(found) / static_cast<double>(revisits)},
+                   {"verified", core.stats().verified},
+                   {"verification_failed", core.stats().verification_failed},
+                   {"inter_accepted", core.stats().inter_accepted},
+                   {"inter_proposed", core.stats().inter_proposed},
+                   {"withdrawn", core.stats().withdrawn},
+                   {"quantization_decisions", decisions},
+                   {"quantization_changed", changed},
+                   {"run_s", run_s}};
+  std::printf("KITTI %s: %zu keyframes, %zu loops accepted (%zu true), precision %.3f, recall %.3f of %zu revisits, %.1f s\n",
+              seq.c_str(), kfs.size(), accepted.size(), tp, j["precision"].get<double>(), j["recall"].get<double>(),
+              revisits, run_s);
+  return j;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"cdc-bench-loops: loop-closure precision/recall on simulated three-robot KITTI runs"};
+  const char* env = std::getenv("CDC_DATA_DIR");
+  std::string data = env != nullptr ? env : "../shared/data";
+  std::vector<std::string> seqs = {"05", "09"};
+  app.add_option("--data", data, "reference data folder (CDC_DATA_DIR)")->capture_default_str();
+  app.add_option("--seq", seqs, "KITTI sequences")->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+  if (!std::filesystem::exists(data + "/kitti/poses")) {
+    std::cerr << "cdc-bench-loops: " << data << "/kitti/poses not found (set --data or CDC_DATA_DIR)\n";
+    return 2;
+  }
+  loops::LoopParams params;
+  nlohmann::json out;
+  double precision = 1, recall = 1;
+  for (const auto& s : seqs) {
+    out[s] = run_sequence(data, s, params, params.exclude_recent);
+    precision = std::min(precision, out[s]["precision"].get<double>());
+    recall = std::min(recall, out[s]["recall"].get<double>());
+  }
+  // Query time with 3,000 keyframes: random places of the procedural kind, then timed queries.
+  lidar::ScanContextDatabase db(params.scan_context.rings);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(0, 1);
+  auto random_sc = [&] {
+    lidar::ScanContext sc;
+    sc.rings = params.scan_context.rings;
+    sc.sectors = params.scan_context.sectors;
+    sc.cells.resize(static_cast<size_t>(sc.rings * sc.sectors));
+    for (auto& c : sc.cells) c = u(rng) < 0.4f ? 20 * u(rng) : 0.0f;
+    sc.ring_key.resize(static_cast<size_t>(sc.rings));
+    for (int r = 0; r < sc.rings; ++r) {
+      float s = 0;
+      for (int k = 0; k < sc.sectors; ++k) s += sc.at(r, k);
+      sc.ring_key[static_cast<size_t>(r)] = s / static_cast<float>(sc.sectors);
+    }
+    return sc;
+  };
+  for (int i = 0; i < 3000; ++i) db.add(random_sc());
+  std::vector<double> ms;
+  for (int i = 0; i < 200; ++i) {
+    const auto q = random_sc();
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto c = db.query(q, params.knn, [](size_t) { return true; });
+    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    if (c.empty()) return 1;
+  }
+  lidar::ScanContext example = random_sc();
+  out["precision"] = precision;
+  out["recall"] = recall;
+  out["query_ms"] = median(ms);
+  out["query_db_size"] = db.size();
+  out["descriptor_bytes"] = lidar::quantize(example, static_cast<float>(params.scan_context.quant_scale_m)).bytes();
+  std::printf("query: median %.3f ms with %zu keyframes; descriptor %zu bytes on the wire\n", median(ms), db.size(),
+              out["descriptor_bytes"].get<size_t>());
+  std::cout << out.dump() << '\n';
+  return 0;
+}
