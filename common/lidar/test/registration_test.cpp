@@ -64,3 +64,48 @@ TEST(Registration, DifferentPlacesDoNotOverlap) {
 
 }  // namespace
 }  // namespace cdc::lidar
+
+#include "cdc/sim/kitti.hpp"
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+
+namespace cdc::lidar {
+namespace {
+
+std::vector<Eigen::Vector3f> load_kitti_bin(const std::string& path) {
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
+  const auto bytes = static_cast<size_t>(in.tellg());
+  in.seekg(0);
+  std::vector<float> f(bytes / 4);
+  in.read(reinterpret_cast<char*>(f.data()), static_cast<std::streamsize>(bytes));
+  std::vector<Eigen::Vector3f> pts;
+  for (size_t i = 0; i + 3 < f.size(); i += 4) pts.emplace_back(f[i], f[i + 1], f[i + 2]);
+  return pts;
+}
+
+TEST(Registration, RealKittiPairsAgreeWithGroundTruth) {
+  const char* env = std::getenv("CDC_DATA_DIR");
+  const std::string d = std::string(env != nullptr ? env : "../shared/data") + "/kitti/";
+  if (!std::filesystem::exists(d + "scans/seq00/000094.bin")) {
+    GTEST_SKIP() << "reference data absent: " << d << "scans/seq00 not found";
+  }
+  const auto seq = sim::kitti_lidar_trajectory(d + "poses/00.txt", sim::read_kitti_calib(d + "calib_Tr.txt", "Tr_00_02"));
+  for (const auto& [a, b] : {std::pair<int, int>{94, 95}, std::pair<int, int>{198, 199}}) {
+    char pa[32], pb[32];
+    std::snprintf(pa, sizeof pa, "%06d.bin", a);
+    std::snprintf(pb, sizeof pb, "%06d.bin", b);
+    const Eigen::Isometry3d gt = seq[static_cast<size_t>(a)].pose.inverse() * seq[static_cast<size_t>(b)].pose;
+    const RegistrationResult r = register_clouds(load_kitti_bin(d + "scans/seq00/" + pb), load_kitti_bin(d + "scans/seq00/" + pa),
+                                                 Eigen::Isometry3d::Identity(), RegistrationParams{});
+    const Eigen::Isometry3d e = gt.inverse() * r.T_target_source;
+    const double deg = Eigen::AngleAxisd(e.rotation()).angle() * 180 / M_PI;
+    std::printf("KITTI 00 %d-%d: %.4f m, %.4f deg from ground truth\n", a, b, e.translation().norm(), deg);
+    EXPECT_LT(e.translation().norm(), 0.03);
+    EXPECT_LT(deg, 0.2);
+  }
+}
+
+}  // namespace
+}  // namespace cdc::lidar
