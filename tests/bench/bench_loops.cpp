@@ -94,7 +94,7 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
   }
   const double run_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   // Precision.
-  size_t tp = 0;
+  size_t tp = 0, false_intra = 0, false_inter = 0;
   std::set<std::pair<uint32_t, uint32_t>> recalled;
   for (const auto& [key, l] : accepted) {
     const Eigen::Isometry3d gt = truth.at({l.robot_a, l.keyframe_a}).inverse() * truth.at({l.robot_b, l.keyframe_b});
@@ -102,6 +102,13 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
     const bool ok = e.translation().norm() <= 1.0 && Eigen::AngleAxisd(e.rotation()).angle() <= 5.0 * M_PI / 180;
     tp += ok ? 1 : 0;
     if (ok) recalled.insert({l.robot_b, l.keyframe_b});
+    if (!ok) {
+      (l.robot_a == l.robot_b ? false_intra : false_inter) += 1;
+      if (std::getenv("CDC_BENCH_VERBOSE") != nullptr) {
+        std::printf("false loop %u/%u - %u/%u: error %.2f m %.1f deg, fitness %.3f\n", l.robot_a, l.keyframe_a, l.robot_b,
+                    l.keyframe_b, e.translation().norm(), Eigen::AngleAxisd(e.rotation()).angle() * 180 / M_PI, l.fitness);
+      }
+    }
   }
   // Recall over true revisits (in processing order).
   size_t revisits = 0, found = 0;
@@ -131,12 +138,16 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
   nlohmann::json j{{"keyframes", kfs.size()},
                    {"accepted", accepted.size()},
                    {"true_positives", tp},
+                   {"false_intra", false_intra},
+                   {"false_inter", false_inter},
                    {"precision", accepted.empty() ? 1.0 : static_cast<double>(tp) / static_cast<double>(accepted.size())},
                    {"revisits", revisits},
                    {"recall", revisits == 0 ? 1.0 : static_cast<double>(found) / static_cast<double>(revisits)},
                    {"verified", core.stats().verified},
                    {"verification_failed", core.stats().verification_failed},
                    {"inter_accepted", core.stats().inter_accepted},
+                   {"intra_accepted", core.stats().intra_accepted},
+                   {"intra_inconsistent", core.stats().intra_inconsistent},
                    {"inter_proposed", core.stats().inter_proposed},
                    {"withdrawn", core.stats().withdrawn},
                    {"quantization_decisions", decisions},
@@ -157,12 +168,15 @@ int main(int argc, char** argv) {
   std::vector<std::string> seqs = {"05", "09"};
   app.add_option("--data", data, "reference data folder (CDC_DATA_DIR)")->capture_default_str();
   app.add_option("--seq", seqs, "KITTI sequences")->capture_default_str();
+  double chi2 = loops::LoopParams{}.pcm.chi2_threshold;
+  app.add_option("--pcm-chi2", chi2, "PCM threshold")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   if (!std::filesystem::exists(data + "/kitti/poses")) {
     std::cerr << "cdc-bench-loops: " << data << "/kitti/poses not found (set --data or CDC_DATA_DIR)\n";
     return 2;
   }
   loops::LoopParams params;
+  params.pcm.chi2_threshold = chi2;
   nlohmann::json out;
   double precision = 1, recall = 1;
   for (const auto& s : seqs) {

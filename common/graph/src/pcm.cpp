@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <functional>
+#include <limits>
 #include <set>
 
 namespace cdc::graph {
@@ -139,6 +140,22 @@ double cycle_distance_with(const std::map<uint32_t, Chain>& chains, const Factor
 }
 
 }  // namespace
+
+double Pcm::odometry_distance(const PoseGraph& g, const Factor& loop) {
+  const std::map<uint32_t, Chain> chains = odometry_chains(g);
+  const auto it = chains.find(robot_of(loop.a));
+  if (robot_of(loop.a) != robot_of(loop.b) || it == chains.end() || it->second.pose.count(index_of(loop.a)) == 0 ||
+      it->second.pose.count(index_of(loop.b)) == 0) {
+    return std::numeric_limits<double>::infinity();
+  }
+  const auto [T_odo, S_odo] = it->second.relative(index_of(loop.a), index_of(loop.b));
+  const Vector6d r = residual(T_odo.inverse() * loop.measurement);
+  // First order: the residual moves like the loop's right perturbation and against the odometry's.
+  const Eigen::Isometry3d E = T_odo.inverse() * loop.measurement;
+  const Matrix6d A = adjoint(E.inverse());
+  const Matrix6d S = loop.information.inverse() + A * S_odo * A.transpose();
+  return r.dot(S.ldlt().solve(r));
+}
 
 double Pcm::cycle_distance(const PoseGraph& g, const Factor& k, const Factor& l) {
   return cycle_distance_with(odometry_chains(g), k, l);

@@ -45,8 +45,19 @@ std::vector<LoopOut> LoopCore::add_keyframe(KeyframeIn kf) {
     }
     LoopOut loop{robot_a, kf_a, kf.robot, kf.id, r.T_target_source, r.information, r.fitness, false};
     if (robot_a == kf.robot) {
+      // An intra-robot loop must agree with the robot's own odometry between the two keyframes.
+      graph::Factor f;
+      f.kind = graph::FactorKind::kLoop;
+      f.a = graph::make_key(robot_a, kf_a);
+      f.b = graph::make_key(kf.robot, kf.id);
+      f.measurement = loop.T_a_b;
+      f.information = loop.information;
+      if (graph::Pcm::odometry_distance(odometry_, f) > p_.pcm.chi2_threshold) {
+        ++stats_.intra_inconsistent;
+        continue;
+      }
       ++stats_.intra_accepted;
-      odometry_.add_between(graph::make_key(robot_a, kf_a), graph::make_key(kf.robot, kf.id), loop.T_a_b, loop.information);
+      odometry_.add_between(f.a, f.b, loop.T_a_b, loop.information);
       out.push_back(loop);
       continue;
     }

@@ -40,6 +40,10 @@ class Pcm : public OutlierRejection {
   // for tests and reports).
   static double cycle_distance(const PoseGraph& graph, const Factor& k, const Factor& l);
 
+  // Mahalanobis distance^2 between an intra-robot loop and the robot's odometry between its two
+  // keyframes (the cycle a single loop closes), with the odometry covariance propagated.
+  static double odometry_distance(const PoseGraph& graph, const Factor& loop);
+
  private:
   PcmOptions options_;
 };

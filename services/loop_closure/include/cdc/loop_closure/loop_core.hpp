@@ -46,7 +46,7 @@ struct LoopOut {
 
 struct LoopStats {
   uint64_t queries = 0, candidates = 0, verified = 0, verification_failed = 0;
-  uint64_t intra_accepted = 0, inter_proposed = 0, inter_accepted = 0, withdrawn = 0;
+  uint64_t intra_accepted = 0, intra_inconsistent = 0, inter_proposed = 0, inter_accepted = 0, withdrawn = 0;
 };
 
 class LoopCore {
