@@ -1,7 +1,8 @@
 # Helpers that give every target of cdc-slam the same shape:
 #   cdc_add_library(NAME SOURCES ... [DEPS ...] [PRIVATE_DEPS ...])
 #   cdc_add_executable(NAME SOURCES ... [DEPS ...])       -> binary named NAME
-#   cdc_add_test(NAME SOURCES ... [DEPS ...] [LABELS ...] [DDS] [TIMEOUT s] [ARGS ...])
+#   cdc_add_test(NAME SOURCES ... [DEPS ...] [LABELS ...] [DDS] [SERIAL] [TIMEOUT s] [ARGS ...])
+# SERIAL: the test measures timing (e.g. liveliness detection) and runs alone, not beside others.
 # A DDS test runs with the loopback Cyclone configuration and its own domain id,
 # so that tests can neither leave the machine nor hear each other.
 
@@ -46,7 +47,7 @@ endfunction()
 set_property(GLOBAL PROPERTY CDC_NEXT_DOMAIN 1)
 
 function(cdc_add_test name)
-  cmake_parse_arguments(ARG "DDS" "TIMEOUT" "SOURCES;DEPS;LABELS;ARGS;ENV" ${ARGN})
+  cmake_parse_arguments(ARG "DDS;SERIAL" "TIMEOUT" "SOURCES;DEPS;LABELS;ARGS;ENV" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})
   target_link_libraries(${name} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main GTest::gmock)
   cdc_target_warnings(${name})
@@ -69,4 +70,7 @@ function(cdc_add_test name)
   endif()
   set_tests_properties(${name} PROPERTIES LABELS "${labels}" TIMEOUT ${ARG_TIMEOUT}
                                           ENVIRONMENT "${env}")
+  if(ARG_SERIAL)
+    set_tests_properties(${name} PROPERTIES RUN_SERIAL TRUE)
+  endif()
 endfunction()

@@ -53,7 +53,7 @@ class Publisher {
         t_progress_(participant_, dds::topics::kProgress),
         w_lidar_(participant_, t_lidar_, dds::qos::sensor_stream(16, true)),
         w_imu_(participant_, t_imu_, dds::qos::sensor_stream(64, true)),
-        w_gt_(participant_, t_gt_, dds::qos::keyed_state()),
+        w_gt_(participant_, t_gt_, ground_truth_qos()),
         r_progress_(participant_, t_progress_, dds::qos::keyed_state()),
         t_radio_(participant_, dds::topics::kRadio),
         w_radio_(participant_, t_radio_, dds::qos::keyed_state()) {
@@ -61,6 +61,14 @@ class Publisher {
       throw std::runtime_error("only " + std::to_string(w_lidar_.matched_readers()) + " of " +
                                std::to_string(o.wait_readers) + " LiDAR readers appeared");
     }
+  }
+
+  // Ground truth is a stream every sample of which matters (evaluation): reliable, deep, and
+  // transient-local so that a reader that matches late still gets it.
+  static dds::Qos ground_truth_qos() {
+    dds::Qos q;
+    q.reliable().keep_last(4096).transient_local();
+    return q;
   }
 
   static dds::ParticipantOptions make_options(const PlayOptions& o) {

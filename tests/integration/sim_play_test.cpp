@@ -40,7 +40,9 @@ class SimPlay : public ::testing::Test {
     t_gt_ = std::make_unique<dds::Topic<cdc_msg_GroundTruth>>(*participant_, dds::topics::kGroundTruth);
     t_progress_ = std::make_unique<dds::Topic<cdc_msg_ConsumerProgress>>(*participant_, dds::topics::kProgress);
     r_lidar_ = std::make_unique<dds::Reader<cdc_msg_LidarScan>>(*participant_, *t_lidar_, dds::qos::sensor_stream(16, true));
-    r_gt_ = std::make_unique<dds::Reader<cdc_msg_GroundTruth>>(*participant_, *t_gt_, dds::qos::event_stream(256));
+    dds::Qos gt_qos;
+    gt_qos.reliable().keep_last(4096).transient_local();
+    r_gt_ = std::make_unique<dds::Reader<cdc_msg_GroundTruth>>(*participant_, *t_gt_, gt_qos);
     t_radio_ = std::make_unique<dds::Topic<cdc_msg_RadioState>>(*participant_, dds::topics::kRadio);
     r_radio_ = std::make_unique<dds::Reader<cdc_msg_RadioState>>(*participant_, *t_radio_, dds::qos::event_stream(1024));
     w_progress_ = std::make_unique<dds::Writer<cdc_msg_ConsumerProgress>>(*participant_, *t_progress_, dds::qos::keyed_state());
