@@ -88,6 +88,9 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
     contexts.push_back(lidar::make_scan_context(in.cloud, params.scan_context));
     for (const auto& l : core.add_keyframe(std::move(in))) {
       const auto key = std::make_tuple(l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b);
+      if (std::getenv("CDC_BENCH_TRACE") != nullptr && l.robot_a != l.robot_b) {
+        std::printf("%s %u/%u - %u/%u\n", l.withdrawn ? "withdraw" : "publish", l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b);
+      }
       if (l.withdrawn) accepted.erase(key);
       else accepted[key] = l;
     }
@@ -120,7 +123,20 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
     }
     if (revisit) {
       ++revisits;
-      found += recalled.count({kfs[i].robot, kfs[i].id});
+      const bool hit = recalled.count({kfs[i].robot, kfs[i].id}) != 0;
+      found += hit ? 1 : 0;
+      if (!hit && std::getenv("CDC_BENCH_VERBOSE") != nullptr) {
+        double best = 1e9;
+        size_t bj = 0;
+        for (size_t j = 0; j < i; ++j) {
+          if (kfs[j].robot == kfs[i].robot && kfs[j].id + exclude_recent >= kfs[i].id) continue;
+          const double d = (kfs[j].truth.translation() - kfs[i].truth.translation()).norm();
+          if (d < best) best = d, bj = j;
+        }
+        const double dh = Eigen::AngleAxisd(kfs[bj].truth.rotation().transpose() * kfs[i].truth.rotation()).angle() * 180 / M_PI;
+        std::printf("missed revisit %u/%u: nearest earlier %u/%u at %.1f m, heading difference %.0f deg\n", kfs[i].robot,
+                    kfs[i].id, kfs[bj].robot, kfs[bj].id, best, dh);
+      }
     }
   }
   // Quantisation: the accept decision of every candidate is the same on quantised descriptors.
@@ -168,14 +184,19 @@ int main(int argc, char** argv) {
   std::vector<std::string> seqs = {"05", "09"};
   app.add_option("--data", data, "reference data folder (CDC_DATA_DIR)")->capture_default_str();
   app.add_option("--seq", seqs, "KITTI sequences")->capture_default_str();
-  double chi2 = loops::LoopParams{}.pcm.chi2_threshold;
+  loops::LoopParams defaults;
+  double chi2 = defaults.pcm.chi2_threshold;
   app.add_option("--pcm-chi2", chi2, "PCM threshold")->capture_default_str();
+  app.add_option("--min-overlap", defaults.min_overlap, "verification: least overlap")->capture_default_str();
+  app.add_option("--max-fitness", defaults.max_fitness, "verification: largest fitness [m^2]")->capture_default_str();
+  app.add_option("--max-sc-distance", defaults.max_sc_distance, "retrieval: Scan Context distance")->capture_default_str();
+  app.add_option("--max-verify", defaults.max_verify, "candidates verified per keyframe")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   if (!std::filesystem::exists(data + "/kitti/poses")) {
     std::cerr << "cdc-bench-loops: " << data << "/kitti/poses not found (set --data or CDC_DATA_DIR)\n";
     return 2;
   }
-  loops::LoopParams params;
+  loops::LoopParams params = defaults;
   params.pcm.chi2_threshold = chi2;
   nlohmann::json out;
   double precision = 1, recall = 1;
