@@ -1,8 +1,8 @@
 #include "cdc/graph/initialise.hpp"
 
+#include "cdc/geometry/se3.hpp"
 #include "cdc/graph/objective.hpp"
 
-#include <Eigen/SVD>
 #include <Eigen/SparseCholesky>
 
 #include <deque>
@@ -76,12 +76,6 @@ Indexing index_unknowns(const PoseGraph& g, Key anchor) {
 
 using Triplets = std::vector<Eigen::Triplet<double>>;
 
-Eigen::Matrix3d project_to_so3(const Eigen::Matrix3d& M) {
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
-  D(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
-  return svd.matrixU() * D * svd.matrixV().transpose();
-}
 
 }  // namespace
 
@@ -151,7 +145,7 @@ bool chordal_initialise(PoseGraph& graph) {
         M.row(r) = X.block<3, 1>(3 * k, r).transpose();
       }
       Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-      T.linear() = project_to_so3(M);
+      T.linear() = geometry::project_to_so3(M);
       graph.poses[ix.keys[static_cast<size_t>(k)]] = T;
     }
   }

@@ -1,5 +1,7 @@
 #include "cdc/graph/pcm.hpp"
 
+#include "cdc/geometry/se3.hpp"
+
 #include <Eigen/Cholesky>
 
 #include <algorithm>
@@ -13,18 +15,13 @@ namespace {
 
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 
-Eigen::Matrix3d hat(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return m;
-}
 
 // Adjoint of T for tangent vectors ordered (translation, rotation), right perturbations:
 // T * Exp(d) = Exp(Ad(T) d) * T.
 Matrix6d adjoint(const Eigen::Isometry3d& T) {
   Matrix6d A = Matrix6d::Zero();
   A.topLeftCorner<3, 3>() = T.rotation();
-  A.topRightCorner<3, 3>() = hat(T.translation()) * T.rotation();
+  A.topRightCorner<3, 3>() = geometry::hat(T.translation()) * T.rotation();
   A.bottomRightCorner<3, 3>() = T.rotation();
   return A;
 }
@@ -43,8 +40,7 @@ Eigen::Isometry3d perturb(const Eigen::Isometry3d& T, const Vector6d& d) {
 Vector6d residual(const Eigen::Isometry3d& E) {
   Vector6d r;
   r.head<3>() = E.translation();
-  const Eigen::AngleAxisd aa(E.rotation());
-  r.tail<3>() = aa.axis() * aa.angle();
+  r.tail<3>() = geometry::so3_log(E.rotation());
   return r;
 }
 

@@ -1,34 +1,13 @@
 #include "cdc/sim/trajectory.hpp"
 
+#include "cdc/geometry/se3.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <random>
 #include <stdexcept>
 
 namespace cdc::sim {
-namespace {
-
-Eigen::Matrix3d exp_so3(const Eigen::Vector3d& w) {
-  const double th = w.norm();
-  if (th < 1e-12) {
-    return Eigen::Matrix3d::Identity();
-  }
-  return Eigen::AngleAxisd(th, w / th).toRotationMatrix();
-}
-
-Eigen::Vector3d log_so3(const Eigen::Matrix3d& R) {
-  const Eigen::AngleAxisd aa(R);
-  double a = aa.angle();
-  Eigen::Vector3d axis = aa.axis();
-  if (a > M_PI) {
-    a = 2 * M_PI - a;
-    axis = -axis;
-  }
-  return axis * a;
-}
-
-}  // namespace
-
 SplineTrajectory::SplineTrajectory(std::vector<Eigen::Isometry3d> controls, double t0_s, double dt_s)
     : controls_(std::move(controls)), t0_(t0_s), dt_(dt_s) {
   if (controls_.size() < 4 || dt_ <= 0) {
@@ -36,7 +15,7 @@ SplineTrajectory::SplineTrajectory(std::vector<Eigen::Isometry3d> controls, doub
   }
   omega_.resize(controls_.size(), Eigen::Vector3d::Zero());
   for (size_t i = 1; i < controls_.size(); ++i) {
-    omega_[i] = log_so3(controls_[i - 1].rotation().transpose() * controls_[i].rotation());
+    omega_[i] = geometry::so3_log(controls_[i - 1].rotation().transpose() * controls_[i].rotation());
   }
 }
 
@@ -60,8 +39,8 @@ Eigen::Isometry3d SplineTrajectory::pose(double t) const {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.translation() = b0 * controls_[i - 1].translation() + b1 * controls_[i].translation() +
                     b2 * controls_[i + 1].translation() + b3 * controls_[i + 2].translation();
-  T.linear() = controls_[i - 1].rotation() * exp_so3(c1 * omega_[i]) * exp_so3(c2 * omega_[i + 1]) *
-               exp_so3(c3 * omega_[i + 2]);
+  T.linear() = controls_[i - 1].rotation() * geometry::so3_exp(c1 * omega_[i]) * geometry::so3_exp(c2 * omega_[i + 1]) *
+               geometry::so3_exp(c3 * omega_[i + 2]);
   return T;
 }
 
@@ -88,7 +67,7 @@ Eigen::Vector3d SplineTrajectory::angular_velocity(double t) const {
   // Central difference of the smooth rotation spline (error O(h^2)).
   const double h = 1e-5;
   const Eigen::Matrix3d Ra = pose(t - h).rotation(), Rb = pose(t + h).rotation();
-  return log_so3(Ra.transpose() * Rb) / (2 * h);
+  return geometry::so3_log(Ra.transpose() * Rb) / (2 * h);
 }
 
 std::vector<ImuSample> simulate_imu(const SplineTrajectory& tr, const Eigen::Isometry3d& T_body_imu, double t0, double t1,

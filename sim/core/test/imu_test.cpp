@@ -1,3 +1,4 @@
+#include "cdc/geometry/se3.hpp"
 #include "cdc/sim/trajectory.hpp"
 
 #include <gtest/gtest.h>
@@ -7,10 +8,6 @@
 namespace cdc::sim {
 namespace {
 
-Eigen::Matrix3d exp_so3(const Eigen::Vector3d& w) {
-  const double th = w.norm();
-  return th < 1e-15 ? Eigen::Matrix3d::Identity() : Eigen::AngleAxisd(th, w / th).toRotationMatrix();
-}
 
 // A car-like S curve with a little pitch and roll, sampled at 10 Hz.
 SplineTrajectory curve() {
@@ -56,7 +53,7 @@ TEST(Imu, IntegratingNoiseFreeImuReproducesTheTrajectoryOverOneSecond) {
   const double dt = 1.0 / rate;
   for (size_t k = 0; k + 1 < imu.size(); ++k) {
     const Eigen::Vector3d w_mid = 0.5 * (imu[k].gyro + imu[k + 1].gyro);
-    const Eigen::Matrix3d R_next = R * exp_so3(w_mid * dt);
+    const Eigen::Matrix3d R_next = R * geometry::so3_exp(w_mid * dt);
     const Eigen::Vector3d a0 = R * imu[k].accel + kGravity;
     const Eigen::Vector3d a1 = R_next * imu[k + 1].accel + kGravity;
     p += v * dt + (2 * a0 + a1) * dt * dt / 6;
