@@ -5,6 +5,7 @@
 
 #include <Eigen/Cholesky>
 
+#include <memory>
 #include <unordered_map>
 
 namespace cdc::graph {
@@ -48,20 +49,20 @@ SolveResult solve(PoseGraph& graph, const SolverOptions& options, const std::set
 
   ceres::Problem::Options popts;
   popts.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  popts.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  // One robust loss shared by every robust factor, owned here (outlives the problem).
+  std::unique_ptr<ceres::LossFunction> robust;
+  if (options.robust_loss_scale > 0.0) {
+    robust = std::make_unique<ceres::CauchyLoss>(options.robust_loss_scale);
+  }
   ceres::Problem problem(popts);
   ceres::EigenQuaternionManifold quaternion_manifold;
   // Planar graphs stay planar: z held, rotation about z only.
   ceres::SubsetManifold planar_translation(3, {2});
   ceres::AutoDiffManifold<detail::YawOnlyQuaternion, 4, 1> yaw_only;
   const bool planar = graph.dimension == 2;
-  ceres::LossFunction* robust = nullptr;
-  if (options.robust_loss_scale > 0.0) {
-    robust = new ceres::CauchyLoss(options.robust_loss_scale);
-  }
-  std::unique_ptr<ceres::LossFunction> robust_owner;  // Ceres owns it once used; see below
 
   bool has_prior = false;
-  bool robust_used = false;
   for (const Factor& f : graph.factors) {
     PoseBlock& a = blocks.at(f.a);
     if (f.kind == FactorKind::kPrior) {
@@ -71,8 +72,7 @@ SolveResult solve(PoseGraph& graph, const SolverOptions& options, const std::set
       continue;
     }
     PoseBlock& b = blocks.at(f.b);
-    ceres::LossFunction* loss = (f.robust && robust != nullptr) ? robust : nullptr;
-    robust_used = robust_used || loss != nullptr;
+    ceres::LossFunction* loss = f.robust ? robust.get() : nullptr;
     // SE-Sync's objective is the same residual with isotropic information diag(tau I, 2 kappa I):
     // ||R_j - R_i R_ij||_F^2 = 8 sin^2(theta/2) = 2 * |2 vec(q_err)|^2, and the translation term is
     // rotation invariant. This form is far closer to linear in the tangent space than the
@@ -87,9 +87,6 @@ SolveResult solve(PoseGraph& graph, const SolverOptions& options, const std::set
       sqrt_info = sqrt_information(f.information);
     }
     problem.AddResidualBlock(detail::BetweenResidual::create(f.measurement, sqrt_info), loss, a.t, a.q, b.t, b.q);
-  }
-  if (robust != nullptr && !robust_used) {
-    robust_owner.reset(robust);
   }
   for (auto& [k, b] : blocks) {
     if (problem.HasParameterBlock(b.q)) {
