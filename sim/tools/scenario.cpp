@@ -239,9 +239,9 @@ GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_
   }
   write_text(fs::path(out_dir) / "radio_periods.csv", periods);
   char world_json[256];
-  std::snprintf(world_json, sizeof world_json, "{\"seed\": %llu, \"boxes\": %zu, \"cylinders\": %zu, \"ground\": [%g, %g, %g]}\n",
+  std::snprintf(world_json, sizeof world_json, "{\"seed\": %llu, \"boxes\": %zu, \"cylinders\": %zu, \"terrain\": {\"cells\": [%d, %d], \"cell_m\": %g}}\n",
                 static_cast<unsigned long long>(s.seed), world.boxes().size(), world.cylinders().size(),
-                world.ground().z0, world.ground().gx, world.ground().gy);
+                world.terrain().nx, world.terrain().ny, world.terrain().cell);
   write_text(fs::path(out_dir) / "world.json", world_json);
   fs::copy_file(scenario_path, fs::path(out_dir) / "scenario.yaml", fs::copy_options::overwrite_existing);
   char summary[256];

@@ -89,7 +89,13 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
     for (const auto& l : core.add_keyframe(std::move(in))) {
       const auto key = std::make_tuple(l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b);
       if (std::getenv("CDC_BENCH_TRACE") != nullptr && l.robot_a != l.robot_b) {
-        std::printf("%s %u/%u - %u/%u\n", l.withdrawn ? "withdraw" : "publish", l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b);
+        const Eigen::Isometry3d gt = truth.at({l.robot_a, l.keyframe_a}).inverse() * truth.at({l.robot_b, l.keyframe_b});
+        const Eigen::Isometry3d e = gt.inverse() * l.T_a_b;
+        Eigen::Matrix<double, 6, 1> r;
+        r << e.translation(), Eigen::AngleAxisd(e.rotation()).angle() * Eigen::AngleAxisd(e.rotation()).axis();
+        std::printf("%s %u/%u - %u/%u  error %.3f m %.2f deg  nees %.1f  fitness %.4f\n", l.withdrawn ? "withdraw" : "publish",
+                    l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b, e.translation().norm(),
+                    Eigen::AngleAxisd(e.rotation()).angle() * 180 / M_PI, r.dot(l.information * r), l.fitness);
       }
       if (l.withdrawn) accepted.erase(key);
       else accepted[key] = l;
@@ -141,12 +147,15 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
   }
   // Quantisation: the accept decision of every candidate is the same on quantised descriptors.
   size_t decisions = 0, changed = 0;
+  double max_change = 0;
   for (size_t i = 0; i + 1 < contexts.size(); i += 7) {
-    const lidar::ScanContext qi = lidar::dequantize(lidar::quantize(contexts[i], static_cast<float>(params.scan_context.quant_scale_m)));
+    const lidar::ScanContext qi = lidar::dequantize(lidar::quantize(contexts[i]));
     for (size_t j = i + 1; j < contexts.size(); j += 13) {
-      const lidar::ScanContext qj = lidar::dequantize(lidar::quantize(contexts[j], static_cast<float>(params.scan_context.quant_scale_m)));
-      const bool a = lidar::compare(contexts[j], contexts[i]).distance <= params.max_sc_distance;
-      const bool b = lidar::compare(qj, qi).distance <= params.max_sc_distance;
+      const lidar::ScanContext qj = lidar::dequantize(lidar::quantize(contexts[j]));
+      const double da = lidar::compare(contexts[j], contexts[i]).distance, db = lidar::compare(qj, qi).distance;
+      max_change = std::max(max_change, std::abs(da - db));
+      const bool a = da <= params.max_sc_distance;
+      const bool b = db <= params.max_sc_distance;
       ++decisions;
       changed += a != b ? 1 : 0;
     }
@@ -168,6 +177,7 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
                    {"withdrawn", core.stats().withdrawn},
                    {"quantization_decisions", decisions},
                    {"quantization_changed", changed},
+                   {"quantization_max_distance_change", max_change},
                    {"run_s", run_s}};
   std::printf("KITTI %s: %zu keyframes, %zu loops accepted (%zu true), precision %.3f, recall %.3f of %zu revisits, %.1f s\n",
               seq.c_str(), kfs.size(), accepted.size(), tp, j["precision"].get<double>(), j["recall"].get<double>(),
@@ -237,7 +247,7 @@ int main(int argc, char** argv) {
   out["recall"] = recall;
   out["query_ms"] = median(ms);
   out["query_db_size"] = db.size();
-  out["descriptor_bytes"] = lidar::quantize(example, static_cast<float>(params.scan_context.quant_scale_m)).bytes();
+  out["descriptor_bytes"] = lidar::quantize(example).bytes();
   std::printf("query: median %.3f ms with %zu keyframes; descriptor %zu bytes on the wire\n", median(ms), db.size(),
               out["descriptor_bytes"].get<size_t>());
   std::cout << out.dump() << '\n';

@@ -109,6 +109,14 @@ Oriented orient(const Factor& f) {
 
 double cycle_distance_with(const std::map<uint32_t, Chain>& chains, const Factor& fk, const Factor& fl) {
   const Oriented k = orient(fk), l = orient(fl);
+  // A loop end that the odometry does not reach cannot be checked: inconsistent with everything.
+  auto reaches = [&](Key key) {
+    const auto it = chains.find(robot_of(key));
+    return it != chains.end() && it->second.pose.count(index_of(key)) != 0;
+  };
+  if (!reaches(k.low) || !reaches(k.high) || !reaches(l.low) || !reaches(l.high)) {
+    return std::numeric_limits<double>::infinity();
+  }
   const Chain& A = chains.at(robot_of(k.low));
   const Chain& B = chains.at(robot_of(k.high));
   const auto [T_aa, S_aa] = A.relative(index_of(k.low), index_of(l.low));

@@ -72,8 +72,11 @@ ScanContextMatch compare(const ScanContext& q, const ScanContext& c) {
   return best;
 }
 
-QuantizedScanContext quantize(const ScanContext& sc, float scale) {
+QuantizedScanContext quantize(const ScanContext& sc) {
   QuantizedScanContext q;
+  float top = 0;
+  for (float c : sc.cells) top = std::max(top, c);
+  const float scale = std::max(top / 255.0f, 1e-3f);
   q.rings = sc.rings;
   q.sectors = sc.sectors;
   q.scale = scale;

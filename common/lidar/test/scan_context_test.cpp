@@ -83,11 +83,11 @@ TEST(ScanContext, QuantisedDescriptorFitsTheWireBudgetAndMatchesAlike) {
   const auto pts = place(7);
   const ScanContext a = make_scan_context(pts, p);
   const ScanContext b = make_scan_context(rotated(pts, 0.7f), p);
-  const QuantizedScanContext qa = quantize(a, static_cast<float>(p.quant_scale_m));
+  const QuantizedScanContext qa = quantize(a);
   EXPECT_LE(qa.bytes(), 1500u);
   const ScanContext back = dequantize(qa);
   for (size_t i = 0; i < a.cells.size(); ++i) {
-    EXPECT_NEAR(back.cells[i], a.cells[i], p.quant_scale_m / 2 + 1e-6);
+    EXPECT_NEAR(back.cells[i], a.cells[i], qa.scale / 2 + 1e-6);
   }
   const ScanContextMatch m = compare(b, a), mq = compare(b, back);
   EXPECT_EQ(m.shift, mq.shift);

@@ -4,82 +4,224 @@
 
 namespace cdc::loops {
 
-LoopCore::LoopCore(const LoopParams& params) : p_(params), db_(params.scan_context.rings) {}
+void LoopEvents::append(LoopEvents&& o) {
+  loops.insert(loops.end(), o.loops.begin(), o.loops.end());
+  requests.insert(requests.end(), o.requests.begin(), o.requests.end());
+}
 
-std::vector<LoopOut> LoopCore::add_keyframe(KeyframeIn kf) {
-  std::vector<LoopOut> out;
-  const auto me = std::make_pair(kf.robot, kf.id);
+lidar::ScanContext wire_form(const lidar::ScanContext& sc) { return lidar::dequantize(lidar::quantize(sc)); }
+
+LoopCore::LoopCore(const LoopParams& params, std::optional<uint32_t> query_robot)
+    : p_(params), query_robot_(query_robot), reachable_([](uint32_t) { return true; }), db_(params.scan_context.rings) {}
+
+void LoopCore::add_odometry(uint32_t robot, uint32_t from, uint32_t to, const Eigen::Isometry3d& T,
+                            const graph::Matrix6d& info) {
+  odometry_.add_between(graph::make_key(robot, from), graph::make_key(robot, to), T, info);
+}
+
+LoopEvents LoopCore::add_keyframe_data(KeyframeIn kf, Nanos now) {
+  const Id me{kf.robot, kf.id};
+  if (local_.count(me) != 0) {
+    return {};
+  }
   if (kf.id > 0) {
-    odometry_.add_between(graph::make_key(kf.robot, kf.id - 1u), graph::make_key(kf.robot, kf.id), kf.T_prev,
-                          kf.information);
+    add_odometry(kf.robot, kf.id - 1u, kf.id, kf.T_prev, kf.information);
   }
-  const lidar::ScanContext sc = lidar::make_scan_context(kf.cloud, p_.scan_context);
-  // Candidates among earlier keyframes, excluding this robot's recent ones.
-  ++stats_.queries;
-  const auto candidates = db_.query(sc, p_.knn, [&](size_t id) {
-    const auto& [robot, k] = owner_[id];
-    return robot != kf.robot || k + p_.exclude_recent < kf.id;
-  });
+  data_robots_.insert(kf.robot);
   clouds_[me] = lidar::voxel_downsample(kf.cloud, p_.registration.voxel_m);
-  const size_t own_id = db_.add(sc);
-  owner_.push_back(me);
-  (void)own_id;
-
-  size_t verified = 0;
-  std::set<uint32_t> paired_robots;
-  for (const auto& c : candidates) {
-    if (c.match.distance > p_.max_sc_distance || verified >= p_.max_verify) break;
-    ++stats_.candidates;
-    ++verified;
-    const auto [robot_a, kf_a] = owner_[c.id];
-    // The query is rotated by yaw relative to the candidate: T_candidate_query starts at Rz(-yaw).
-    Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();
-    guess.linear() = Eigen::AngleAxisd(-c.match.yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-    lidar::RegistrationParams rp = p_.registration;
-    rp.voxel_m = 0;  // already downsampled
-    const lidar::RegistrationResult r = lidar::register_clouds(clouds_[me], clouds_[{robot_a, kf_a}], guess, rp);
-    ++stats_.verified;
-    if (!r.converged || r.fitness > p_.max_fitness || r.overlap < p_.min_overlap) {
-      ++stats_.verification_failed;
-      continue;
-    }
-    LoopOut loop{robot_a, kf_a, kf.robot, kf.id, r.T_target_source, r.information, r.fitness, false};
-    if (robot_a == kf.robot) {
-      // An intra-robot loop must agree with the robot's own odometry between the two keyframes.
-      graph::Factor f;
-      f.kind = graph::FactorKind::kLoop;
-      f.a = graph::make_key(robot_a, kf_a);
-      f.b = graph::make_key(kf.robot, kf.id);
-      f.measurement = loop.T_a_b;
-      f.information = loop.information;
-      if (graph::Pcm::odometry_distance(odometry_, f) > p_.pcm.chi2_threshold) {
-        ++stats_.intra_inconsistent;
-        continue;
-      }
-      ++stats_.intra_accepted;
-      odometry_.add_between(f.a, f.b, loop.T_a_b, loop.information);
-      out.push_back(loop);
-      continue;
-    }
-    ++stats_.inter_proposed;
-    odometry_.add_between(graph::make_key(robot_a, kf_a), graph::make_key(kf.robot, kf.id), loop.T_a_b, loop.information);
-    const size_t f = odometry_.factors.size() - 1;
-    inter_[{std::min(robot_a, kf.robot), std::max(robot_a, kf.robot)}].push_back(f);
-    proposed_[f] = loop;
-    paired_robots.insert(robot_a);
+  local_.insert(me);
+  auto it = deferred_.find(me);
+  if (it == deferred_.end()) {
+    return {};
   }
-  for (uint32_t other : paired_robots) {
-    const auto changes = update_pcm(std::min(other, kf.robot), std::max(other, kf.robot));
-    out.insert(out.end(), changes.begin(), changes.end());
+  DescriptorIn d = std::move(it->second);
+  deferred_.erase(it);
+  return add_descriptor(std::move(d), now);
+}
+
+LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
+  LoopEvents out;
+  const Id me{d.robot, d.id};
+  const bool query_robot = !query_robot_ || *query_robot_ == d.robot;
+  if (query_robot && local_.count(me) == 0 && described_.count(me) == 0) {
+    // Its keyframe (cloud, odometry) has not arrived yet: search when it does.
+    if (deferred_.size() >= 64) {
+      DescriptorIn oldest = std::move(deferred_.begin()->second);
+      deferred_.erase(deferred_.begin());
+      ++stats_.deferred_dropped;
+      described_.insert({oldest.robot, oldest.id});
+      db_.add(std::move(oldest.context));
+      owner_.push_back({oldest.robot, oldest.id});
+    }
+    deferred_[me] = std::move(d);
+    return out;
+  }
+  if (!described_.insert(me).second) {
+    ++stats_.duplicate_descriptors;
+    return out;
+  }
+  // Robots without local odometry are chained through their pose hints.
+  if (data_robots_.count(d.robot) == 0) {
+    auto it = last_hint_.find(d.robot);
+    if (it != last_hint_.end() && it->second.first < d.id) {
+      const Eigen::Isometry3d T = it->second.second.inverse() * d.pose_hint;
+      const double len = T.translation().norm();
+      const double st = p_.hint_sigma_m + p_.hint_sigma_m_per_m * len;
+      const double sr = p_.hint_sigma_rad + p_.hint_sigma_rad_per_m * len;
+      graph::Matrix6d info = graph::Matrix6d::Zero();
+      info.diagonal() << 1 / (st * st), 1 / (st * st), 1 / (st * st), 1 / (sr * sr), 1 / (sr * sr), 1 / (sr * sr);
+      add_odometry(d.robot, it->second.first, d.id, T, info);
+    }
+    if (it == last_hint_.end() || it->second.first < d.id) {
+      last_hint_[d.robot] = {d.id, d.pose_hint};
+    }
+  }
+  const bool searches = query_robot && local_.count(me) != 0;
+  std::vector<lidar::ScanContextDatabase::Candidate> candidates;
+  if (searches) {
+    ++stats_.queries;
+    candidates = db_.query(d.context, p_.knn, [&](size_t id) {
+      const auto& [robot, k] = owner_[id];
+      return robot != d.robot || k + p_.exclude_recent < d.id;
+    });
+  }
+  db_.add(std::move(d.context));
+  owner_.push_back(me);
+
+  size_t taken = 0;
+  for (const auto& c : candidates) {
+    if (c.match.distance > p_.max_sc_distance || taken >= p_.max_verify) break;
+    ++taken;
+    ++stats_.candidates;
+    const Job job{me, owner_[c.id], c.match.yaw_rad};
+    if (clouds_.count(job.candidate) != 0) {
+      out.append(verify(job));
+      continue;
+    }
+    if (!reachable_(job.candidate.first)) {
+      ++stats_.unreachable;
+      continue;
+    }
+    auto [it, fresh] = pending_.try_emplace(job.candidate);
+    it->second.jobs.push_back(job);
+    if (fresh) {
+      it->second.deadline = now + p_.request_timeout;
+      out.requests.push_back({job.candidate.first, job.candidate.second});
+      ++stats_.requests;
+    }
   }
   return out;
 }
 
-std::vector<LoopOut> LoopCore::update_pcm(uint32_t a, uint32_t b) {
-  std::vector<LoopOut> out;
+LoopEvents LoopCore::on_cloud(uint32_t robot, uint32_t id, std::vector<Eigen::Vector3f> cloud, Nanos) {
+  LoopEvents out;
+  const Id key{robot, id};
+  auto it = pending_.find(key);
+  if (it == pending_.end()) {
+    ++stats_.replies_unexpected;
+    return out;
+  }
+  ++stats_.replies;
+  const std::vector<Job> jobs = std::move(it->second.jobs);
+  pending_.erase(it);
+  if (local_.count(key) == 0) {
+    clouds_[key] = lidar::voxel_downsample(cloud, p_.registration.voxel_m);
+    cache_order_.push_back(key);
+    while (cache_order_.size() > p_.cloud_cache) {
+      clouds_.erase(cache_order_.front());
+      cache_order_.pop_front();
+    }
+  }
+  for (const Job& j : jobs) {
+    out.append(verify(j));
+  }
+  return out;
+}
+
+void LoopCore::on_cloud_missing(uint32_t robot, uint32_t id) {
+  if (pending_.erase({robot, id}) != 0) {
+    ++stats_.missing;
+  } else {
+    ++stats_.replies_unexpected;
+  }
+}
+
+void LoopCore::tick(Nanos now) {
+  for (auto it = pending_.begin(); it != pending_.end();) {
+    if (it->second.deadline <= now) {
+      ++stats_.timed_out;
+      it = pending_.erase(it);
+    } else {
+      ++it;
+    }
+  }
+}
+
+std::vector<LoopOut> LoopCore::add_keyframe(KeyframeIn kf) {
+  DescriptorIn d;
+  d.robot = kf.robot;
+  d.id = kf.id;
+  d.context = wire_form(lidar::make_scan_context(kf.cloud, p_.scan_context));
+  add_keyframe_data(std::move(kf), Nanos(0));
+  return add_descriptor(std::move(d), Nanos(0)).loops;
+}
+
+const std::vector<Eigen::Vector3f>* LoopCore::cloud(uint32_t robot, uint32_t id) const {
+  auto it = clouds_.find({robot, id});
+  return it == clouds_.end() ? nullptr : &it->second;
+}
+
+LoopEvents LoopCore::verify(const Job& job) {
+  LoopEvents out;
+  const auto src = clouds_.find(job.query), tgt = clouds_.find(job.candidate);
+  if (src == clouds_.end() || tgt == clouds_.end()) {
+    return out;
+  }
+  const auto [robot_a, kf_a] = job.candidate;
+  const auto [robot_b, kf_b] = job.query;
+  // The query is rotated by yaw relative to the candidate: T_candidate_query starts at Rz(-yaw).
+  Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();
+  guess.linear() = Eigen::AngleAxisd(-job.yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  lidar::RegistrationParams rp = p_.registration;
+  rp.voxel_m = 0;  // already downsampled
+  const lidar::RegistrationResult r = lidar::register_clouds(src->second, tgt->second, guess, rp);
+  ++stats_.verified;
+  if (!r.converged || r.fitness > p_.max_fitness || r.overlap < p_.min_overlap) {
+    ++stats_.verification_failed;
+    return out;
+  }
+  LoopOut loop{robot_a, kf_a, robot_b, kf_b, r.T_target_source, r.information, r.fitness, false};
+  graph::Factor f;
+  f.kind = graph::FactorKind::kLoop;
+  f.a = graph::make_key(robot_a, kf_a);
+  f.b = graph::make_key(robot_b, kf_b);
+  f.measurement = loop.T_a_b;
+  f.information = loop.information;
+  if (robot_a == robot_b) {
+    // An intra-robot loop must agree with the robot's own odometry between the two keyframes.
+    if (graph::Pcm::odometry_distance(odometry_, f) > p_.pcm.chi2_threshold) {
+      ++stats_.intra_inconsistent;
+      return out;
+    }
+    ++stats_.intra_accepted;
+    odometry_.add_between(f.a, f.b, loop.T_a_b, loop.information);
+    out.loops.push_back(loop);
+    return out;
+  }
+  ++stats_.inter_proposed;
+  odometry_.add_between(f.a, f.b, loop.T_a_b, loop.information);
+  const size_t id = odometry_.factors.size() - 1;
+  inter_[{std::min(robot_a, robot_b), std::max(robot_a, robot_b)}].push_back(id);
+  proposed_[id] = loop;
+  out.append(update_pcm(std::min(robot_a, robot_b), std::max(robot_a, robot_b)));
+  return out;
+}
+
+LoopEvents LoopCore::update_pcm(uint32_t a, uint32_t b) {
+  LoopEvents out;
   // PCM over this pair only: both robots' odometry and the pair's proposed loops.
   graph::PoseGraph g;
-  std::vector<size_t> ids = inter_[{a, b}];
+  const std::vector<size_t>& ids = inter_[{a, b}];
   for (const graph::Factor& f : odometry_.factors) {
     if (f.kind == graph::FactorKind::kOdometry && (graph::robot_of(f.a) == a || graph::robot_of(f.a) == b)) {
       g.factors.push_back(f);
@@ -91,19 +233,21 @@ std::vector<LoopOut> LoopCore::update_pcm(uint32_t a, uint32_t b) {
   }
   const graph::OutlierDecision d = graph::Pcm(p_.pcm).decide(g);
   std::set<size_t> accepted;
-  for (size_t i : d.accepted) accepted.insert(ids[i - first_loop]);
+  if (d.accepted.size() >= p_.min_inter_support) {
+    for (size_t i : d.accepted) accepted.insert(ids[i - first_loop]);
+  }
   for (size_t f : ids) {
     const bool now = accepted.count(f) != 0, before = published_.count(f) != 0;
     if (now && !before) {
       published_.insert(f);
       ++stats_.inter_accepted;
-      out.push_back(proposed_[f]);
+      out.loops.push_back(proposed_[f]);
     } else if (!now && before) {
       published_.erase(f);
       ++stats_.withdrawn;
       LoopOut w = proposed_[f];
       w.withdrawn = true;
-      out.push_back(w);
+      out.loops.push_back(w);
     }
   }
   return out;

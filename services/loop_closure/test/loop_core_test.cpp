@@ -66,5 +66,146 @@ TEST(LoopCore, FindsTrueLoopsBetweenTwoRobotsOnTheSameBlock) {
   EXPECT_GE(inter, 10u);
 }
 
+// Three robots on one 40 m circle, 8 m apart; keyframes every 2 m with their true clouds.
+struct Circle {
+  sim::World world;
+  geometry::Trajectory lap;
+  std::map<std::pair<uint32_t, uint32_t>, Eigen::Isometry3d> truth;
+  std::map<std::pair<uint32_t, uint32_t>, std::vector<Eigen::Vector3f>> clouds;
+  Circle(double duration_s, uint32_t robots) {
+    sim::MissionOptions mo;
+    mo.pattern = sim::MissionPattern::kLoops;
+    mo.robots = 1;
+    mo.size_m = 40;
+    mo.speed_mps = 2;
+    mo.duration_s = duration_s;
+    lap = sim::procedural_mission(mo).front();
+    std::vector<Eigen::Vector3d> path;
+    for (const auto& sp : lap) path.push_back(sp.pose.translation());
+    sim::WorldOptions wo;
+    wo.seed = 3;
+    wo.spacing_m = 8;
+    world = sim::World::generate({path}, wo);
+    std::mt19937_64 rng(1);
+    for (uint32_t r = 0; r < robots; ++r) {
+      for (uint32_t k = 0; k * 10 + 40 * r < lap.size(); ++k) {
+        const Eigen::Isometry3d T = lap[k * 10 + 40 * r].pose;
+        truth[{r, k}] = T;
+        auto& c = clouds[{r, k}];
+        for (const auto& p : sim::sweep(world, sim::LidarModel::vlp16(), [&](double) { return T; }, rng)) c.emplace_back(p.x, p.y, p.z);
+      }
+    }
+  }
+  DescriptorIn descriptor(uint32_t r, uint32_t k, const LoopParams& p) const {
+    return DescriptorIn{r, k, wire_form(lidar::make_scan_context(clouds.at({r, k}), p.scan_context)), truth.at({r, k})};
+  }
+  KeyframeIn keyframe(uint32_t r, uint32_t k) const {
+    KeyframeIn kf;
+    kf.robot = r;
+    kf.id = k;
+    if (k > 0) kf.T_prev = truth.at({r, k - 1}).inverse() * truth.at({r, k});
+    kf.information.diagonal() << 2500, 2500, 2500, 250000, 250000, 250000;
+    kf.cloud = clouds.at({r, k});
+    return kf;
+  }
+  void expect_true(const LoopOut& l) const {
+    const Eigen::Isometry3d e = (truth.at({l.robot_a, l.keyframe_a}).inverse() * truth.at({l.robot_b, l.keyframe_b})).inverse() * l.T_a_b;
+    EXPECT_LT(e.translation().norm(), 1.0);
+    EXPECT_LT(Eigen::AngleAxisd(e.rotation()).angle(), 5 * M_PI / 180);
+  }
+};
+
+TEST(LoopCore, RequestsPeerCloudsAndVerifiesWhenTheyArrive) {
+  // Robot 1's service: its own keyframes with clouds, robot 0's descriptors only (pose hints).
+  const Circle c(30, 2);
+  LoopParams params;
+  params.exclude_recent = 1000;  // inter-robot loops only
+  LoopCore core(params, 1u);
+  std::vector<LoopOut> loops;
+  std::set<std::pair<uint32_t, uint32_t>> asked;
+  Nanos now{0};
+  for (uint32_t k = 0; c.truth.count({1, k}) != 0; ++k) {
+    now += std::chrono::milliseconds(200);
+    EXPECT_TRUE(core.add_descriptor(c.descriptor(0, k, params), now).requests.empty());  // peers' never search
+    // The own descriptor may come before its keyframe: the search waits for the keyframe.
+    LoopEvents ev = core.add_descriptor(c.descriptor(1, k, params), now);
+    EXPECT_TRUE(ev.requests.empty() && ev.loops.empty());
+    ev = core.add_keyframe_data(c.keyframe(1, k), now);
+    for (const auto& r : ev.requests) {
+      EXPECT_EQ(r.robot, 0u);
+      EXPECT_TRUE(asked.insert({r.robot, r.id}).second) << "asked twice for " << r.id;
+      auto more = core.on_cloud(r.robot, r.id, c.clouds.at({r.robot, r.id}), now);
+      ev.append(std::move(more));
+    }
+    loops.insert(loops.end(), ev.loops.begin(), ev.loops.end());
+  }
+  EXPECT_GE(asked.size(), 5u);
+  EXPECT_EQ(core.stats().replies, asked.size());
+  EXPECT_EQ(core.pending_requests(), 0u);
+  ASSERT_GE(loops.size(), 4u);
+  for (const auto& l : loops) {
+    EXPECT_FALSE(l.withdrawn);
+    EXPECT_EQ(l.robot_a, 0u);
+    EXPECT_EQ(l.robot_b, 1u);
+    c.expect_true(l);
+  }
+  // A cloud nobody asked for is counted and ignored.
+  core.on_cloud(0, 999, {}, now);
+  EXPECT_EQ(core.stats().replies_unexpected, 1u);
+}
+
+TEST(LoopCore, AnUnansweredRequestTimesOutWithoutBlockingOtherCandidates) {
+  // Robot 2's service; robot 0 never answers, robot 1 does.
+  const Circle c(30, 3);
+  LoopParams params;
+  params.exclude_recent = 1000;
+  params.max_verify = 4;
+  params.request_timeout = std::chrono::seconds(1);
+  LoopCore core(params, 2u);
+  std::vector<LoopOut> loops;
+  size_t to_silent = 0;
+  Nanos now{0};
+  for (uint32_t k = 0; c.truth.count({2, k}) != 0; ++k) {
+    now += std::chrono::milliseconds(200);
+    for (uint32_t r : {0u, 1u}) core.add_descriptor(c.descriptor(r, k, params), now);
+    LoopEvents ev = core.add_keyframe_data(c.keyframe(2, k), now);
+    ev.append(core.add_descriptor(c.descriptor(2, k, params), now));
+    for (const auto& r : ev.requests) {
+      if (r.robot == 0) {
+        ++to_silent;
+        continue;
+      }
+      ev.append(core.on_cloud(r.robot, r.id, c.clouds.at({r.robot, r.id}), now));
+    }
+    for (const auto& l : ev.loops) {
+      loops.push_back(l);
+      EXPECT_EQ(l.robot_a, 1u) << "a loop with the silent robot";
+      c.expect_true(l);
+    }
+    core.tick(now);
+  }
+  EXPECT_GE(to_silent, 3u);
+  EXPECT_GE(loops.size(), 3u) << "loops with the answering robot went ahead";
+  core.tick(now + std::chrono::seconds(2));
+  EXPECT_EQ(core.pending_requests(), 0u);
+  EXPECT_EQ(core.stats().timed_out, to_silent);
+}
+
+TEST(LoopCore, UnreachableOwnersAreNotAsked) {
+  const Circle c(16, 2);
+  LoopParams params;
+  params.exclude_recent = 1000;
+  LoopCore core(params, 1u);
+  core.set_reachable([](uint32_t robot) { return robot != 0; });
+  size_t requests = 0;
+  for (uint32_t k = 0; c.truth.count({1, k}) != 0; ++k) {
+    core.add_descriptor(c.descriptor(0, k, params), Nanos(0));
+    core.add_keyframe_data(c.keyframe(1, k), Nanos(0));
+    requests += core.add_descriptor(c.descriptor(1, k, params), Nanos(0)).requests.size();
+  }
+  EXPECT_EQ(requests, 0u);
+  EXPECT_GE(core.stats().unreachable, 3u);
+}
+
 }  // namespace
 }  // namespace cdc::loops

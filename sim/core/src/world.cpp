@@ -1,9 +1,12 @@
 #include "cdc/sim/world.hpp"
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
+#include <stdexcept>
 #include <unordered_map>
 
 namespace cdc::sim {
@@ -89,7 +92,80 @@ double distance_to_box_2d(const Box& b, const Eigen::Vector2d& p) {
   return e.norm();
 }
 
+// Moller-Trumbore ray/triangle intersection; normal faces the ray.
+bool hit_triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, const Eigen::Vector3d& o,
+                  const Eigen::Vector3d& d, double& t_out, Eigen::Vector3d& n_out) {
+  const Eigen::Vector3d e1 = b - a, e2 = c - a;
+  const Eigen::Vector3d pv = d.cross(e2);
+  const double det = e1.dot(pv);
+  if (std::abs(det) < 1e-12) return false;
+  const double inv = 1.0 / det;
+  const Eigen::Vector3d tv = o - a;
+  const double u = tv.dot(pv) * inv;
+  if (u < 0 || u > 1) return false;
+  const Eigen::Vector3d qv = tv.cross(e1);
+  const double v = d.dot(qv) * inv;
+  if (v < 0 || u + v > 1) return false;
+  const double t = e2.dot(qv) * inv;
+  if (t <= 1e-9) return false;
+  Eigen::Vector3d n = e1.cross(e2).normalized();
+  if (n.dot(d) > 0) n = -n;
+  t_out = t;
+  n_out = n;
+  return true;
+}
+
 }  // namespace
+
+double Terrain::height(double x, double y) const {
+  if (empty()) return 0;
+  const double fx = std::clamp((x - origin.x()) / cell, 0.0, static_cast<double>(nx));
+  const double fy = std::clamp((y - origin.y()) / cell, 0.0, static_cast<double>(ny));
+  const int i = std::min(static_cast<int>(fx), nx - 1), j = std::min(static_cast<int>(fy), ny - 1);
+  const double u = fx - i, v = fy - j;
+  if (u + v <= 1) {
+    return vertex(i, j) + u * (vertex(i + 1, j) - vertex(i, j)) + v * (vertex(i, j + 1) - vertex(i, j));
+  }
+  return vertex(i + 1, j + 1) + (1 - u) * (vertex(i, j + 1) - vertex(i + 1, j + 1)) +
+         (1 - v) * (vertex(i + 1, j) - vertex(i + 1, j + 1));
+}
+
+double World::ground_height(double x, double y) const {
+  return terrain_.empty() ? ground_.height(x, y) : terrain_.height(x, y);
+}
+
+bool World::hit_terrain_cell(int i, int j, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double& t,
+                             Eigen::Vector3d& n) const {
+  const double x0 = terrain_.origin.x() + i * terrain_.cell, y0 = terrain_.origin.y() + j * terrain_.cell;
+  const double x1 = x0 + terrain_.cell, y1 = y0 + terrain_.cell;
+  const Eigen::Vector3d p00(x0, y0, terrain_.vertex(i, j)), p10(x1, y0, terrain_.vertex(i + 1, j));
+  const Eigen::Vector3d p01(x0, y1, terrain_.vertex(i, j + 1)), p11(x1, y1, terrain_.vertex(i + 1, j + 1));
+  double ta = 0, tb = 0;
+  Eigen::Vector3d na, nb;
+  const bool a = hit_triangle(p00, p10, p01, o, d, ta, na);
+  const bool b = hit_triangle(p10, p11, p01, o, d, tb, nb);
+  if (!a && !b) return false;
+  if (a && (!b || ta <= tb)) {
+    t = ta;
+    n = na;
+  } else {
+    t = tb;
+    n = nb;
+  }
+  return true;
+}
+
+World::World(Terrain terrain, std::vector<Box> boxes, std::vector<Cylinder> cylinders)
+    : boxes_(std::move(boxes)), cylinders_(std::move(cylinders)), terrain_(std::move(terrain)) {
+  if (terrain_.empty() || terrain_.z.size() != static_cast<size_t>(terrain_.nx + 1) * static_cast<size_t>(terrain_.ny + 1)) {
+    throw std::invalid_argument("World: terrain needs nx, ny > 0 and (nx + 1) * (ny + 1) heights");
+  }
+  cell_ = terrain_.cell;
+  min_ = terrain_.origin;
+  nx_ = terrain_.nx;
+  ny_ = terrain_.ny;
+  index_objects();
+}
 
 World::World(Ground ground, std::vector<Box> boxes, std::vector<Cylinder> cylinders, double cell_m)
     : ground_(ground), boxes_(std::move(boxes)), cylinders_(std::move(cylinders)), cell_(cell_m) {
@@ -115,6 +191,10 @@ void World::build_grid() {
   min_ = lo;
   nx_ = std::max(1, static_cast<int>(std::ceil((hi.x() - lo.x()) / cell_)));
   ny_ = std::max(1, static_cast<int>(std::ceil((hi.y() - lo.y()) / cell_)));
+  index_objects();
+}
+
+void World::index_objects() {
   cells_.assign(static_cast<size_t>(nx_) * static_cast<size_t>(ny_), {});
   auto add = [&](uint32_t id, double x, double y, double r) {
     const int i0 = std::clamp(static_cast<int>((x - r - min_.x()) / cell_), 0, nx_ - 1);
@@ -139,10 +219,10 @@ std::optional<Hit> World::cast(const Eigen::Vector3d& o, const Eigen::Vector3d& 
   Hit best;
   best.range = max_range;
   bool found = false;
-  // Ground plane, analytic.
+  // Ground plane, analytic (a terrain is hit cell by cell below).
   const Eigen::Vector3d gn(-ground_.gx, -ground_.gy, 1.0);
   const double denom = gn.dot(d);
-  if (std::abs(denom) > 1e-12) {
+  if (terrain_.empty() && std::abs(denom) > 1e-12) {
     const double t = (ground_.height(o.x(), o.y()) - o.z()) / (d.z() - ground_.gx * d.x() - ground_.gy * d.y());
     if (t > 1e-9 && t <= best.range) {
       best.range = t;
@@ -186,6 +266,14 @@ std::optional<Hit> World::cast(const Eigen::Vector3d& o, const Eigen::Vector3d& 
   const double dty = std::abs(d2.y()) > 1e-12 ? cell_ / std::abs(d2.y()) : kInf;
   while (true) {
     const auto& cell = cells_[static_cast<size_t>(j) * static_cast<size_t>(nx_) + static_cast<size_t>(i)];
+    if (!terrain_.empty()) {
+      double t = 0;
+      Eigen::Vector3d n;
+      if (hit_terrain_cell(i, j, o, d, t, n) && t < best.range) {
+        best = Hit{t, n, ground_.reflectance};
+        found = true;
+      }
+    }
     for (uint32_t id : cell) {
       double t = 0;
       Eigen::Vector3d n;
@@ -219,6 +307,95 @@ std::optional<Hit> World::cast(const Eigen::Vector3d& o, const Eigen::Vector3d& 
   return found ? std::optional<Hit>(best) : std::nullopt;
 }
 
+namespace {
+
+// Terrain under the paths: every vertex takes the mean height (minus the sensor height) of the
+// path points nearest to it; vertices with none take their nearest seeded neighbour's value
+// (breadth-first), then are smoothed so that the ground away from the roads has no terraces.
+Terrain make_terrain(const std::vector<std::vector<Eigen::Vector3d>>& paths, const WorldOptions& opt) {
+  Terrain t;
+  t.cell = opt.cell_m;
+  Eigen::Vector2d lo(kInf, kInf), hi(-kInf, -kInf);
+  for (const auto& path : paths) {
+    for (const auto& p : path) {
+      lo = lo.cwiseMin(p.head<2>());
+      hi = hi.cwiseMax(p.head<2>());
+    }
+  }
+  if (!std::isfinite(lo.x())) {
+    lo = hi = Eigen::Vector2d::Zero();
+  }
+  t.origin = lo - Eigen::Vector2d::Constant(opt.terrain_margin_m);
+  t.nx = std::max(1, static_cast<int>(std::ceil((hi.x() - lo.x() + 2 * opt.terrain_margin_m) / t.cell)));
+  t.ny = std::max(1, static_cast<int>(std::ceil((hi.y() - lo.y() + 2 * opt.terrain_margin_m) / t.cell)));
+  const int w = t.nx + 1, h = t.ny + 1;
+  const size_t n = static_cast<size_t>(w) * static_cast<size_t>(h);
+  std::vector<double> sum(n, 0.0);
+  std::vector<int> count(n, 0);
+  for (const auto& path : paths) {
+    for (const auto& p : path) {
+      const int i = std::clamp(static_cast<int>(std::lround((p.x() - t.origin.x()) / t.cell)), 0, t.nx);
+      const int j = std::clamp(static_cast<int>(std::lround((p.y() - t.origin.y()) / t.cell)), 0, t.ny);
+      const size_t k = static_cast<size_t>(j) * static_cast<size_t>(w) + static_cast<size_t>(i);
+      sum[k] += p.z() - opt.sensor_height_m;
+      ++count[k];
+    }
+  }
+  t.z.assign(n, 0.0);
+  std::vector<char> seeded(n, 0), known(n, 0);
+  std::vector<size_t> frontier;
+  for (size_t k = 0; k < n; ++k) {
+    if (count[k] > 0) {
+      t.z[k] = sum[k] / count[k];
+      seeded[k] = known[k] = 1;
+      frontier.push_back(k);
+    }
+  }
+  if (frontier.empty()) {
+    return t;  // flat at zero
+  }
+  while (!frontier.empty()) {
+    std::vector<size_t> next;
+    for (size_t k : frontier) {
+      const int i = static_cast<int>(k % static_cast<size_t>(w)), j = static_cast<int>(k / static_cast<size_t>(w));
+      const int di[4] = {1, -1, 0, 0}, dj[4] = {0, 0, 1, -1};
+      for (int m = 0; m < 4; ++m) {
+        const int a = i + di[m], b = j + dj[m];
+        if (a < 0 || a > t.nx || b < 0 || b > t.ny) continue;
+        const size_t q = static_cast<size_t>(b) * static_cast<size_t>(w) + static_cast<size_t>(a);
+        if (!known[q]) {
+          known[q] = 1;
+          t.z[q] = t.z[k];
+          next.push_back(q);
+        }
+      }
+    }
+    frontier.swap(next);
+  }
+  for (int iter = 0; iter < 10; ++iter) {
+    std::vector<double> z = t.z;
+    for (int j = 0; j <= t.ny; ++j) {
+      for (int i = 0; i <= t.nx; ++i) {
+        const size_t k = static_cast<size_t>(j) * static_cast<size_t>(w) + static_cast<size_t>(i);
+        if (seeded[k]) continue;
+        double s = 0;
+        int c = 0;
+        for (int b = std::max(0, j - 1); b <= std::min(t.ny, j + 1); ++b) {
+          for (int a = std::max(0, i - 1); a <= std::min(t.nx, i + 1); ++a) {
+            s += t.z[static_cast<size_t>(b) * static_cast<size_t>(w) + static_cast<size_t>(a)];
+            ++c;
+          }
+        }
+        z[k] = s / c;
+      }
+    }
+    t.z.swap(z);
+  }
+  return t;
+}
+
+}  // namespace
+
 World World::generate(const std::vector<std::vector<Eigen::Vector3d>>& paths, const WorldOptions& opt) {
   std::mt19937_64 rng(opt.seed);
   std::uniform_real_distribution<double> u(0.0, 1.0);
@@ -229,13 +406,7 @@ World World::generate(const std::vector<std::vector<Eigen::Vector3d>>& paths, co
       samples.push_back(p.head<2>());
     }
   }
-  Ground ground;
-  ground.gx = uni(-opt.max_slope, opt.max_slope);
-  ground.gy = uni(-opt.max_slope, opt.max_slope);
-  if (!paths.empty() && !paths.front().empty()) {
-    const Eigen::Vector3d& s = paths.front().front();
-    ground.z0 = s.z() - 1.7 - ground.gx * s.x() - ground.gy * s.y();  // sensor about 1.7 m above ground at the start
-  }
+  const Terrain terrain = make_terrain(paths, opt);
   std::vector<Box> boxes;
   std::vector<Cylinder> cylinders;
   // A coarse occupancy of path points, so that clearance checks look only nearby.
@@ -260,7 +431,7 @@ World World::generate(const std::vector<std::vector<Eigen::Vector3d>>& paths, co
     }
     return true;
   };
-  auto ground_at = [&](double x, double y) { return ground.height(x, y); };
+  auto ground_at = [&](double x, double y) { return terrain.height(x, y); };
   for (const auto& path : paths) {
     double since = opt.spacing_m;
     for (size_t k = 1; k < path.size(); ++k) {
@@ -312,7 +483,7 @@ World World::generate(const std::vector<std::vector<Eigen::Vector3d>>& paths, co
       }
     }
   }
-  return World(ground, std::move(boxes), std::move(cylinders), opt.cell_m);
+  return World(terrain, std::move(boxes), std::move(cylinders));
 }
 
 }  // namespace cdc::sim

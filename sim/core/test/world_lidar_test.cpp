@@ -160,7 +160,7 @@ TEST(World, GeneratedCityKeepsClearOfThePathsAndIsDeterministic) {
     for (int k = 0; k < 16; ++k) {
       const double az = 2 * M_PI * k / 16;
       const Eigen::Vector3d d(std::cos(az), std::sin(az), 0);
-      const Eigen::Vector3d o3(p.x(), p.y(), a.ground().height(p.x(), p.y()) + 1.0);
+      const Eigen::Vector3d o3(p.x(), p.y(), a.ground_height(p.x(), p.y()) + 1.0);
       const auto hit = a.cast(o3, d, 2.9);
       EXPECT_FALSE(hit) << "something within the clearance at " << p.transpose();
     }
@@ -168,6 +168,39 @@ TEST(World, GeneratedCityKeepsClearOfThePathsAndIsDeterministic) {
   WorldOptions other = o;
   other.seed = 43;
   EXPECT_NE(World::generate({path}, other).boxes().front().center, a.boxes().front().center);
+}
+
+TEST(World, TerrainFollowsTheElevationOfHillyPaths) {
+  // A road that climbs 30 m over 600 m, then a second one 20 m lower: the sensor must stay its
+  // mounting height above the ground everywhere (a single plane cannot do this).
+  std::vector<Eigen::Vector3d> climb, low;
+  for (int i = 0; i < 300; ++i) {
+    climb.emplace_back(2.0 * i, 0.0, 1.73 + 0.05 * 2.0 * i);
+    low.emplace_back(2.0 * i, 200.0, 1.73 - 20.0);
+  }
+  WorldOptions o;
+  o.seed = 7;
+  const World w = World::generate({climb, low}, o);
+  ASSERT_FALSE(w.terrain().empty());
+  for (const auto* path : {&climb, &low}) {
+    for (size_t k = 0; k < path->size(); k += 7) {
+      const Eigen::Vector3d& p = (*path)[k];
+      const auto down = w.cast(p, Eigen::Vector3d(0, 0, -1), 50.0);
+      ASSERT_TRUE(down) << "no ground under " << p.transpose();
+      EXPECT_NEAR(down->range, 1.73, 0.15) << "at " << p.transpose();
+      EXPECT_GT(down->normal.z(), 0.9);
+    }
+  }
+  // The surface is continuous: heights along a line crossing cell borders change smoothly.
+  double prev = w.ground_height(-50.0, 100.0);
+  for (double x = -50; x < 650; x += 0.5) {
+    const double z = w.ground_height(x, 100.0);
+    EXPECT_LT(std::abs(z - prev), 0.5) << "step at x = " << x;
+    prev = z;
+  }
+  // A horizontal ray at sensor height on the climbing road meets the slope ahead well beyond 10 m.
+  const auto ahead = w.cast(climb[10], Eigen::Vector3d(1, 0, 0), 200.0);
+  if (ahead) EXPECT_GT(ahead->range, 10.0);
 }
 
 }  // namespace

@@ -17,7 +17,6 @@ struct ScanContextParams {
   int sectors = 60;
   double max_range_m = 80.0;
   double sensor_height_m = 2.0;  // added to z so that cell heights are positive
-  double quant_scale_m = 0.15;   // quantisation step of a cell height [m] (255 steps: 38 m)
 };
 
 struct ScanContext {
@@ -37,15 +36,16 @@ struct ScanContextMatch {
 
 ScanContextMatch compare(const ScanContext& query, const ScanContext& candidate);
 
-// Quantised form for the wire: one byte per cell; ring key kept as float.
+// Quantised form for the wire: one byte per cell, with the step chosen per descriptor so that its
+// highest cell is 255 (the whole range is used and nothing clips); ring key kept as float.
 struct QuantizedScanContext {
   int rings = 0, sectors = 0;
-  float scale = 0.15f;
+  float scale = 0.1f;  // [m] per step
   std::vector<uint8_t> cells;
   std::vector<float> ring_key;
   size_t bytes() const { return cells.size() + ring_key.size() * sizeof(float) + 3 * sizeof(float); }
 };
-QuantizedScanContext quantize(const ScanContext& sc, float scale);
+QuantizedScanContext quantize(const ScanContext& sc);
 ScanContext dequantize(const QuantizedScanContext& q);
 
 // Retrieval: nearest ring keys (nanoflann k-d tree), then Scan Context distance of the best.

@@ -1,6 +1,15 @@
-// The loop-closure service's synchronous core: Scan Context retrieval over every robot's keyframes,
-// geometric verification (GICP from the descriptor's yaw), and PCM over each robot pair's
-// inter-robot loops. Decisions are stable: a published loop is only ever retracted explicitly.
+// The loop-closure service's synchronous core: Scan Context retrieval over every robot's
+// keyframe descriptors, geometric verification (GICP from the descriptor's yaw), and PCM over each
+// robot pair's inter-robot loops. Decisions are stable: a published loop is only ever retracted
+// explicitly (a withdrawal).
+//
+// Event-driven, no I/O and no clock of its own. The keyframes whose clouds are held locally come
+// in with add_keyframe_data (with their odometry); descriptors of any robot with add_descriptor.
+// A descriptor of a robot this core queries for starts a search; a candidate whose cloud is not
+// held locally becomes a cloud request (returned to the caller, answered with on_cloud or
+// on_cloud_missing, or dropped by tick after its deadline), and its verification waits while the
+// other candidates go on. Robots whose odometry is not held locally are chained through the
+// descriptors' pose hints with a nominal noise model (PCM needs both robots' odometry).
 #pragma once
 
 #include "cdc/graph/pcm.hpp"
@@ -10,12 +19,18 @@
 
 #include <Eigen/Geometry>
 
+#include <chrono>
 #include <cstdint>
+#include <deque>
+#include <functional>
 #include <map>
+#include <optional>
 #include <set>
 #include <vector>
 
 namespace cdc::loops {
+
+using Nanos = std::chrono::nanoseconds;
 
 struct LoopParams {
   lidar::ScanContextParams scan_context;
@@ -27,6 +42,12 @@ struct LoopParams {
   double max_fitness = 0.15;       // [m^2] mean squared inlier distance
   double min_overlap = 0.55;
   graph::PcmOptions pcm;
+  size_t min_inter_support = 2;    // inter-robot loops are published from a consistent set at least this large
+  Nanos request_timeout = std::chrono::seconds(2);  // an unanswered cloud request is dropped after this
+  size_t cloud_cache = 256;        // peers' clouds kept after verification (least recently received dropped)
+  // Nominal odometry noise for robots chained through pose hints: per step, sigma = a + b * length.
+  double hint_sigma_m = 0.02, hint_sigma_m_per_m = 0.01;
+  double hint_sigma_rad = 0.002, hint_sigma_rad_per_m = 0.0005;
 };
 
 struct KeyframeIn {
@@ -34,6 +55,12 @@ struct KeyframeIn {
   Eigen::Isometry3d T_prev = Eigen::Isometry3d::Identity();  // relative odometry from id - 1
   graph::Matrix6d information = graph::Matrix6d::Identity();
   std::vector<Eigen::Vector3f> cloud;                          // keyframe frame, sensor at the origin
+};
+
+struct DescriptorIn {
+  uint32_t robot = 0, id = 0;
+  lidar::ScanContext context;       // as received (dequantised)
+  Eigen::Isometry3d pose_hint = Eigen::Isometry3d::Identity();  // T_odom_keyframe
 };
 
 struct LoopOut {
@@ -44,35 +71,90 @@ struct LoopOut {
   bool withdrawn = false;
 };
 
+struct CloudWanted {
+  uint32_t robot = 0, id = 0;
+};
+
+struct LoopEvents {
+  std::vector<LoopOut> loops;           // newly accepted loops and withdrawals, in order
+  std::vector<CloudWanted> requests;    // clouds to ask their owners for
+  void append(LoopEvents&& o);
+};
+
 struct LoopStats {
   uint64_t queries = 0, candidates = 0, verified = 0, verification_failed = 0;
   uint64_t intra_accepted = 0, intra_inconsistent = 0, inter_proposed = 0, inter_accepted = 0, withdrawn = 0;
+  uint64_t requests = 0, replies = 0, replies_unexpected = 0, missing = 0, timed_out = 0, unreachable = 0;
+  uint64_t duplicate_descriptors = 0, deferred_dropped = 0;
 };
 
 class LoopCore {
  public:
-  explicit LoopCore(const LoopParams& params);
+  // `query_robot`: only this robot's descriptors start searches (a robot's service); none: every
+  // robot's (the offline tool, which holds everything).
+  explicit LoopCore(const LoopParams& params, std::optional<uint32_t> query_robot = std::nullopt);
 
-  // Adds a keyframe, searches loops from it to earlier keyframes (any robot), and returns newly
-  // accepted loops and withdrawals.
+  // Whether a robot can be asked for a cloud now (its owner is in range). Default: always.
+  void set_reachable(std::function<bool(uint32_t robot)> reachable) { reachable_ = std::move(reachable); }
+
+  // A keyframe whose cloud is held here, with its odometry. Runs the search of its descriptor if
+  // that came first.
+  LoopEvents add_keyframe_data(KeyframeIn kf, Nanos now);
+  // A descriptor of any robot's keyframe; searches when it is the query robot's.
+  LoopEvents add_descriptor(DescriptorIn d, Nanos now);
+  // A requested cloud arrived (keyframe frame): verifications waiting for it run now.
+  LoopEvents on_cloud(uint32_t robot, uint32_t id, std::vector<Eigen::Vector3f> cloud, Nanos now);
+  // The owner answered that it does not have the keyframe: its waiting verifications are dropped.
+  void on_cloud_missing(uint32_t robot, uint32_t id);
+  // Drops requests past their deadline (their candidates are abandoned; others are unaffected).
+  void tick(Nanos now);
+
+  // Offline convenience: keyframe data and its (quantised) descriptor in one call; every cloud is
+  // local, so no requests arise.
   std::vector<LoopOut> add_keyframe(KeyframeIn kf);
 
+  // A locally held cloud (downsampled), or null.
+  const std::vector<Eigen::Vector3f>* cloud(uint32_t robot, uint32_t id) const;
+  size_t pending_requests() const noexcept { return pending_.size(); }
   const LoopStats& stats() const noexcept { return stats_; }
   size_t keyframes() const noexcept { return db_.size(); }
   const lidar::ScanContextDatabase& database() const noexcept { return db_; }
 
  private:
-  std::vector<LoopOut> update_pcm(uint32_t robot_a, uint32_t robot_b);
+  using Id = std::pair<uint32_t, uint32_t>;  // (robot, keyframe)
+  struct Job {
+    Id query, candidate;
+    double yaw = 0;
+  };
+  struct Pending {
+    Nanos deadline{0};
+    std::vector<Job> jobs;
+  };
+  LoopEvents verify(const Job& job);
+  LoopEvents update_pcm(uint32_t robot_a, uint32_t robot_b);
+  void add_odometry(uint32_t robot, uint32_t from, uint32_t to, const Eigen::Isometry3d& T, const graph::Matrix6d& info);
 
   LoopParams p_;
+  std::optional<uint32_t> query_robot_;
+  std::function<bool(uint32_t)> reachable_;
   lidar::ScanContextDatabase db_;
-  std::vector<std::pair<uint32_t, uint32_t>> owner_;          // db id -> (robot, keyframe)
-  std::map<std::pair<uint32_t, uint32_t>, std::vector<Eigen::Vector3f>> clouds_;  // downsampled
-  graph::PoseGraph odometry_;                                   // odometry of every robot + inter loops
+  std::vector<Id> owner_;                                  // db id -> keyframe
+  std::set<Id> described_;                                 // keyframes with a descriptor
+  std::map<Id, std::vector<Eigen::Vector3f>> clouds_;      // downsampled, local and cached
+  std::set<Id> local_;                                     // keyframes whose data is held here
+  std::deque<Id> cache_order_;                             // cached peer clouds, oldest first
+  std::set<uint32_t> data_robots_;                         // robots with odometry from keyframe data
+  std::map<uint32_t, std::pair<uint32_t, Eigen::Isometry3d>> last_hint_;  // robot -> (id, pose hint)
+  std::map<Id, Pending> pending_;                          // requested clouds
+  std::map<Id, DescriptorIn> deferred_;                    // query descriptors waiting for their keyframe
+  graph::PoseGraph odometry_;                              // every robot's odometry + inter loops
   std::map<std::pair<uint32_t, uint32_t>, std::vector<size_t>> inter_;  // robot pair -> factor ids
-  std::map<size_t, LoopOut> proposed_;                          // factor id -> loop
-  std::set<size_t> published_;                                  // factor ids accepted and published
+  std::map<size_t, LoopOut> proposed_;                     // factor id -> loop
+  std::set<size_t> published_;                             // factor ids accepted and published
   LoopStats stats_;
 };
+
+// Scan Context on the wire and back, so that every decision uses what peers receive.
+lidar::ScanContext wire_form(const lidar::ScanContext& sc);
 
 }  // namespace cdc::loops
