@@ -1,0 +1,146 @@
+// cdc-descriptor: a robot's keyframes in, their Scan Context descriptors out. Only descriptors
+// (about 1.4 KB each) leave the robot by default; clouds stay home until a peer asks for one.
+#include "cdc/config/reader.hpp"
+#include "cdc/dds/convert.hpp"
+#include "cdc/dds/descriptor_convert.hpp"
+#include "cdc/dds/participant.hpp"
+#include "cdc/dds/pubsub.hpp"
+#include "cdc/dds/shutdown.hpp"
+#include "cdc/dds/topics.hpp"
+#include "cdc/dds/validate.hpp"
+#include "cdc/dds/waitset.hpp"
+#include "cdc/dds/wire_size.hpp"
+#include "cdc/lidar/scan_context.hpp"
+#include "cdc/runtime/logging.hpp"
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include <fstream>
+#include <iostream>
+
+namespace {
+
+using namespace cdc;
+
+struct Options {
+  uint32_t robot = 0, robots = 3, domain = 0;
+  std::string dds_config, stats_out, log_level = "info";
+  lidar::ScanContextParams sc;
+};
+
+void load(const std::string& path, Options& o) {
+  config::Reader r(path);
+  int robots = static_cast<int>(o.robots);
+  r.get<int>("robots", robots, [](const int& v) { return v >= 1 && v <= 254; }, "1..254");
+  o.robots = static_cast<uint32_t>(robots);
+  r.get<int>("scan_context.rings", o.sc.rings, [](const int& v) { return v >= 1 && v <= 255; }, "1..255");
+  r.get<int>("scan_context.sectors", o.sc.sectors, [](const int& v) { return v >= 4 && v <= 255; }, "4..255");
+  r.get<double>("scan_context.max_range_m", o.sc.max_range_m, [](const double& v) { return v > 0; }, "> 0");
+  r.get<double>("scan_context.sensor_height_m", o.sc.sensor_height_m, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get<std::string>("log_level", o.log_level);
+  r.finish();
+}
+
+int run(const Options& o) {
+  dds::ParticipantOptions po;
+  po.domain_id = o.domain;
+  po.config = o.dds_config;
+  dds::Participant participant(po);
+  dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
+  dds::Topic<cdc_msg_Descriptor> t_desc(participant, dds::topics::kDescriptor);
+  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096));
+  dds::Writer<cdc_msg_Descriptor> w_desc(participant, t_desc, dds::qos::event_stream(4096));
+  dds::GuardCondition stop(participant);
+  dds::ShutdownSignal::add_guard(&stop);
+  dds::ReadCondition rc_kf(r_kf.handle());
+  dds::WaitSet ws(participant);
+  ws.attach(stop.handle(), 0);
+  ws.attach(rc_kf.handle(), 1);
+  dds::ValidationLimits limits;
+  limits.robot_count = o.robots;
+  dds::RejectionCounter rejected;
+  uint64_t published = 0, bytes = 0;
+  std::vector<Eigen::Vector3f> points;
+  std::vector<float> ring_key;
+  std::vector<uint8_t> cells;
+  spdlog::info("descriptor service of robot {} up: Scan Context {}x{} to {} m, domain {}", o.robot, o.sc.rings,
+               o.sc.sectors, o.sc.max_range_m, o.domain);
+  while (!dds::ShutdownSignal::requested()) {
+    ws.wait(std::chrono::milliseconds(200));
+    r_kf.take(64).for_each_valid([&](const cdc_msg_Keyframe& m, const dds_sample_info_t&) {
+      if (m.robot_id != o.robot) {
+        return;
+      }
+      if (rejected.record(dds::topics::kKeyframe, dds::validate(m, limits))) {
+        spdlog::warn("rejected keyframe: {}", rejected.last_reason());
+        return;
+      }
+      points.clear();
+      for (uint32_t i = 0; i < m.cloud._length; ++i) {
+        points.emplace_back(m.cloud._buffer[i].x, m.cloud._buffer[i].y, m.cloud._buffer[i].z);
+      }
+      const lidar::QuantizedScanContext q = lidar::quantize(lidar::make_scan_context(points, o.sc));
+      cdc_msg_Descriptor d{};
+      d.robot_id = m.robot_id;
+      d.keyframe_id = m.keyframe_id;
+      d.incarnation = m.incarnation;
+      d.stamp_ns = m.stamp_ns;
+      d.pose_hint = m.T_odom_keyframe;
+      dds::descriptor_to_msg(q, static_cast<float>(o.sc.max_range_m), d, ring_key, cells);
+      w_desc.write(d);
+      ++published;
+      bytes += dds::wire_size(d);
+    });
+  }
+  dds::ShutdownSignal::remove_guard(&stop);
+  if (!o.stats_out.empty()) {
+    nlohmann::json j{{"robot", o.robot},
+                     {"descriptors", published},
+                     {"bytes", {{dds::topics::kDescriptor, bytes}}},
+                     {"bytes_per_descriptor", published > 0 ? static_cast<double>(bytes) / static_cast<double>(published) : 0.0},
+                     {"rejected", rejected.by_topic()},
+                     {"rejected_samples", rejected.total()}};
+    std::ofstream(o.stats_out) << j.dump(2) << '\n';
+  }
+  spdlog::info("stopped after {} descriptors ({} bytes)", published, bytes);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  dds::ShutdownSignal::install();
+  CLI::App app{
+      "cdc-descriptor: computes a Scan Context descriptor (quantised to one byte per cell) for every keyframe of\n"
+      "this robot and publishes it with the keyframe's pose hint. Stops cleanly on SIGINT/SIGTERM."};
+  Options o;
+  std::string config_path, log_level;
+  int domain = -1;
+  app.add_option("--robot", o.robot, "this robot's id")->required()->check(CLI::Range(0, 254));
+  app.add_option("--config", config_path, "YAML configuration (see services/descriptor/config)")->check(CLI::ExistingFile);
+  app.add_option("--dds-config", o.dds_config, "Cyclone DDS configuration (file://...); default: CYCLONEDDS_URI");
+  app.add_option("--domain", domain, "DDS domain id (default: CDC_DDS_DOMAIN or 0)")->check(CLI::Range(0, 232));
+  app.add_option("--stats-out", o.stats_out, "write counters (JSON) here at shutdown");
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error");
+  CLI11_PARSE(app, argc, argv);
+  try {
+    load(config_path, o);
+    if (o.robot >= o.robots) {
+      std::cerr << "cdc-descriptor: --robot " << o.robot << " is not one of the " << o.robots
+                << " robots of the configuration\n";
+      return 2;
+    }
+    o.domain = domain >= 0 ? static_cast<uint32_t>(domain) : dds::domain_from_env(0);
+    if (!log_level.empty()) o.log_level = log_level;
+    runtime::init_logging("cdc-descriptor-" + std::to_string(o.robot), o.log_level);
+    return run(o);
+  } catch (const config::ConfigError& e) {
+    std::cerr << "cdc-descriptor: " << e.what() << '\n';
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "cdc-descriptor: " << e.what() << '\n';
+    return 1;
+  }
+}

@@ -1,0 +1,306 @@
+#include "loop_node.hpp"
+
+#include "cdc/config/reader.hpp"
+#include "cdc/dds/convert.hpp"
+#include "cdc/dds/descriptor_convert.hpp"
+#include "cdc/dds/participant.hpp"
+#include "cdc/dds/pubsub.hpp"
+#include "cdc/dds/shutdown.hpp"
+#include "cdc/dds/topics.hpp"
+#include "cdc/dds/validate.hpp"
+#include "cdc/dds/waitset.hpp"
+#include "cdc/dds/wire_size.hpp"
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include <fstream>
+#include <map>
+
+namespace cdc::loops {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+namespace topics = dds::topics;
+
+struct Traffic {
+  std::map<std::string, uint64_t> sent, received;                       // per topic
+  std::map<uint32_t, std::pair<uint64_t, uint64_t>> peer;               // robot -> (sent to, received from)
+  void out(const std::string& topic, size_t bytes, std::optional<uint32_t> to = std::nullopt) {
+    sent[topic] += bytes;
+    if (to) peer[*to].first += bytes;
+  }
+  void in(const std::string& topic, size_t bytes, uint32_t from) {
+    received[topic] += bytes;
+    peer[from].second += bytes;
+  }
+};
+
+}  // namespace
+
+LoopNodeOptions load_loop_options(const std::string& path) {
+  LoopNodeOptions o;
+  config::Reader r(path);
+  auto positive_d = [](const double& v) { return v > 0; };
+  auto positive_i = [](const int& v) { return v > 0; };
+  int robots = static_cast<int>(o.robots);
+  r.get<int>("robots", robots, [](const int& v) { return v >= 1 && v <= 254; }, "1..254");
+  o.robots = static_cast<uint32_t>(robots);
+  LoopParams& p = o.core;
+  r.get<int>("scan_context.rings", p.scan_context.rings, [](const int& v) { return v >= 1 && v <= 255; }, "1..255");
+  r.get<int>("scan_context.sectors", p.scan_context.sectors, [](const int& v) { return v >= 4 && v <= 255; }, "4..255");
+  r.get<double>("scan_context.max_range_m", p.scan_context.max_range_m, positive_d, "> 0");
+  int knn = static_cast<int>(p.knn), verify = static_cast<int>(p.max_verify), recent = static_cast<int>(p.exclude_recent);
+  int support = static_cast<int>(p.min_inter_support), cache = static_cast<int>(p.cloud_cache);
+  r.get<int>("retrieval.knn", knn, positive_i, "> 0");
+  r.get<double>("retrieval.max_sc_distance", p.max_sc_distance, [](const double& v) { return v > 0 && v <= 1; }, "(0, 1]");
+  r.get<int>("retrieval.exclude_recent", recent, [](const int& v) { return v >= 0; }, ">= 0");
+  r.get<int>("retrieval.max_verify", verify, positive_i, "> 0");
+  r.get<double>("verification.max_fitness_m2", p.max_fitness, positive_d, "> 0");
+  r.get<double>("verification.min_overlap", p.min_overlap, [](const double& v) { return v > 0 && v <= 1; }, "(0, 1]");
+  r.get<double>("verification.voxel_m", p.registration.voxel_m, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get<double>("verification.max_correspondence_m", p.registration.max_correspondence_m, positive_d, "> 0");
+  r.get<double>("pcm.chi2_threshold", p.pcm.chi2_threshold, positive_d, "> 0");
+  r.get<int>("pcm.min_support", support, positive_i, "> 0");
+  int timeout = static_cast<int>(p.request_timeout.count() / 1'000'000);
+  r.get<int>("cloud_request_timeout_ms", timeout, positive_i, "> 0");
+  r.get<int>("cloud_cache", cache, positive_i, "> 0");
+  r.get<int>("peer_timeout_ms", o.peer_timeout_ms, positive_i, "> 0");
+  r.get<int>("tick_ms", o.tick_ms, positive_i, "> 0");
+  r.get<std::string>("log_level", o.log_level);
+  r.finish();
+  p.knn = static_cast<size_t>(knn);
+  p.max_verify = static_cast<size_t>(verify);
+  p.exclude_recent = static_cast<uint32_t>(recent);
+  p.min_inter_support = static_cast<size_t>(support);
+  p.cloud_cache = static_cast<size_t>(cache);
+  p.request_timeout = std::chrono::milliseconds(timeout);
+  return o;
+}
+
+int run_loop_closure(const LoopNodeOptions& o) {
+  const uint32_t me = o.robot;
+  dds::ParticipantOptions po;
+  po.domain_id = o.domain;
+  po.config = o.dds_config;
+  dds::Participant participant(po);
+  dds::Topic<cdc_msg_Keyframe> t_kf(participant, topics::kKeyframe);
+  dds::Topic<cdc_msg_Descriptor> t_desc(participant, topics::kDescriptor);
+  dds::Topic<cdc_msg_LoopClosure> t_loop(participant, topics::kLoopClosure);
+  dds::Topic<cdc_msg_CloudRequest> t_req(participant, topics::kCloudRequest);
+  dds::Topic<cdc_msg_CloudReply> t_rep(participant, topics::kCloudReply);
+  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096));
+  dds::Reader<cdc_msg_Descriptor> r_desc(participant, t_desc, dds::qos::event_stream(4096));
+  dds::Reader<cdc_msg_CloudRequest> r_req(participant, t_req, dds::qos::event_stream(256));
+  dds::Reader<cdc_msg_CloudReply> r_rep(participant, t_rep, dds::qos::event_stream(256));
+  dds::Writer<cdc_msg_LoopClosure> w_loop(participant, t_loop, dds::qos::event_stream(4096));
+  dds::Writer<cdc_msg_CloudRequest> w_req(participant, t_req, dds::qos::event_stream(256));
+  dds::Writer<cdc_msg_CloudReply> w_rep(participant, t_rep, dds::qos::event_stream(256));
+  dds::GuardCondition stop(participant);
+  dds::ShutdownSignal::add_guard(&stop);
+  dds::ReadCondition rc_kf(r_kf.handle()), rc_desc(r_desc.handle()), rc_req(r_req.handle()), rc_rep(r_rep.handle());
+  dds::WaitSet ws(participant);
+  ws.attach(stop.handle(), 0);
+  ws.attach(rc_kf.handle(), 1);
+  ws.attach(rc_desc.handle(), 2);
+  ws.attach(rc_req.handle(), 3);
+  ws.attach(rc_rep.handle(), 4);
+
+  dds::ValidationLimits limits;
+  limits.robot_count = o.robots;
+  dds::RejectionCounter rejected;
+  const auto t0 = Clock::now();
+  auto now_ns = [&] { return std::chrono::duration_cast<Nanos>(Clock::now() - t0); };
+  LoopCore core(o.core, me);
+  std::map<uint32_t, Clock::time_point> last_heard;
+  core.set_reachable([&](uint32_t robot) {
+    const auto it = last_heard.find(robot);
+    return it != last_heard.end() && Clock::now() - it->second <= std::chrono::milliseconds(o.peer_timeout_ms);
+  });
+  std::map<uint64_t, std::pair<uint32_t, uint32_t>> requests;  // request id -> (owner, keyframe)
+  uint64_t next_request = 1, requests_served = 0, requests_unknown = 0, loops_sent = 0;
+  uint32_t incarnation = 0, loop_seq = 0;
+  Traffic traffic;
+  std::vector<cdc_msg_PointXYZI> reply_storage;
+  spdlog::info("loop-closure service of robot {} up: {} robots, PCM chi2 {}, domain {}", me, o.robots,
+               o.core.pcm.chi2_threshold, o.domain);
+
+  auto handle = [&](LoopEvents ev) {
+    for (const CloudWanted& c : ev.requests) {
+      cdc_msg_CloudRequest q{};
+      q.requester_robot_id = me;
+      q.request_id = next_request++;
+      q.requester_incarnation = incarnation;
+      q.owner_robot_id = c.robot;
+      q.keyframe_id = c.id;
+      q.stamp_ns = dds::now_ns();
+      requests[q.request_id] = {c.robot, c.id};
+      w_req.write(q);
+      traffic.out(topics::kCloudRequest, dds::wire_size(q), c.robot);
+    }
+    for (const LoopOut& l : ev.loops) {
+      cdc_msg_LoopClosure m{};
+      m.robot_a = l.robot_a;
+      m.keyframe_a = l.keyframe_a;
+      m.robot_b = l.robot_b;
+      m.keyframe_b = l.keyframe_b;
+      m.sender_robot_id = me;
+      m.sender_incarnation = incarnation;
+      m.loop_seq = loop_seq++;
+      m.stamp_ns = dds::now_ns();
+      m.status = l.withdrawn ? cdc_msg_LOOP_WITHDRAWN : cdc_msg_LOOP_ACCEPTED;
+      m.T_a_b = dds::to_msg(l.T_a_b);
+      dds::information_to_msg(l.information, m.information);
+      m.fitness = static_cast<float>(l.fitness);
+      w_loop.write(m);
+      traffic.out(topics::kLoopClosure, dds::wire_size(m));
+      ++loops_sent;
+      spdlog::info("{} loop {}/{} - {}/{} (fitness {:.3f})", l.withdrawn ? "withdrew" : "published", l.robot_a,
+                   l.keyframe_a, l.robot_b, l.keyframe_b, l.fitness);
+    }
+  };
+
+  while (!dds::ShutdownSignal::requested()) {
+    ws.wait(std::chrono::milliseconds(o.tick_ms));
+    const Nanos now = now_ns();
+    r_kf.take(64).for_each_valid([&](const cdc_msg_Keyframe& m, const dds_sample_info_t&) {
+      if (m.robot_id != me) {
+        return;
+      }
+      if (rejected.record(topics::kKeyframe, dds::validate(m, limits))) {
+        spdlog::warn("rejected keyframe: {}", rejected.last_reason());
+        return;
+      }
+      incarnation = m.incarnation;
+      KeyframeIn kf;
+      kf.robot = m.robot_id;
+      kf.id = m.keyframe_id;
+      kf.T_prev = dds::to_eigen(m.T_prev_keyframe);
+      kf.information = dds::information_to_eigen(m.information);
+      kf.cloud.reserve(m.cloud._length);
+      for (uint32_t i = 0; i < m.cloud._length; ++i) {
+        kf.cloud.emplace_back(m.cloud._buffer[i].x, m.cloud._buffer[i].y, m.cloud._buffer[i].z);
+      }
+      handle(core.add_keyframe_data(std::move(kf), now));
+    });
+    r_desc.take(64).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
+      const size_t bytes = dds::wire_size(m);
+      dds::Validation v = dds::validate(m, limits);
+      if (v && (m.rings != o.core.scan_context.rings || m.sectors != o.core.scan_context.sectors ||
+                std::abs(m.max_range - o.core.scan_context.max_range_m) > 1e-3)) {
+        v = dds::Validation::fail("rings/sectors/max_range: descriptor of shape " + std::to_string(m.rings) + "x" +
+                                  std::to_string(m.sectors) + " to " + std::to_string(m.max_range) +
+                                  " m, this service uses " + std::to_string(o.core.scan_context.rings) + "x" +
+                                  std::to_string(o.core.scan_context.sectors) + " to " +
+                                  std::to_string(o.core.scan_context.max_range_m) + " m");
+      }
+      if (rejected.record(topics::kDescriptor, v)) {
+        spdlog::warn("rejected descriptor: {}", rejected.last_reason());
+        return;
+      }
+      if (m.robot_id != me) {
+        traffic.in(topics::kDescriptor, bytes, m.robot_id);
+        last_heard[m.robot_id] = Clock::now();
+      }
+      handle(core.add_descriptor(DescriptorIn{m.robot_id, m.keyframe_id, dds::descriptor_from_msg(m),
+                                              dds::to_eigen(m.pose_hint)},
+                                 now));
+    });
+    r_req.take(64).for_each_valid([&](const cdc_msg_CloudRequest& m, const dds_sample_info_t&) {
+      if (m.owner_robot_id != me) {
+        return;
+      }
+      if (rejected.record(topics::kCloudRequest, dds::validate(m, limits))) {
+        spdlog::warn("rejected cloud request: {}", rejected.last_reason());
+        return;
+      }
+      traffic.in(topics::kCloudRequest, dds::wire_size(m), m.requester_robot_id);
+      last_heard[m.requester_robot_id] = Clock::now();
+      cdc_msg_CloudReply rep{};
+      rep.requester_robot_id = m.requester_robot_id;
+      rep.request_id = m.request_id;
+      rep.owner_robot_id = me;
+      rep.owner_incarnation = incarnation;
+      rep.keyframe_id = m.keyframe_id;
+      reply_storage.clear();
+      const std::vector<Eigen::Vector3f>* cloud = core.cloud(me, m.keyframe_id);
+      rep.found = cloud != nullptr;
+      if (cloud != nullptr) {
+        for (const auto& p : *cloud) reply_storage.push_back(cdc_msg_PointXYZI{p.x(), p.y(), p.z(), 0.0f});
+        ++requests_served;
+      } else {
+        ++requests_unknown;
+      }
+      rep.point_count = static_cast<uint32_t>(reply_storage.size());
+      dds::borrow(rep.cloud, reply_storage);
+      w_rep.write(rep);
+      traffic.out(topics::kCloudReply, dds::wire_size(rep), m.requester_robot_id);
+    });
+    r_rep.take(16).for_each_valid([&](const cdc_msg_CloudReply& m, const dds_sample_info_t&) {
+      if (m.requester_robot_id != me) {
+        return;
+      }
+      if (rejected.record(topics::kCloudReply, dds::validate(m, limits))) {
+        spdlog::warn("rejected cloud reply: {}", rejected.last_reason());
+        return;
+      }
+      traffic.in(topics::kCloudReply, dds::wire_size(m), m.owner_robot_id);
+      const auto it = requests.find(m.request_id);
+      if (it == requests.end() || it->second != std::make_pair(m.owner_robot_id, m.keyframe_id)) {
+        rejected.record(topics::kCloudReply, dds::Validation::fail("request_id: answers no open request of this robot"));
+        spdlog::warn("rejected cloud reply: {}", rejected.last_reason());
+        return;
+      }
+      requests.erase(it);
+      if (!m.found) {
+        core.on_cloud_missing(m.owner_robot_id, m.keyframe_id);
+        return;
+      }
+      std::vector<Eigen::Vector3f> cloud;
+      cloud.reserve(m.cloud._length);
+      for (uint32_t i = 0; i < m.cloud._length; ++i) {
+        cloud.emplace_back(m.cloud._buffer[i].x, m.cloud._buffer[i].y, m.cloud._buffer[i].z);
+      }
+      handle(core.on_cloud(m.owner_robot_id, m.keyframe_id, std::move(cloud), now));
+    });
+    core.tick(now_ns());
+    // Requests the core gave up on (timed out) are forgotten here as well.
+    for (auto it = requests.begin(); it != requests.end();) {
+      it = core.is_pending(it->second.first, it->second.second) ? std::next(it) : requests.erase(it);
+    }
+  }
+  dds::ShutdownSignal::remove_guard(&stop);
+  if (!o.stats_out.empty()) {
+    const LoopStats& s = core.stats();
+    nlohmann::json peers = nlohmann::json::object();
+    for (const auto& [robot, b] : traffic.peer) {
+      peers[std::to_string(robot)] = {{"sent", b.first}, {"received", b.second}};
+    }
+    nlohmann::json j{{"robot", me},
+                     {"keyframes", core.keyframes()},
+                     {"loops_published", loops_sent},
+                     {"queries", s.queries},
+                     {"verified", s.verified},
+                     {"verification_failed", s.verification_failed},
+                     {"intra_accepted", s.intra_accepted},
+                     {"inter_accepted", s.inter_accepted},
+                     {"withdrawn", s.withdrawn},
+                     {"cloud_requests", s.requests},
+                     {"cloud_replies", s.replies},
+                     {"cloud_missing", s.missing},
+                     {"cloud_timed_out", s.timed_out},
+                     {"cloud_unreachable", s.unreachable},
+                     {"requests_served", requests_served},
+                     {"requests_unknown_keyframe", requests_unknown},
+                     {"bytes_sent", traffic.sent},
+                     {"bytes_received", traffic.received},
+                     {"bytes_per_peer", peers},
+                     {"rejected", rejected.by_topic()},
+                     {"rejected_samples", rejected.total()}};
+    std::ofstream(o.stats_out) << j.dump(2) << '\n';
+  }
+  spdlog::info("stopped: {} loop messages, {} rejected samples", loops_sent, rejected.total());
+  return 0;
+}
+
+}  // namespace cdc::loops

@@ -1,0 +1,52 @@
+// cdc-loop-closure: a robot's loop-closure service (retrieval, verification, PCM).
+#include "loop_node.hpp"
+
+#include "cdc/config/reader.hpp"
+#include "cdc/dds/participant.hpp"
+#include "cdc/dds/shutdown.hpp"
+#include "cdc/runtime/logging.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <iostream>
+
+int main(int argc, char** argv) {
+  cdc::dds::ShutdownSignal::install();
+  CLI::App app{
+      "cdc-loop-closure: finds loop closures of this robot's keyframes with its own past and with peers' keyframes\n"
+      "(Scan Context descriptors received while in range), verifies each with GICP on the candidate's cloud (asked\n"
+      "of its owner), keeps inter-robot loops that PCM finds consistent, and publishes them (withdrawals are\n"
+      "explicit). Serves its own keyframes' clouds to peers. Stops cleanly on SIGINT/SIGTERM."};
+  std::string config_path, dds_config, stats_out, log_level;
+  int domain = -1;
+  uint32_t robot = 0;
+  app.add_option("--robot", robot, "this robot's id")->required()->check(CLI::Range(0, 254));
+  app.add_option("--config", config_path, "YAML configuration (see services/loop_closure/config)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--dds-config", dds_config, "Cyclone DDS configuration (file://...); default: CYCLONEDDS_URI");
+  app.add_option("--domain", domain, "DDS domain id (default: CDC_DDS_DOMAIN or 0)")->check(CLI::Range(0, 232));
+  app.add_option("--stats-out", stats_out, "write counters and bytes per topic and peer (JSON) here at shutdown");
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error");
+  CLI11_PARSE(app, argc, argv);
+  try {
+    cdc::loops::LoopNodeOptions o = cdc::loops::load_loop_options(config_path);
+    if (robot >= o.robots) {
+      std::cerr << "cdc-loop-closure: --robot " << robot << " is not one of the " << o.robots
+                << " robots of the configuration\n";
+      return 2;
+    }
+    o.robot = robot;
+    o.domain = domain >= 0 ? static_cast<uint32_t>(domain) : cdc::dds::domain_from_env(0);
+    o.dds_config = dds_config;
+    o.stats_out = stats_out;
+    if (!log_level.empty()) o.log_level = log_level;
+    cdc::runtime::init_logging("cdc-loop-closure-" + std::to_string(robot), o.log_level);
+    return cdc::loops::run_loop_closure(o);
+  } catch (const cdc::config::ConfigError& e) {
+    std::cerr << "cdc-loop-closure: " << e.what() << '\n';
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "cdc-loop-closure: " << e.what() << '\n';
+    return 1;
+  }
+}

@@ -1,0 +1,204 @@
+// The place-recognition services over DDS with real processes (loopback configuration): for two
+// robots lapping the same block, cdc-descriptor and cdc-loop-closure of each robot, fed keyframes
+// with simulated VLP-16 clouds by the test.
+//  * Only descriptors travel until a candidate is found; robot 1 asks robot 0 for clouds, robot 0
+//    serves them, and the inter-robot loops published are true (1 m / 5 deg).
+//  * A malformed descriptor and a malformed cloud reply are rejected with a reason and counted,
+//    and the services carry on; traffic is counted per topic and per peer.
+#include "cdc/dds/convert.hpp"
+#include "cdc/dds/participant.hpp"
+#include "cdc/dds/pubsub.hpp"
+#include "cdc/dds/topics.hpp"
+#include "cdc/sim/lidar.hpp"
+#include "cdc/sim/missions.hpp"
+#include "cdc/sim/world.hpp"
+#include "child_process.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <csignal>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <random>
+#include <thread>
+#include <unistd.h>
+
+namespace cdc {
+namespace {
+
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+
+void stop(test::ChildProcess& p) {
+  if (p.running()) {
+    p.signal(SIGTERM);
+    if (!p.wait(10s)) {
+      p.signal(SIGKILL);
+      p.wait(5s);
+    }
+  }
+}
+
+TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
+  for (const char* v : {"CDC_DESCRIPTOR_BIN", "CDC_LOOP_CLOSURE_BIN"}) {
+    ASSERT_NE(std::getenv(v), nullptr) << v << " must name the binary";
+  }
+  const fs::path dir = fs::temp_directory_path() / ("cdc_loop_services_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const std::string config = (dir / "loops.yaml").string(), dconfig = (dir / "descriptor.yaml").string();
+  std::ofstream(config) << "robots: 2\nretrieval:\n  exclude_recent: 1000\n";
+  std::ofstream(dconfig) << "robots: 2\n";
+
+  // Scenario: one 40 m circle, robot 1 eight metres behind robot 0, keyframes every 2 m.
+  sim::MissionOptions mo;
+  mo.pattern = sim::MissionPattern::kLoops;
+  mo.robots = 1;
+  mo.size_m = 40;
+  mo.speed_mps = 2;
+  mo.duration_s = 34;
+  const auto lap = sim::procedural_mission(mo).front();
+  std::vector<Eigen::Vector3d> path;
+  for (const auto& sp : lap) path.push_back(sp.pose.translation());
+  sim::WorldOptions wo;
+  wo.seed = 3;
+  wo.spacing_m = 8;
+  const sim::World world = sim::World::generate({path}, wo);
+  std::mt19937_64 rng(1);
+
+  dds::ParticipantOptions po;
+  po.domain_id = dds::domain_from_env(0);
+  dds::Participant participant(po);
+  dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
+  dds::Topic<cdc_msg_Descriptor> t_desc(participant, dds::topics::kDescriptor);
+  dds::Topic<cdc_msg_CloudReply> t_rep(participant, dds::topics::kCloudReply);
+  dds::Topic<cdc_msg_LoopClosure> t_loop(participant, dds::topics::kLoopClosure);
+  dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096));
+  dds::Writer<cdc_msg_Descriptor> w_desc(participant, t_desc, dds::qos::event_stream(4096));
+  dds::Writer<cdc_msg_CloudReply> w_rep(participant, t_rep, dds::qos::event_stream(256));
+  dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop, dds::qos::event_stream(4096));
+
+  std::vector<test::ChildProcess> procs;
+  for (int r = 0; r < 2; ++r) {
+    const std::string s = std::to_string(r);
+    procs.push_back(test::ChildProcess::spawn({std::getenv("CDC_DESCRIPTOR_BIN"), "--robot", s, "--config", dconfig,
+                                               "--stats-out", (dir / ("descriptor" + s + ".json")).string()},
+                                              (dir / ("descriptor" + s + ".log")).string()));
+    procs.push_back(test::ChildProcess::spawn({std::getenv("CDC_LOOP_CLOSURE_BIN"), "--robot", s, "--config", config,
+                                               "--stats-out", (dir / ("loops" + s + ".json")).string()},
+                                              (dir / ("loops" + s + ".log")).string()));
+  }
+  ASSERT_TRUE(w_kf.wait_for_readers(4, 15s)) << "services did not subscribe to keyframes";
+  ASSERT_TRUE(r_loop.wait_for_writers(2, 15s));
+  ASSERT_TRUE(w_desc.wait_for_readers(2, 15s));
+
+  // Bad input first: a descriptor with a NaN in its ring key, and a cloud reply whose declared
+  // point count disagrees with its points, addressed to robot 1.
+  {
+    cdc_msg_Descriptor d{};
+    d.robot_id = 0;
+    d.keyframe_id = 9999;
+    d.rings = 2;
+    d.sectors = 4;
+    d.max_range = 80;
+    d.quant_scale = 0.1f;
+    std::vector<float> key = {1.0f, std::nanf("")};
+    std::vector<uint8_t> cells(8, 1);
+    dds::borrow(d.ring_key, key);
+    dds::borrow(d.cells, cells);
+    d.pose_hint = dds::to_msg(Eigen::Isometry3d::Identity());
+    w_desc.write(d);
+    cdc_msg_CloudReply rep{};
+    rep.requester_robot_id = 1;
+    rep.request_id = 1;
+    rep.owner_robot_id = 0;
+    rep.found = true;
+    rep.point_count = 5;
+    std::vector<cdc_msg_PointXYZI> pts(2, cdc_msg_PointXYZI{1, 2, 3, 0});
+    dds::borrow(rep.cloud, pts);
+    w_rep.write(rep);
+  }
+
+  std::map<std::pair<uint32_t, uint32_t>, Eigen::Isometry3d> truth;
+  std::vector<cdc_msg_LoopClosure> loops;
+  auto poll = [&] {
+    r_loop.take(256).for_each_valid([&](const cdc_msg_LoopClosure& m, const dds_sample_info_t&) { loops.push_back(m); });
+  };
+  std::vector<cdc_msg_PointXYZI> storage;
+  for (uint32_t k = 0; k * 10 + 40 < lap.size(); ++k) {
+    for (uint32_t r = 0; r < 2; ++r) {
+      const Eigen::Isometry3d T = lap[k * 10 + 40 * (1 - r)].pose;  // robot 0 is 8 m ahead
+      truth[{r, k}] = T;
+      cdc_msg_Keyframe m{};
+      m.robot_id = r;
+      m.keyframe_id = k;
+      m.incarnation = 1;
+      m.stamp_ns = static_cast<int64_t>(k) * 1'000'000'000;
+      m.T_odom_keyframe = dds::to_msg(T);
+      m.T_prev_keyframe = dds::to_msg(k == 0 ? Eigen::Isometry3d::Identity() : truth.at({r, k - 1}).inverse() * T);
+      dds::Matrix6d info = dds::Matrix6d::Zero();
+      info.diagonal() << 2500, 2500, 2500, 250000, 250000, 250000;
+      dds::information_to_msg(info, m.information);
+      storage.clear();
+      for (const auto& p : sim::sweep(world, sim::LidarModel::vlp16(), [&](double) { return T; }, rng)) {
+        storage.push_back(cdc_msg_PointXYZI{p.x, p.y, p.z, 0.5f});
+      }
+      m.point_count = static_cast<uint32_t>(storage.size());
+      dds::borrow(m.cloud, storage);
+      w_kf.write(m);
+    }
+    std::this_thread::sleep_for(150ms);
+    poll();
+  }
+  // Let the last verifications finish.
+  for (int i = 0; i < 40; ++i) {
+    std::this_thread::sleep_for(250ms);
+    poll();
+  }
+  for (auto& p : procs) stop(p);
+
+  size_t inter = 0;
+  for (const auto& l : loops) {
+    ASSERT_EQ(l.status, cdc_msg_LOOP_ACCEPTED) << "nothing here should be withdrawn";
+    const Eigen::Isometry3d gt = truth.at({l.robot_a, l.keyframe_a}).inverse() * truth.at({l.robot_b, l.keyframe_b});
+    const Eigen::Isometry3d e = gt.inverse() * dds::to_eigen(l.T_a_b);
+    EXPECT_LT(e.translation().norm(), 1.0);
+    EXPECT_LT(Eigen::AngleAxisd(e.rotation()).angle(), 5 * M_PI / 180);
+    inter += l.robot_a != l.robot_b ? 1 : 0;
+  }
+  EXPECT_GE(inter, 4u) << loops.size() << " loops in all";
+
+  auto stats = [&](const std::string& name) {
+    std::ifstream in(dir / name);
+    EXPECT_TRUE(in.good()) << name << " missing";
+    return in.good() ? nlohmann::json::parse(in) : nlohmann::json::object();
+  };
+  const auto d0 = stats("descriptor0.json"), l0 = stats("loops0.json"), l1 = stats("loops1.json");
+  EXPECT_GE(d0.value("descriptors", 0), 10);
+  EXPECT_LE(d0.value("bytes_per_descriptor", 1e9), 1500.0);
+  // Robot 1 asked robot 0 for clouds, robot 0 served them; both counted the bytes per peer.
+  EXPECT_GT(l1.value("cloud_requests", 0), 0);
+  EXPECT_GT(l1.value("cloud_replies", 0), 0);
+  EXPECT_GT(l0.value("requests_served", 0), 0);
+  EXPECT_GT(l1["bytes_per_peer"]["0"].value("received", 0), 0);
+  EXPECT_GT(l0["bytes_per_peer"]["1"].value("sent", 0), 0);
+  EXPECT_GT(l1["bytes_received"].value(dds::topics::kDescriptor, 0), 0);
+  // The bad samples were rejected with a reason and counted.
+  EXPECT_EQ(l0["rejected"].value(dds::topics::kDescriptor, 0), 1);
+  EXPECT_EQ(l1["rejected"].value(dds::topics::kDescriptor, 0), 1);
+  EXPECT_GE(l1["rejected"].value(dds::topics::kCloudReply, 0), 1);
+  std::ifstream log1(dir / "loops1.log");
+  const std::string text((std::istreambuf_iterator<char>(log1)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("ring_key[1]: not a finite number"), std::string::npos);
+  EXPECT_NE(text.find("cloud: declared 5 elements but 2 received"), std::string::npos);
+  if (!HasFailure()) {
+    fs::remove_all(dir);
+  } else {
+    std::printf("logs kept in %s\n", dir.c_str());
+  }
+}
+
+}  // namespace
+}  // namespace cdc
