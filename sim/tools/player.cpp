@@ -1,5 +1,7 @@
 #include "player.hpp"
 
+#include "dataset_reader.hpp"
+
 #include "cdc/dds/convert.hpp"
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
@@ -25,21 +27,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct ScanRef {
-  int64_t stamp_ns;
-  uint32_t robot;
-  uint64_t seq;
-  fs::path bin, meta;  // meta empty: time offsets from azimuth (real KITTI)
-  std::optional<Eigen::Isometry3d> truth;
-};
-
-std::vector<char> read_bytes(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  if (!in) {
-    throw std::runtime_error(p.string() + ": cannot open");
-  }
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+using ScanRef = DatasetScan;
 
 // Publishes a merged, time-ordered list of scans (and IMU per robot) with the chosen pacing.
 class Publisher {
@@ -109,36 +97,17 @@ class Publisher {
   }
 
   void publish_scan(const ScanRef& s) {
-    const std::vector<char> xyzi = read_bytes(s.bin);
-    if (xyzi.size() % 16 != 0) {
-      throw std::runtime_error(s.bin.string() + ": size " + std::to_string(xyzi.size()) + " is not a multiple of 16 bytes");
-    }
-    const size_t n = xyzi.size() / 16;
-    std::vector<char> meta;
-    if (!s.meta.empty()) {
-      meta = read_bytes(s.meta);
-      if (meta.size() != n * 8) {
-        throw std::runtime_error(s.meta.string() + ": " + std::to_string(meta.size() / 8) + " entries for " +
-                                 std::to_string(n) + " points");
-      }
-    }
+    const std::vector<DatasetPoint> in = read_dataset_scan(s.bin, s.meta);
+    const size_t n = in.size();
     std::vector<cdc_msg_LidarPoint> pts(n);
     for (size_t i = 0; i < n; ++i) {
-      float v[4];
-      std::memcpy(v, xyzi.data() + 16 * i, 16);
       cdc_msg_LidarPoint& p = pts[i];
-      p.x = v[0];
-      p.y = v[1];
-      p.z = v[2];
-      p.intensity = v[3];
-      if (!meta.empty()) {
-        std::memcpy(&p.time_offset, meta.data() + 8 * i, 4);
-        std::memcpy(&p.ring, meta.data() + 8 * i + 4, 2);
-      } else {  // a counter-clockwise sweep starting behind the sensor: time from azimuth
-        const double az = std::atan2(static_cast<double>(v[1]), static_cast<double>(v[0]));
-        p.time_offset = static_cast<float>(0.1 * (az + M_PI) / (2 * M_PI));
-        p.ring = 0;
-      }
+      p.x = in[i].x;
+      p.y = in[i].y;
+      p.z = in[i].z;
+      p.intensity = in[i].intensity;
+      p.time_offset = in[i].time_offset;
+      p.ring = in[i].ring;
     }
     cdc_msg_LidarScan m{};
     m.robot_id = s.robot;
@@ -253,26 +222,11 @@ PlaySummary play_dataset(const std::string& dir, const PlayOptions& o) {
   if (!fs::is_directory(dir)) {
     throw std::runtime_error(dir + ": not a dataset folder");
   }
-  std::vector<ScanRef> scans;
+  const std::vector<ScanRef> scans = list_dataset_scans(dir, o.max_scans);
   std::map<uint32_t, std::vector<cdc_msg_ImuSample>> imu;
-  for (uint32_t r = 0;; ++r) {
-    const fs::path rd = fs::path(dir) / ("robot_" + std::to_string(r));
-    if (!fs::is_directory(rd)) {
-      if (r == 0) throw std::runtime_error(rd.string() + ": missing (no robot folders in " + dir + ")");
-      break;
-    }
-    const std::vector<int64_t> times = geometry::read_times((rd / "times.txt").string());
-    const geometry::Trajectory gt = geometry::read_tum((rd / "groundtruth.tum").string());
-    imu[r] = read_imu(rd / "imu.csv");
-    for (size_t k = 0; k < times.size() && (o.max_scans == 0 || k < o.max_scans); ++k) {
-      char name[32];
-      std::snprintf(name, sizeof name, "%06zu.bin", k);
-      ScanRef s{times[k], r, k, rd / "velodyne" / name, rd / "velodyne_meta" / name, std::nullopt};
-      if (k < gt.size()) s.truth = gt[k].pose;
-      scans.push_back(std::move(s));
-    }
+  for (const ScanRef& s : scans) {
+    if (imu.count(s.robot) == 0) imu[s.robot] = read_imu(fs::path(dir) / ("robot_" + std::to_string(s.robot)) / "imu.csv");
   }
-  std::stable_sort(scans.begin(), scans.end(), [](const ScanRef& a, const ScanRef& b) { return a.stamp_ns < b.stamp_ns; });
   auto radio = read_radio(fs::path(dir) / "radio.csv");
   size_t radio_next = 0;
   Publisher pub(o);

@@ -5,6 +5,7 @@
 // a keyframe is a true revisit when an earlier keyframe (any robot, not this robot's recent ones)
 // lies within 5 m. Last output line: one JSON object.
 #include "cdc/lidar/scan_context.hpp"
+#include "cdc/loop_closure/evaluation.hpp"
 #include "cdc/loop_closure/loop_core.hpp"
 #include "cdc/sim/kitti.hpp"
 #include "cdc/sim/lidar.hpp"
@@ -102,49 +103,24 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
     }
   }
   const double run_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  // Precision.
-  size_t tp = 0, false_intra = 0, false_inter = 0;
-  std::set<std::pair<uint32_t, uint32_t>> recalled;
-  for (const auto& [key, l] : accepted) {
-    const Eigen::Isometry3d gt = truth.at({l.robot_a, l.keyframe_a}).inverse() * truth.at({l.robot_b, l.keyframe_b});
-    const Eigen::Isometry3d e = gt.inverse() * l.T_a_b;
-    const bool ok = e.translation().norm() <= 1.0 && Eigen::AngleAxisd(e.rotation()).angle() <= 5.0 * M_PI / 180;
-    tp += ok ? 1 : 0;
-    if (ok) recalled.insert({l.robot_b, l.keyframe_b});
-    if (!ok) {
-      (l.robot_a == l.robot_b ? false_intra : false_inter) += 1;
-      if (std::getenv("CDC_BENCH_VERBOSE") != nullptr) {
-        std::printf("false loop %u/%u - %u/%u: error %.2f m %.1f deg, fitness %.3f\n", l.robot_a, l.keyframe_a, l.robot_b,
-                    l.keyframe_b, e.translation().norm(), Eigen::AngleAxisd(e.rotation()).angle() * 180 / M_PI, l.fitness);
+  std::vector<loops::TruthKeyframe> order;
+  for (const Kf& k : kfs) order.push_back({k.robot, k.id, k.truth});
+  std::vector<loops::LoopOut> standing;
+  for (const auto& [key, l] : accepted) standing.push_back(l);
+  loops::EvaluationOptions eo;
+  eo.exclude_recent = exclude_recent;
+  const loops::LoopEvaluation ev = loops::evaluate_loops(order, standing, eo);
+  if (std::getenv("CDC_BENCH_VERBOSE") != nullptr) {
+    for (const auto& v : ev.loops) {
+      if (!v.correct) {
+        std::printf("false loop %u/%u - %u/%u: error %.2f m %.1f deg, fitness %.3f\n", v.loop.robot_a, v.loop.keyframe_a,
+                    v.loop.robot_b, v.loop.keyframe_b, v.error_m, v.error_deg, v.loop.fitness);
       }
     }
+    for (const auto& [robot, id] : ev.missed) std::printf("missed revisit %u/%u\n", robot, id);
   }
-  // Recall over true revisits (in processing order).
-  size_t revisits = 0, found = 0;
-  for (size_t i = 0; i < kfs.size(); ++i) {
-    bool revisit = false;
-    for (size_t j = 0; j < i && !revisit; ++j) {
-      if (kfs[j].robot == kfs[i].robot && kfs[j].id + exclude_recent >= kfs[i].id) continue;
-      revisit = (kfs[j].truth.translation() - kfs[i].truth.translation()).norm() <= 5.0;
-    }
-    if (revisit) {
-      ++revisits;
-      const bool hit = recalled.count({kfs[i].robot, kfs[i].id}) != 0;
-      found += hit ? 1 : 0;
-      if (!hit && std::getenv("CDC_BENCH_VERBOSE") != nullptr) {
-        double best = 1e9;
-        size_t bj = 0;
-        for (size_t j = 0; j < i; ++j) {
-          if (kfs[j].robot == kfs[i].robot && kfs[j].id + exclude_recent >= kfs[i].id) continue;
-          const double d = (kfs[j].truth.translation() - kfs[i].truth.translation()).norm();
-          if (d < best) best = d, bj = j;
-        }
-        const double dh = Eigen::AngleAxisd(kfs[bj].truth.rotation().transpose() * kfs[i].truth.rotation()).angle() * 180 / M_PI;
-        std::printf("missed revisit %u/%u: nearest earlier %u/%u at %.1f m, heading difference %.0f deg\n", kfs[i].robot,
-                    kfs[i].id, kfs[bj].robot, kfs[bj].id, best, dh);
-      }
-    }
-  }
+  const size_t tp = ev.true_positives, false_intra = ev.false_intra, false_inter = ev.false_inter;
+  const size_t revisits = ev.revisits;
   // Quantisation: the accept decision of every candidate is the same on quantised descriptors.
   size_t decisions = 0, changed = 0;
   double max_change = 0;
@@ -167,7 +143,7 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
                    {"false_inter", false_inter},
                    {"precision", accepted.empty() ? 1.0 : static_cast<double>(tp) / static_cast<double>(accepted.size())},
                    {"revisits", revisits},
-                   {"recall", revisits == 0 ? 1.0 : static_cast<double>(found) / static_cast<double>(revisits)},
+                   {"recall", ev.recall()},
                    {"verified", core.stats().verified},
                    {"verification_failed", core.stats().verification_failed},
                    {"inter_accepted", core.stats().inter_accepted},

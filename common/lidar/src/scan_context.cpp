@@ -82,7 +82,9 @@ QuantizedScanContext quantize(const ScanContext& sc) {
   q.scale = scale;
   q.cells.resize(sc.cells.size());
   for (size_t i = 0; i < sc.cells.size(); ++i) {
-    q.cells[i] = static_cast<uint8_t>(std::clamp(std::lround(sc.cells[i] / scale), 0L, 255L));
+    // An occupied cell stays occupied (at least one step): an empty column compares differently.
+    const long lo = sc.cells[i] > 0.0f ? 1L : 0L;
+    q.cells[i] = static_cast<uint8_t>(std::clamp(std::lround(sc.cells[i] / scale), lo, 255L));
   }
   q.ring_key = sc.ring_key;
   return q;
