@@ -75,16 +75,17 @@ ScanContextMatch compare(const ScanContext& q, const ScanContext& c) {
 QuantizedScanContext quantize(const ScanContext& sc) {
   QuantizedScanContext q;
   float top = 0;
-  for (float c : sc.cells) top = std::max(top, c);
-  const float scale = std::max(top / 255.0f, 1e-3f);
+  for (float c : sc.cells) top = std::max(top, std::sqrt(std::max(c, 0.0f)));
+  const float scale = std::max(top / 255.0f, 1e-4f);
   q.rings = sc.rings;
   q.sectors = sc.sectors;
   q.scale = scale;
   q.cells.resize(sc.cells.size());
   for (size_t i = 0; i < sc.cells.size(); ++i) {
-    // An occupied cell stays occupied (at least one step): an empty column compares differently.
+    // Square-root steps: fine for the low cells (ground, cars) that dominate most columns. An
+    // occupied cell stays occupied (at least one step): an empty column compares differently.
     const long lo = sc.cells[i] > 0.0f ? 1L : 0L;
-    q.cells[i] = static_cast<uint8_t>(std::clamp(std::lround(sc.cells[i] / scale), lo, 255L));
+    q.cells[i] = static_cast<uint8_t>(std::clamp(std::lround(std::sqrt(std::max(sc.cells[i], 0.0f)) / scale), lo, 255L));
   }
   q.ring_key = sc.ring_key;
   return q;
@@ -95,7 +96,10 @@ ScanContext dequantize(const QuantizedScanContext& q) {
   sc.rings = q.rings;
   sc.sectors = q.sectors;
   sc.cells.resize(q.cells.size());
-  for (size_t i = 0; i < q.cells.size(); ++i) sc.cells[i] = static_cast<float>(q.cells[i]) * q.scale;
+  for (size_t i = 0; i < q.cells.size(); ++i) {
+    const float r = static_cast<float>(q.cells[i]) * q.scale;
+    sc.cells[i] = r * r;
+  }
   sc.ring_key = q.ring_key;
   return sc;
 }

@@ -87,9 +87,10 @@ TEST(ScanContext, QuantisedDescriptorFitsTheWireBudgetAndMatchesAlike) {
   EXPECT_LE(qa.bytes(), 1500u);
   const ScanContext back = dequantize(qa);
   for (size_t i = 0; i < a.cells.size(); ++i) {
-    // Rounded to the nearest step, except that an occupied cell never rounds down to empty.
+    // The root rounded to the nearest step, except that an occupied cell never rounds down to empty.
     EXPECT_EQ(back.cells[i] > 0, a.cells[i] > 0) << "cell " << i;
-    EXPECT_NEAR(back.cells[i], a.cells[i], a.cells[i] > 0 && a.cells[i] < qa.scale ? qa.scale : qa.scale / 2 + 1e-6);
+    const float root = std::sqrt(a.cells[i]);
+    EXPECT_NEAR(std::sqrt(back.cells[i]), root, a.cells[i] > 0 && root < qa.scale ? qa.scale : qa.scale / 2 + 1e-6);
   }
   const ScanContextMatch m = compare(b, a), mq = compare(b, back);
   EXPECT_EQ(m.shift, mq.shift);

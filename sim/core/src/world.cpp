@@ -156,7 +156,7 @@ bool World::hit_terrain_cell(int i, int j, const Eigen::Vector3d& o, const Eigen
 }
 
 World::World(Terrain terrain, std::vector<Box> boxes, std::vector<Cylinder> cylinders)
-    : boxes_(std::move(boxes)), cylinders_(std::move(cylinders)), terrain_(std::move(terrain)) {
+    : terrain_(std::move(terrain)), boxes_(std::move(boxes)), cylinders_(std::move(cylinders)) {
   if (terrain_.empty() || terrain_.z.size() != static_cast<size_t>(terrain_.nx + 1) * static_cast<size_t>(terrain_.ny + 1)) {
     throw std::invalid_argument("World: terrain needs nx, ny > 0 and (nx + 1) * (ny + 1) heights");
   }

@@ -200,7 +200,9 @@ TEST(World, TerrainFollowsTheElevationOfHillyPaths) {
   }
   // A horizontal ray at sensor height on the climbing road meets the slope ahead well beyond 10 m.
   const auto ahead = w.cast(climb[10], Eigen::Vector3d(1, 0, 0), 200.0);
-  if (ahead) EXPECT_GT(ahead->range, 10.0);
+  if (ahead) {
+    EXPECT_GT(ahead->range, 10.0);
+  }
 }
 
 }  // namespace

@@ -36,11 +36,12 @@ struct ScanContextMatch {
 
 ScanContextMatch compare(const ScanContext& query, const ScanContext& candidate);
 
-// Quantised form for the wire: one byte per cell, with the step chosen per descriptor so that its
-// highest cell is 255 (the whole range is used and nothing clips); ring key kept as float.
+// Quantised form for the wire: one byte per cell holding the square root of the cell height in
+// steps of `scale` (height = (byte * scale)^2), the step chosen per descriptor so that its highest
+// cell is 255; occupied cells never become empty. Ring key kept as float.
 struct QuantizedScanContext {
   int rings = 0, sectors = 0;
-  float scale = 0.1f;  // [m] per step
+  float scale = 0.02f;  // [sqrt(m)] per step
   std::vector<uint8_t> cells;
   std::vector<float> ring_key;
   size_t bytes() const { return cells.size() + ring_key.size() * sizeof(float) + 3 * sizeof(float); }
