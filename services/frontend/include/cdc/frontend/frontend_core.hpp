@@ -1,0 +1,131 @@
+// The front-end's synchronous core: LiDAR(-inertial) odometry and keyframes for one robot, and the
+// back-end's corrections taken in through adaptive pose fusion (CDC-SLAM eq. 8-14), so that the
+// published trajectory never jumps.
+//
+// Per sweep: deskew (IMU rotation over the sweep when IMU samples are given, otherwise a
+// constant-velocity model), range crop and voxel downsampling; scan-to-map registration against a
+// voxel map that slides with the robot (common/odometry), started from the IMU-propagated or
+// constant-velocity prediction, with a correspondence gate that adapts to the prediction error;
+// keyframes by travelled distance and rotation.
+#pragma once
+
+#include "cdc/geometry/fusion.hpp"
+#include "cdc/odometry/registration.hpp"
+#include "cdc/odometry/voxel_map.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <deque>
+#include <optional>
+#include <vector>
+
+namespace cdc::frontend {
+
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+
+struct FrontendParams {
+  double min_range_m = 1.5, max_range_m = 100.0;  // crop
+  double voxel_m = 1.0;                           // downsampling of the points registered
+  double map_voxel_m = 0.5;                       // downsampling of the points added to the map
+  odometry::VoxelMapParams map;
+  odometry::RegistrationParams registration;
+  double initial_gate_m = 2.0;                    // correspondence gate until the motion model has history
+  double min_gate_m = 0.3, max_gate_m = 2.0;
+  double kernel_divisor = 9.0;                    // Geman-McClure scale = gate / this (KISS-ICP: 9)
+  bool deskew = true;
+  bool redeskew = true;                           // deskew again with the registered motion, and refine
+  int image_columns = 1800;                       // range-image width for normals (0.2 deg)
+  double keyframe_distance_m = 1.0;               // LIO-SAM defaults
+  double keyframe_angle_rad = 0.2;
+  double keyframe_voxel_m = 0.4;                  // keyframe clouds (for loop closure and maps)
+  double information_scale = 0.01;                // registration Hessian -> information (correlated points)
+  geometry::FusionThresholds fusion{0.10, 1.0 * M_PI / 180.0};
+  Eigen::Isometry3d T_lidar_imu = Eigen::Isometry3d::Identity();  // extrinsic (IMU frame -> LiDAR frame)
+};
+
+struct ScanPoint {
+  Eigen::Vector3f p;
+  float time_offset = 0;  // [s] since the sweep stamp
+  uint16_t ring = 0;      // beam index, 0 = lowest (for normals on the range image)
+};
+
+struct ImuIn {
+  int64_t stamp_ns = 0;
+  Eigen::Vector3d gyro = Eigen::Vector3d::Zero();   // [rad/s], IMU frame
+  Eigen::Vector3d accel = Eigen::Vector3d::Zero();  // [m/s^2], IMU frame
+};
+
+struct KeyframeOut {
+  uint32_t id = 0;
+  int64_t stamp_ns = 0;
+  Eigen::Isometry3d T_odom_keyframe = Eigen::Isometry3d::Identity();  // raw odometry
+  Eigen::Isometry3d T_prev = Eigen::Isometry3d::Identity();           // relative to keyframe id - 1
+  Matrix6d information = Matrix6d::Identity();
+  std::vector<Eigen::Vector3f> cloud;                                  // keyframe frame, deskewed
+};
+
+struct ScanOut {
+  int64_t stamp_ns = 0;
+  Eigen::Isometry3d T_odom_raw = Eigen::Isometry3d::Identity();   // the odometry itself
+  Eigen::Isometry3d T_odom_base = Eigen::Isometry3d::Identity();  // with corrections fused in
+  std::optional<Eigen::Isometry3d> T_world_base;                  // once T_world_robot is known
+  Eigen::Vector3d linear_velocity = Eigen::Vector3d::Zero();      // odometry frame [m/s]
+  Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();     // sensor frame [rad/s]
+  std::optional<KeyframeOut> keyframe;
+  odometry::RegistrationOutput registration;
+  double fusion_lambda = 1.0;                                     // eq. 12 for this scan (1: no limit)
+  size_t points_used = 0;
+};
+
+struct FrontendStats {
+  uint64_t scans = 0, keyframes = 0, registration_failures = 0, corrections = 0, imu_samples = 0;
+};
+
+class FrontendCore {
+ public:
+  explicit FrontendCore(const FrontendParams& params);
+
+  // IMU samples in time order (older ones than the last are ignored and counted by the caller).
+  void add_imu(const ImuIn& sample);
+  // One sweep; stamps strictly increasing (the caller validates).
+  ScanOut process(int64_t stamp_ns, const std::vector<ScanPoint>& points);
+
+  // A back-end result for a keyframe: its optimised pose in the world and T_world_robot. Later
+  // scans move the published pose towards it, each by at most the fusion thresholds.
+  bool set_correction(uint32_t keyframe_id, const Eigen::Isometry3d& T_world_keyframe,
+                      const Eigen::Isometry3d& T_world_robot);
+
+  const FrontendStats& stats() const noexcept { return stats_; }
+  size_t map_voxels() const noexcept { return map_.voxels(); }
+
+ private:
+  std::vector<Eigen::Vector3d> prepare(int64_t stamp_ns, const std::vector<ScanPoint>& points, const Eigen::Isometry3d& delta,
+                                       std::vector<uint16_t>& rings);
+  std::optional<Eigen::Matrix3d> imu_rotation(int64_t from_ns, int64_t to_ns) const;
+
+  FrontendParams p_;
+  odometry::VoxelMap map_;
+  std::deque<ImuIn> imu_;
+  FrontendStats stats_;
+  bool first_ = true;
+  int64_t last_stamp_ = 0;
+  Eigen::Isometry3d T_last_ = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d delta_ = Eigen::Isometry3d::Identity();  // last inter-scan motion
+  double dt_last_ = 0.1;
+  std::deque<double> model_errors_;
+  std::vector<ScanPoint> first_points_;  // kept until the second sweep tells their motion
+  int64_t first_stamp_ = 0;
+  // Keyframes.
+  bool have_keyframe_ = false;
+  uint32_t next_keyframe_ = 0;
+  Eigen::Isometry3d T_last_keyframe_ = Eigen::Isometry3d::Identity();
+  Matrix6d cov_since_keyframe_ = Matrix6d::Zero();
+  std::vector<std::pair<uint32_t, Eigen::Isometry3d>> keyframe_poses_;  // raw odometry of every keyframe
+  // Fusion.
+  Eigen::Isometry3d published_ = Eigen::Isometry3d::Identity();
+  std::optional<Eigen::Isometry3d> correction_;  // maps raw odometry to the corrected odometry frame
+  std::optional<Eigen::Isometry3d> T_world_robot_;
+};
+
+}  // namespace cdc::frontend

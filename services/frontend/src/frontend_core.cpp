@@ -1,0 +1,240 @@
+#include "cdc/frontend/frontend_core.hpp"
+
+#include "cdc/geometry/se3.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numeric>
+
+namespace cdc::frontend {
+namespace {
+
+using geometry::Vector6d;
+
+double angle_of(const Eigen::Isometry3d& T) { return geometry::rotation_angle(T.rotation()); }
+
+}  // namespace
+
+FrontendCore::FrontendCore(const FrontendParams& params) : p_(params), map_(params.map) {}
+
+void FrontendCore::add_imu(const ImuIn& s) {
+  if (!imu_.empty() && s.stamp_ns <= imu_.back().stamp_ns) return;
+  imu_.push_back(s);
+  ++stats_.imu_samples;
+  // Keep what later sweeps can still need.
+  while (imu_.size() > 2 && imu_[1].stamp_ns < last_stamp_ - 500'000'000) imu_.pop_front();
+}
+
+// Rotation of the IMU from `from` to `to` by integrating the gyro (sample-and-hold), expressed in
+// the LiDAR frame; none when the samples do not cover the interval.
+std::optional<Eigen::Matrix3d> FrontendCore::imu_rotation(int64_t from, int64_t to) const {
+  if (imu_.size() < 2 || imu_.front().stamp_ns > from || imu_.back().stamp_ns < to) return std::nullopt;
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  for (size_t i = 0; i + 1 < imu_.size(); ++i) {
+    const int64_t a = std::max(imu_[i].stamp_ns, from), b = std::min(imu_[i + 1].stamp_ns, to);
+    if (b <= a) continue;
+    R = R * geometry::so3_exp(imu_[i].gyro * (static_cast<double>(b - a) * 1e-9));
+  }
+  const Eigen::Matrix3d R_li = p_.T_lidar_imu.rotation();
+  return R_li * R * R_li.transpose();
+}
+
+std::vector<Eigen::Vector3d> FrontendCore::prepare(int64_t stamp_ns, const std::vector<ScanPoint>& points,
+                                                   const Eigen::Isometry3d& sweep_motion, std::vector<uint16_t>& rings) {
+  // Motion over the sweep (0.1 s nominal) sampled at 64 instants; each point is moved into the
+  // sensor frame at the sweep's start.
+  constexpr int kSlots = 64;
+  float t_max = 0;
+  for (const auto& pt : points) t_max = std::max(t_max, pt.time_offset);
+  const double span = std::max(1e-3, static_cast<double>(t_max));
+  std::array<Eigen::Isometry3d, kSlots + 1> slot;
+  const Vector6d xi = geometry::se3_log(sweep_motion);  // over `span`
+  for (int k = 0; k <= kSlots; ++k) {
+    const double f = static_cast<double>(k) / kSlots;
+    slot[static_cast<size_t>(k)] = geometry::se3_exp(xi * f);
+    if (!imu_.empty()) {
+      const auto R = imu_rotation(stamp_ns, stamp_ns + static_cast<int64_t>(f * span * 1e9));
+      if (R) slot[static_cast<size_t>(k)].linear() = *R;
+    }
+  }
+  std::vector<Eigen::Vector3d> out;
+  out.reserve(points.size());
+  rings.clear();
+  rings.reserve(points.size());
+  const double r2min = p_.min_range_m * p_.min_range_m, r2max = p_.max_range_m * p_.max_range_m;
+  for (const auto& pt : points) {
+    const Eigen::Vector3d p = pt.p.cast<double>();
+    const double r2 = p.squaredNorm();
+    if (!(r2 >= r2min && r2 <= r2max)) continue;
+    rings.push_back(pt.ring);
+    if (!p_.deskew) {
+      out.push_back(p);
+      continue;
+    }
+    const int k = std::clamp(static_cast<int>(std::lround(pt.time_offset / span * kSlots)), 0, kSlots);
+    out.push_back(slot[static_cast<size_t>(k)] * p);
+  }
+  return out;
+}
+
+ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& points) {
+  ScanOut out;
+  out.stamp_ns = stamp_ns;
+  ++stats_.scans;
+  const double dt = first_ ? 0.1 : std::max(1e-3, static_cast<double>(stamp_ns - last_stamp_) * 1e-9);
+  // Prediction: constant velocity, with the IMU's rotation when it covers the interval.
+  Eigen::Isometry3d delta = geometry::se3_exp(geometry::se3_log(delta_) * (dt / dt_last_));
+  if (!first_) {
+    if (const auto R = imu_rotation(last_stamp_, stamp_ns)) delta.linear() = *R;
+  }
+  // Motion over this sweep for deskewing: the predicted motion scaled to the sweep's 0.1 s.
+  float t_max = 0;
+  for (const auto& pt : points) t_max = std::max(t_max, pt.time_offset);
+  const Eigen::Isometry3d sweep_motion =
+      first_ ? Eigen::Isometry3d::Identity() : geometry::se3_exp(geometry::se3_log(delta) * (static_cast<double>(t_max) / dt));
+  std::vector<Eigen::Vector3d> deskewed, pts, normals;
+  auto select = [&](int64_t stamp, const std::vector<ScanPoint>& in, const Eigen::Isometry3d& motion) {
+    std::vector<uint16_t> rings;
+    deskewed = prepare(stamp, in, motion, rings);
+    const std::vector<Eigen::Vector3d> all_normals = odometry::range_image_normals(deskewed, rings, p_.image_columns);
+    pts.clear();
+    normals.clear();
+    for (size_t i : odometry::voxel_filter_indices(deskewed, p_.voxel_m)) {
+      if (all_normals[i].squaredNorm() < 0.5) continue;
+      pts.push_back(deskewed[i]);
+      normals.push_back(all_normals[i]);
+    }
+  };
+  select(stamp_ns, points, sweep_motion);
+  out.points_used = pts.size();
+
+  Eigen::Isometry3d T = T_last_;
+  if (first_ || map_.empty()) {
+    T = first_ ? Eigen::Isometry3d::Identity() : T_last_ * delta;
+  } else {
+    const Eigen::Isometry3d guess = T_last_ * delta;
+    odometry::RegistrationParams rp = p_.registration;
+    if (model_errors_.size() >= 5) {
+      const double ms = std::accumulate(model_errors_.begin(), model_errors_.end(), 0.0,
+                                        [](double a, double e) { return a + e * e; }) /
+                        static_cast<double>(model_errors_.size());
+      rp.max_correspondence_m = std::clamp(3.0 * std::sqrt(ms), p_.min_gate_m, p_.max_gate_m);
+    } else {
+      rp.max_correspondence_m = p_.initial_gate_m;
+    }
+    // The kernel follows the gate as in KISS-ICP: gate 3 sigma, kernel sigma / 3.
+    rp.kernel_m = rp.max_correspondence_m / p_.kernel_divisor;
+    out.registration = odometry::register_to_map(pts, normals, map_, guess, rp);
+    if (p_.deskew && stats_.scans == 2 && out.registration.converged) {
+      // The first sweep went into the map undeskewed (its motion was unknown). Now that the motion
+      // is known, rebuild the map from both sweeps deskewed, and register this one again.
+      const Eigen::Isometry3d D = T_last_.inverse() * out.registration.T_map_sensor;
+      auto over = [&](const std::vector<ScanPoint>& in) {
+        float tm = 0;
+        for (const auto& pt : in) tm = std::max(tm, pt.time_offset);
+        return geometry::se3_exp(geometry::se3_log(D) * (static_cast<double>(tm) / dt));
+      };
+      map_ = odometry::VoxelMap(p_.map);
+      select(first_stamp_, first_points_, over(first_points_));
+      std::vector<Eigen::Vector3d> world = odometry::voxel_filter(deskewed, p_.map_voxel_m);
+      for (auto& p : world) p = T_last_ * p;
+      map_.add(world);
+      select(stamp_ns, points, over(points));
+      out.registration = odometry::register_to_map(pts, normals, map_, out.registration.T_map_sensor, rp);
+      first_points_.clear();
+      first_points_.shrink_to_fit();
+    }
+    if (p_.deskew && p_.redeskew && stats_.scans > 2 && out.registration.converged) {
+      // Deskew again with the motion just estimated (the prediction's error leaves a residual
+      // distortion), and refine.
+      const Eigen::Isometry3d D = T_last_.inverse() * out.registration.T_map_sensor;
+      Eigen::Isometry3d motion = geometry::se3_exp(geometry::se3_log(D) * (static_cast<double>(t_max) / dt));
+      select(stamp_ns, points, motion);
+      out.registration = odometry::register_to_map(pts, normals, map_, out.registration.T_map_sensor, rp);
+    }
+    if (!out.registration.converged) {
+      ++stats_.registration_failures;
+      T = guess;
+    } else {
+      T = out.registration.T_map_sensor;
+      const Eigen::Isometry3d dev = guess.inverse() * T;
+      model_errors_.push_back(dev.translation().norm() + 10.0 * angle_of(dev));
+      if (model_errors_.size() > 100) model_errors_.pop_front();
+    }
+  }
+  // Map update (points in the odometry frame) and sliding.
+  {
+    std::vector<Eigen::Vector3d> world = odometry::voxel_filter(deskewed, p_.map_voxel_m);
+    for (auto& p : world) p = T * p;
+    map_.add(world);
+    if (stats_.scans % 10 == 0) map_.remove_far(T.translation());
+  }
+  if (!first_) {
+    delta_ = T_last_.inverse() * T;
+    dt_last_ = dt;
+    out.linear_velocity = (T.translation() - T_last_.translation()) / dt;
+    out.angular_velocity = geometry::so3_log(delta_.rotation()) / dt;
+  }
+  // Keyframes: relative odometry with an information matrix from the registrations in between.
+  if (out.registration.correspondences > 0) {
+    const Matrix6d info_step = out.registration.hessian * p_.information_scale;
+    const Eigen::LDLT<Matrix6d> ldlt(info_step);
+    if (ldlt.info() == Eigen::Success) cov_since_keyframe_ += ldlt.solve(Matrix6d::Identity());
+  }
+  const Eigen::Isometry3d since = T_last_keyframe_.inverse() * T;
+  if (!have_keyframe_ || since.translation().norm() >= p_.keyframe_distance_m || angle_of(since) >= p_.keyframe_angle_rad) {
+    KeyframeOut k;
+    k.id = next_keyframe_++;
+    k.stamp_ns = stamp_ns;
+    k.T_odom_keyframe = T;
+    k.T_prev = have_keyframe_ ? since : Eigen::Isometry3d::Identity();
+    Matrix6d cov = cov_since_keyframe_;
+    cov.diagonal().array() += 1e-8;
+    k.information = have_keyframe_ ? Matrix6d(cov.inverse()) : Matrix6d::Identity() * 1e6;
+    k.information = 0.5 * (k.information + k.information.transpose());
+    for (const auto& p : odometry::voxel_filter(deskewed, p_.keyframe_voxel_m)) k.cloud.push_back(p.cast<float>());
+    keyframe_poses_.emplace_back(k.id, T);
+    T_last_keyframe_ = T;
+    cov_since_keyframe_.setZero();
+    have_keyframe_ = true;
+    ++stats_.keyframes;
+    out.keyframe = std::move(k);
+  }
+  // Corrections: the published pose follows the odometry's own increment and is pulled towards
+  // the corrected pose by at most the fusion thresholds per scan (eq. 8-14).
+  const Eigen::Isometry3d increment = first_ ? Eigen::Isometry3d::Identity() : T_last_.inverse() * T;
+  if (correction_) {
+    const geometry::FusionResult f = geometry::fuse_pose(published_ * increment, *correction_ * T, p_.fusion);
+    published_ = f.fused;
+    out.fusion_lambda = f.lambda;
+  } else {
+    published_ = T;
+  }
+  out.T_odom_raw = T;
+  out.T_odom_base = published_;
+  if (T_world_robot_) out.T_world_base = *T_world_robot_ * published_;
+  if (first_ && p_.deskew) {
+    first_points_ = points;
+    first_stamp_ = stamp_ns;
+  }
+  T_last_ = T;
+  last_stamp_ = stamp_ns;
+  first_ = false;
+  return out;
+}
+
+bool FrontendCore::set_correction(uint32_t keyframe_id, const Eigen::Isometry3d& T_world_keyframe,
+                                  const Eigen::Isometry3d& T_world_robot) {
+  const auto it = std::find_if(keyframe_poses_.begin(), keyframe_poses_.end(),
+                               [&](const auto& k) { return k.first == keyframe_id; });
+  if (it == keyframe_poses_.end()) return false;
+  // The keyframe's corrected pose in the odometry frame, and the map from raw to corrected odometry.
+  const Eigen::Isometry3d corrected = T_world_robot.inverse() * T_world_keyframe;
+  correction_ = corrected * it->second.inverse();
+  T_world_robot_ = T_world_robot;
+  ++stats_.corrections;
+  return true;
+}
+
+}  // namespace cdc::frontend
