@@ -3,6 +3,8 @@
 #include "cdc/geometry/se3.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <nanoflann.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -114,6 +116,51 @@ std::vector<Eigen::Vector3d> range_image_normals(const std::vector<Eigen::Vector
       if (v.squaredNorm() <= lim2 && std::abs(nrm.dot(v)) > 0.1 + 0.05 * v.norm()) ok = false;
     }
     if (ok) normals[i] = nrm;
+  }
+  return normals;
+}
+
+namespace {
+
+struct CloudAdaptor {
+  const std::vector<Eigen::Vector3d>* pts;
+  size_t kdtree_get_point_count() const { return pts->size(); }
+  double kdtree_get_pt(size_t i, size_t dim) const { return (*pts)[i][static_cast<Eigen::Index>(dim)]; }
+  template <class BBox>
+  bool kdtree_get_bbox(BBox&) const {
+    return false;
+  }
+};
+
+}  // namespace
+
+std::vector<Eigen::Vector3d> knn_normals(const std::vector<Eigen::Vector3d>& queries, const std::vector<Eigen::Vector3d>& cloud,
+                                         int k, double max_neighbour_m) {
+  std::vector<Eigen::Vector3d> normals(queries.size(), Eigen::Vector3d::Zero());
+  if (cloud.size() < static_cast<size_t>(k) || k < 3) return normals;
+  using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, CloudAdaptor>, CloudAdaptor, 3, size_t>;
+  CloudAdaptor adaptor{&cloud};
+  Tree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  tree.buildIndex();
+  std::vector<size_t> idx(static_cast<size_t>(k));
+  std::vector<double> d2(static_cast<size_t>(k));
+  const double lim2 = max_neighbour_m * max_neighbour_m;
+  for (size_t i = 0; i < queries.size(); ++i) {
+    const size_t found = tree.knnSearch(queries[i].data(), static_cast<size_t>(k), idx.data(), d2.data());
+    if (found < static_cast<size_t>(k) || d2[found - 1] > lim2) continue;
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (size_t j = 0; j < found; ++j) mean += cloud[idx[j]];
+    mean /= static_cast<double>(found);
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (size_t j = 0; j < found; ++j) {
+      const Eigen::Vector3d v = cloud[idx[j]] - mean;
+      cov += v * v.transpose();
+    }
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+    const Eigen::Vector3d ev = es.eigenvalues();  // ascending
+    // Planar: the normal's spread small against the middle one (a line has two small ones).
+    if (ev(0) > 0.1 * ev(1) || ev(1) < 0.05 * ev(2)) continue;
+    normals[i] = es.eigenvectors().col(0);
   }
   return normals;
 }

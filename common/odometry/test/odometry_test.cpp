@@ -3,11 +3,15 @@
 #include "cdc/geometry/se3.hpp"
 #include "cdc/odometry/registration.hpp"
 #include "cdc/odometry/voxel_map.hpp"
+#include "cdc/sim/kitti.hpp"
 #include "cdc/sim/lidar.hpp"
 #include "cdc/sim/world.hpp"
 
 #include <gtest/gtest.h>
 
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <random>
 
 namespace cdc::odometry {
@@ -104,6 +108,75 @@ TEST(VoxelMap, StaysBoundedAsTheRobotMovesOn) {
   EXPECT_FALSE(map.nearest(Eigen::Vector3d(0, 0, 0), q, d2));
   ASSERT_TRUE(map.nearest(Eigen::Vector3d(5.0 * 399 + 0.2, 0.3, 0.1), q, d2));
   EXPECT_NEAR(std::sqrt(d2), std::sqrt(0.2 * 0.2 + 0.3 * 0.3 + 0.1 * 0.1), 1e-9);
+}
+
+}  // namespace
+}  // namespace cdc::odometry
+
+namespace cdc::odometry {
+namespace {
+
+std::string data_dir() {
+  const char* env = std::getenv("CDC_DATA_DIR");
+  return env != nullptr ? env : "../shared/data";
+}
+
+// float32 x, y, z, intensity records after `skip` header bytes.
+std::vector<Eigen::Vector3d> read_xyzi(const std::string& path, size_t skip) {
+  std::ifstream in(path, std::ios::binary);
+  std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::vector<Eigen::Vector3d> out;
+  for (size_t o = skip; o + 16 <= bytes.size(); o += 16) {
+    float v[4];
+    std::memcpy(v, bytes.data() + o, 16);
+    out.emplace_back(v[0], v[1], v[2]);
+  }
+  return out;
+}
+
+// Source registered onto a map of the target from the identity: coarse, then fine.
+Eigen::Isometry3d align(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target) {
+  VoxelMap map(VoxelMapParams{0.5, 200.0, 20});
+  map.add(voxel_filter(target, 0.1));
+  const std::vector<Eigen::Vector3d> src = voxel_filter(source, 0.5);
+  const std::vector<Eigen::Vector3d> normals = knn_normals(src, source, 10, 1.5);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  for (const double gate : {2.0, 1.0, 0.5, 0.25, 0.1}) {
+    RegistrationParams p;
+    p.max_correspondence_m = gate;
+    p.kernel_m = gate / 3;
+    T = register_to_map(src, normals, map, T, p).T_map_sensor;
+  }
+  return T;
+}
+
+TEST(Registration, RealKittiPairsAgreeWithGroundTruth) {
+  const std::string d = data_dir();
+  if (!std::filesystem::exists(d + "/kitti/scans/seq00/000094.bin")) {
+    GTEST_SKIP() << "reference data absent: " << d << "/kitti/scans/seq00 not found";
+  }
+  struct Pair {
+    std::string name;
+    std::vector<Eigen::Vector3d> source, target;
+    Eigen::Isometry3d T_target_source;
+  };
+  std::vector<Pair> pairs;
+  const auto seq = sim::kitti_lidar_trajectory(d + "/kitti/poses/00.txt", sim::read_kitti_calib(d + "/kitti/calib_Tr.txt", "Tr_00_02"));
+  for (const auto& [a, b] : {std::pair<int, int>{94, 95}, std::pair<int, int>{198, 199}}) {
+    char pa[64], pb[64];
+    std::snprintf(pa, sizeof pa, "/kitti/scans/seq00/%06d.bin", a);
+    std::snprintf(pb, sizeof pb, "/kitti/scans/seq00/%06d.bin", b);
+    pairs.push_back({"KITTI 00 " + std::to_string(a) + "-" + std::to_string(b), read_xyzi(d + pb, 0), read_xyzi(d + pa, 0),
+                     seq[static_cast<size_t>(a)].pose.inverse() * seq[static_cast<size_t>(b)].pose});
+  }
+  for (const Pair& p : pairs) {
+    ASSERT_GT(p.source.size(), 10000u) << p.name;
+    const Eigen::Isometry3d e = p.T_target_source.inverse() * align(p.source, p.target);
+    const double deg = geometry::rotation_angle(e.rotation()) * 180 / M_PI;
+    std::printf("%s: %.4f m, %.4f deg from the reference\n", p.name.c_str(), e.translation().norm(), deg);
+    EXPECT_LT(e.translation().norm(), 0.03) << p.name;
+    EXPECT_LT(deg, 0.2) << p.name;
+  }
 }
 
 }  // namespace
