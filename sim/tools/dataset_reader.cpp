@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <iterator>
@@ -20,6 +21,27 @@ std::vector<char> read_bytes(const fs::path& p) {
 }
 
 }  // namespace
+
+std::vector<DatasetImu> read_dataset_imu(const fs::path& p) {
+  std::ifstream in(p);
+  if (!in) {
+    throw std::runtime_error(p.string() + ": cannot open");
+  }
+  std::vector<DatasetImu> out;
+  std::string line;
+  size_t n = 0;
+  std::getline(in, line);
+  ++n;
+  while (std::getline(in, line)) {
+    ++n;
+    double t, a[3], g[3];
+    if (std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf,%lf", &t, a, a + 1, a + 2, g, g + 1, g + 2) != 7) {
+      throw std::runtime_error(p.string() + ":" + std::to_string(n) + ": expected t,ax,ay,az,gx,gy,gz");
+    }
+    out.push_back({static_cast<int64_t>(std::llround(t * 1e9)), Eigen::Vector3d(a[0], a[1], a[2]), Eigen::Vector3d(g[0], g[1], g[2])});
+  }
+  return out;
+}
 
 std::vector<DatasetScan> list_dataset_scans(const std::string& dir, size_t max_scans,
                                             std::map<uint32_t, geometry::Trajectory>* groundtruth) {

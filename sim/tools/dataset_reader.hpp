@@ -30,6 +30,15 @@ struct DatasetScan {
   std::optional<Eigen::Isometry3d> truth;  // LiDAR pose at the sweep start
 };
 
+struct DatasetImu {
+  int64_t stamp_ns = 0;
+  Eigen::Vector3d accel = Eigen::Vector3d::Zero();  // specific force [m/s^2]
+  Eigen::Vector3d gyro = Eigen::Vector3d::Zero();   // [rad/s]
+};
+
+// imu.csv of a robot folder (header, then t,ax,ay,az,gx,gy,gz); throws naming file:line.
+std::vector<DatasetImu> read_dataset_imu(const std::filesystem::path& csv);
+
 // Every robot's scans (robot_0, robot_1, ... until the first missing folder), merged in time
 // order; at most max_scans per robot (0: all). Fills `groundtruth` per robot when given. Throws
 // std::runtime_error naming the path when the folder is not a dataset.

@@ -169,23 +169,8 @@ class Publisher {
 };
 
 std::vector<cdc_msg_ImuSample> read_imu(const fs::path& p) {
-  std::ifstream in(p);
-  if (!in) {
-    throw std::runtime_error(p.string() + ": cannot open");
-  }
   std::vector<cdc_msg_ImuSample> out;
-  std::string line;
-  size_t n = 0;
-  std::getline(in, line);
-  ++n;
-  while (std::getline(in, line)) {
-    ++n;
-    double t, a[3], g[3];
-    if (std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf,%lf", &t, a, a + 1, a + 2, g, g + 1, g + 2) != 7) {
-      throw std::runtime_error(p.string() + ":" + std::to_string(n) + ": expected t,ax,ay,az,gx,gy,gz");
-    }
-    out.push_back(cdc_msg_ImuSample{static_cast<int64_t>(std::llround(t * 1e9)), {a[0], a[1], a[2]}, {g[0], g[1], g[2]}});
-  }
+  for (const DatasetImu& m : read_dataset_imu(p)) out.push_back(cdc_msg_ImuSample{m.stamp_ns, dds::to_msg(m.accel), dds::to_msg(m.gyro)});
   return out;
 }
 

@@ -97,13 +97,27 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
   auto select = [&](int64_t stamp, const std::vector<ScanPoint>& in, const Eigen::Isometry3d& motion) {
     std::vector<uint16_t> rings;
     deskewed = prepare(stamp, in, motion, rings);
-    const std::vector<Eigen::Vector3d> all_normals = odometry::range_image_normals(deskewed, rings, p_.image_columns);
     pts.clear();
     normals.clear();
-    for (size_t i : odometry::voxel_filter_indices(deskewed, p_.voxel_m)) {
-      if (all_normals[i].squaredNorm() < 0.5) continue;
-      pts.push_back(deskewed[i]);
-      normals.push_back(all_normals[i]);
+    const std::vector<size_t> keep = odometry::voxel_filter_indices(deskewed, p_.voxel_m);
+    const bool has_rings = std::any_of(rings.begin(), rings.end(), [](uint16_t r) { return r != 0; });
+    if (has_rings) {
+      const std::vector<Eigen::Vector3d> all_normals = odometry::range_image_normals(deskewed, rings, p_.image_columns);
+      for (size_t i : keep) {
+        if (all_normals[i].squaredNorm() < 0.5) continue;
+        pts.push_back(deskewed[i]);
+        normals.push_back(all_normals[i]);
+      }
+    } else {
+      // No ring structure (a saved KITTI sweep): normals from each point's nearest neighbours.
+      std::vector<Eigen::Vector3d> sel;
+      for (size_t i : keep) sel.push_back(deskewed[i]);
+      const std::vector<Eigen::Vector3d> n = odometry::knn_normals(sel, deskewed, 10, 1.5);
+      for (size_t i = 0; i < sel.size(); ++i) {
+        if (n[i].squaredNorm() < 0.5) continue;
+        pts.push_back(sel[i]);
+        normals.push_back(n[i]);
+      }
     }
   };
   select(stamp_ns, points, sweep_motion);

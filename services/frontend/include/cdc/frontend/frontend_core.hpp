@@ -88,6 +88,8 @@ class FrontendCore {
 
   // IMU samples in time order (older ones than the last are ignored and counted by the caller).
   void add_imu(const ImuIn& sample);
+  // Forgets the IMU history (after a gap): intervals it does not cover use constant velocity.
+  void clear_imu() { imu_.clear(); }
   // One sweep; stamps strictly increasing (the caller validates).
   ScanOut process(int64_t stamp_ns, const std::vector<ScanPoint>& points);
 

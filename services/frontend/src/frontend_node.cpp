@@ -1,0 +1,216 @@
+#include "frontend_node.hpp"
+
+#include "cdc/config/reader.hpp"
+#include "cdc/dds/convert.hpp"
+#include "cdc/dds/participant.hpp"
+#include "cdc/dds/pubsub.hpp"
+#include "cdc/dds/shutdown.hpp"
+#include "cdc/dds/topics.hpp"
+#include "cdc/dds/validate.hpp"
+#include "cdc/dds/waitset.hpp"
+#include "cdc/geometry/se3.hpp"
+#include "cdc/geometry/trajectory.hpp"
+
+#include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
+
+#include <fstream>
+
+namespace cdc::frontend {
+namespace {
+namespace topics = dds::topics;
+}  // namespace
+
+FrontendNodeOptions load_frontend_options(const std::string& path) {
+  FrontendNodeOptions o;
+  config::Reader r(path);
+  auto positive = [](const double& v) { return v > 0; };
+  int robots = static_cast<int>(o.robots);
+  r.get<int>("robots", robots, [](const int& v) { return v >= 1 && v <= 254; }, "1..254");
+  o.robots = static_cast<uint32_t>(robots);
+  FrontendParams& p = o.core;
+  r.get<double>("crop.min_range_m", p.min_range_m, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get<double>("crop.max_range_m", p.max_range_m, positive, "> 0");
+  r.get<double>("registration.voxel_m", p.voxel_m, positive, "> 0");
+  r.get<double>("registration.map_voxel_m", p.map.voxel_m, positive, "> 0");
+  r.get<double>("registration.map_range_m", p.map.max_range_m, positive, "> 0");
+  r.get<int>("registration.map_points_per_voxel", p.map.max_points, [](const int& v) { return v > 0; }, "> 0");
+  r.get<double>("registration.initial_gate_m", p.initial_gate_m, positive, "> 0");
+  r.get<bool>("deskew", p.deskew);
+  r.get<int>("image_columns", p.image_columns, [](const int& v) { return v >= 100; }, ">= 100");
+  r.get<double>("keyframe.distance_m", p.keyframe_distance_m, positive, "> 0");
+  double kf_deg = p.keyframe_angle_rad * 180 / M_PI, rot_deg = p.fusion.rot_max * 180 / M_PI;
+  r.get<double>("keyframe.angle_deg", kf_deg, positive, "> 0");
+  r.get<double>("keyframe.voxel_m", p.keyframe_voxel_m, positive, "> 0");
+  r.get<double>("fusion.pos_max_m", p.fusion.pos_max, positive, "> 0");
+  r.get<double>("fusion.rot_max_deg", rot_deg, positive, "> 0");
+  r.get<bool>("imu.use", o.use_imu);
+  r.get<double>("imu.gap_s", o.imu_gap_s, positive, "> 0");
+  std::vector<double> t = {0, 0, 0}, q = {0, 0, 0, 1};
+  r.get<std::vector<double>>("imu.T_lidar_imu.position", t, [](const std::vector<double>& v) { return v.size() == 3; }, "3 numbers");
+  r.get<std::vector<double>>("imu.T_lidar_imu.orientation", q, [](const std::vector<double>& v) { return v.size() == 4; },
+                             "4 numbers (x, y, z, w)");
+  r.get<std::string>("log_level", o.log_level);
+  const Eigen::Quaterniond quat(q[3], q[0], q[1], q[2]);
+  if (std::abs(quat.norm() - 1.0) > 1e-3) r.error("imu.T_lidar_imu.orientation: not a unit quaternion");
+  r.finish();
+  p.keyframe_angle_rad = kf_deg * M_PI / 180;
+  p.fusion.rot_max = rot_deg * M_PI / 180;
+  p.T_lidar_imu = geometry::make_pose(Eigen::Vector3d(t[0], t[1], t[2]), quat.normalized());
+  return o;
+}
+
+int run_frontend(const FrontendNodeOptions& o) {
+  const uint32_t me = o.robot;
+  dds::ParticipantOptions po;
+  po.domain_id = o.domain;
+  po.config = o.dds_config;
+  dds::Participant participant(po);
+  dds::Topic<cdc_msg_LidarScan> t_scan(participant, topics::kLidar);
+  dds::Topic<cdc_msg_ImuBatch> t_imu(participant, topics::kImu);
+  dds::Topic<cdc_msg_OptimizedPoses> t_corr(participant, topics::kCorrection);
+  dds::Topic<cdc_msg_Odometry> t_odom(participant, topics::kOdometry);
+  dds::Topic<cdc_msg_Keyframe> t_kf(participant, topics::kKeyframe);
+  dds::Topic<cdc_msg_ConsumerProgress> t_progress(participant, topics::kProgress);
+  dds::Reader<cdc_msg_LidarScan> r_scan(participant, t_scan, dds::qos::sensor_stream(16, true));
+  dds::Reader<cdc_msg_ImuBatch> r_imu(participant, t_imu, dds::qos::sensor_stream(64, true));
+  dds::Reader<cdc_msg_OptimizedPoses> r_corr(participant, t_corr, dds::qos::event_stream(64));
+  dds::Writer<cdc_msg_Odometry> w_odom(participant, t_odom, dds::qos::sensor_stream(16, true));
+  dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096));
+  dds::Writer<cdc_msg_ConsumerProgress> w_progress(participant, t_progress, dds::qos::keyed_state());
+  dds::GuardCondition stop(participant);
+  dds::ShutdownSignal::add_guard(&stop);
+  dds::ReadCondition rc_scan(r_scan.handle()), rc_imu(r_imu.handle()), rc_corr(r_corr.handle());
+  dds::WaitSet ws(participant);
+  ws.attach(stop.handle(), 0);
+  ws.attach(rc_scan.handle(), 1);
+  ws.attach(rc_imu.handle(), 2);
+  ws.attach(rc_corr.handle(), 3);
+
+  dds::ValidationLimits limits;
+  limits.robot_count = o.robots;
+  limits.max_scan_points = o.max_scan_points;
+  dds::RejectionCounter rejected;
+  FrontendCore core(o.core);
+  int64_t last_scan_stamp = -1, last_imu_stamp = -1;
+  uint64_t imu_gaps = 0, odometry_sent = 0, keyframes_sent = 0, corrections_unknown = 0;
+  uint32_t incarnation = 0;
+  geometry::Trajectory trajectory;
+  std::vector<ScanPoint> points;
+  std::vector<cdc_msg_PointXYZI> cloud;
+  spdlog::info("front-end of robot {} up: {}deskewing, IMU {}, keyframes every {} m / {} deg, domain {}", me,
+               o.core.deskew ? "" : "no ", o.use_imu ? "on" : "off", o.core.keyframe_distance_m,
+               o.core.keyframe_angle_rad * 180 / M_PI, o.domain);
+  auto reject = [&](const char* topic, dds::Validation v) {
+    if (rejected.record(topic, v)) {
+      spdlog::warn("rejected {}: {}", topic, rejected.last_reason());
+      return true;
+    }
+    return false;
+  };
+
+  while (!dds::ShutdownSignal::requested()) {
+    ws.wait(std::chrono::milliseconds(200));
+    // IMU first: a sweep needs the samples up to its end.
+    r_imu.take(64).for_each_valid([&](const cdc_msg_ImuBatch& m, const dds_sample_info_t&) {
+      if (m.robot_id != me || !o.use_imu) return;
+      if (reject(topics::kImu, dds::validate(m, limits))) return;
+      for (uint32_t i = 0; i < m.samples._length; ++i) {
+        const cdc_msg_ImuSample& s = m.samples._buffer[i];
+        if (s.stamp_ns <= last_imu_stamp) {
+          reject(topics::kImu, dds::Validation::fail("samples[" + std::to_string(i) + "].stamp_ns: not after the last sample received (out of order)"));
+          continue;
+        }
+        if (last_imu_stamp >= 0 && static_cast<double>(s.stamp_ns - last_imu_stamp) * 1e-9 > o.imu_gap_s) {
+          ++imu_gaps;
+          spdlog::warn("IMU gap of {:.3f} s before {} ns: bridged with constant velocity",
+                       static_cast<double>(s.stamp_ns - last_imu_stamp) * 1e-9, s.stamp_ns);
+          core.clear_imu();
+        }
+        last_imu_stamp = s.stamp_ns;
+        core.add_imu({s.stamp_ns, dds::to_eigen(s.angular_velocity), dds::to_eigen(s.linear_acceleration)});
+      }
+    });
+    r_corr.take(16).for_each_valid([&](const cdc_msg_OptimizedPoses& m, const dds_sample_info_t&) {
+      if (m.robot_id != me) return;
+      if (reject(topics::kCorrection, dds::validate(m, limits))) return;
+      // The newest keyframe of the result that this front-end knows carries the correction.
+      for (int64_t i = static_cast<int64_t>(m.poses._length) - 1; i >= 0; --i) {
+        const cdc_msg_KeyframePose& kp = m.poses._buffer[i];
+        if (core.set_correction(kp.keyframe_id, dds::to_eigen(kp.pose), dds::to_eigen(m.T_world_robot))) return;
+      }
+      ++corrections_unknown;
+    });
+    r_scan.take(4).for_each_valid([&](const cdc_msg_LidarScan& m, const dds_sample_info_t&) {
+      if (m.robot_id != me) return;
+      dds::Validation v = dds::validate(m, limits);
+      if (v && m.points._length == 0) v = dds::Validation::fail("points: empty sweep");
+      if (v && m.stamp_ns <= last_scan_stamp) {
+        v = dds::Validation::fail("stamp_ns: " + std::to_string(m.stamp_ns) + " not after the previous sweep's " +
+                                  std::to_string(last_scan_stamp) + " (out of order)");
+      }
+      if (reject(topics::kLidar, v)) return;
+      last_scan_stamp = m.stamp_ns;
+      incarnation = m.incarnation;
+      points.clear();
+      points.reserve(m.points._length);
+      for (uint32_t i = 0; i < m.points._length; ++i) {
+        const cdc_msg_LidarPoint& p = m.points._buffer[i];
+        points.push_back({Eigen::Vector3f(p.x, p.y, p.z), p.time_offset, p.ring});
+      }
+      const ScanOut out = core.process(m.stamp_ns, points);
+      cdc_msg_Odometry od{};
+      od.robot_id = me;
+      od.incarnation = incarnation;
+      od.scan_seq = m.seq;
+      od.stamp_ns = m.stamp_ns;
+      od.T_odom_base = dds::to_msg(out.T_odom_base);
+      od.world_valid = out.T_world_base.has_value();
+      od.T_world_base = dds::to_msg(out.T_world_base.value_or(Eigen::Isometry3d::Identity()));
+      od.linear_velocity = dds::to_msg(out.linear_velocity);
+      od.angular_velocity = dds::to_msg(out.angular_velocity);
+      w_odom.write(od);
+      ++odometry_sent;
+      if (!o.trajectory_out.empty()) trajectory.push_back({m.stamp_ns, out.T_odom_base});
+      if (out.keyframe) {
+        const KeyframeOut& k = *out.keyframe;
+        cloud.clear();
+        for (const auto& p : k.cloud) cloud.push_back(cdc_msg_PointXYZI{p.x(), p.y(), p.z(), 0.0f});
+        cdc_msg_Keyframe kf{};
+        kf.robot_id = me;
+        kf.keyframe_id = k.id;
+        kf.incarnation = incarnation;
+        kf.stamp_ns = k.stamp_ns;
+        kf.T_odom_keyframe = dds::to_msg(k.T_odom_keyframe);
+        kf.T_prev_keyframe = dds::to_msg(k.T_prev);
+        dds::information_to_msg(k.information, kf.information);
+        kf.point_count = static_cast<uint32_t>(cloud.size());
+        dds::borrow(kf.cloud, cloud);
+        w_kf.write(kf);
+        ++keyframes_sent;
+      }
+      w_progress.write(cdc_msg_ConsumerProgress{me, incarnation, m.seq});
+    });
+  }
+  dds::ShutdownSignal::remove_guard(&stop);
+  if (!o.trajectory_out.empty()) geometry::write_tum(o.trajectory_out, trajectory);
+  if (!o.stats_out.empty()) {
+    const FrontendStats& s = core.stats();
+    nlohmann::json j{{"robot", me},
+                     {"scans", s.scans},
+                     {"odometry", odometry_sent},
+                     {"keyframes", keyframes_sent},
+                     {"registration_failures", s.registration_failures},
+                     {"corrections", s.corrections},
+                     {"corrections_for_unknown_keyframes", corrections_unknown},
+                     {"imu_samples", s.imu_samples},
+                     {"imu_gaps", imu_gaps},
+                     {"rejected", rejected.by_topic()},
+                     {"rejected_samples", rejected.total()}};
+    std::ofstream(o.stats_out) << j.dump(2) << '\n';
+  }
+  spdlog::info("stopped after {} sweeps, {} keyframes, {} rejected samples", odometry_sent, keyframes_sent, rejected.total());
+  return 0;
+}
+
+}  // namespace cdc::frontend

@@ -1,0 +1,23 @@
+// DDS glue of the front-end: the robot's LiDAR sweeps, IMU batches and the back-end's
+// corrections in; odometry at scan rate, keyframes and lock-step progress out.
+#pragma once
+
+#include "cdc/frontend/frontend_core.hpp"
+
+#include <string>
+
+namespace cdc::frontend {
+
+struct FrontendNodeOptions {
+  uint32_t robot = 0, robots = 3, domain = 0;
+  std::string dds_config, stats_out, trajectory_out, log_level = "info";
+  FrontendParams core;
+  bool use_imu = true;
+  double imu_gap_s = 0.05;          // a larger gap between IMU samples is reported and bridged by constant velocity
+  uint32_t max_scan_points = 500'000;
+};
+
+FrontendNodeOptions load_frontend_options(const std::string& path);
+int run_frontend(const FrontendNodeOptions& options);
+
+}  // namespace cdc::frontend
