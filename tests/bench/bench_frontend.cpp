@@ -7,6 +7,7 @@
 #include "cdc/geometry/metrics.hpp"
 #include "cdc/sim/kitti.hpp"
 #include "cdc/sim/lidar.hpp"
+#include "cdc/sim/missions.hpp"
 #include "cdc/sim/trajectory.hpp"
 #include "cdc/sim/world.hpp"
 
@@ -14,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include <chrono>
+#include <cstring>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -24,6 +26,57 @@
 namespace {
 
 using namespace cdc;
+
+long rss_kb(const char* field) {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind(field, 0) == 0) return std::stol(line.substr(std::strlen(field)));
+  }
+  return -1;
+}
+
+// A long drive (procedural stadium laps along rays, VLP-16 with IMU): resident memory sampled
+// every simulated minute, to show that the front-end's memory stays bounded.
+nlohmann::json memory_run(double minutes) {
+  sim::MissionOptions mo;
+  mo.pattern = sim::MissionPattern::kRays;
+  mo.robots = 1;
+  mo.speed_mps = 8;
+  mo.size_m = 400;
+  mo.duration_s = minutes * 60 + 2;
+  const geometry::Trajectory path = sim::procedural_mission(mo).front();
+  std::vector<Eigen::Isometry3d> controls;
+  std::vector<Eigen::Vector3d> pts;
+  for (const auto& sp : path) {
+    controls.push_back(sp.pose);
+    pts.push_back(sp.pose.translation());
+  }
+  const double t0 = static_cast<double>(path.front().stamp_ns) * 1e-9;
+  const sim::SplineTrajectory traj(controls, t0, 0.1);
+  sim::WorldOptions wo;
+  wo.seed = 2;
+  const sim::World world = sim::World::generate({pts}, wo);
+  frontend::FrontendCore core(frontend::FrontendParams{});
+  std::mt19937_64 rng(3);
+  nlohmann::json samples = nlohmann::json::array();
+  const long before = rss_kb("VmRSS:");
+  std::vector<frontend::ScanPoint> scan;
+  size_t n = 0;
+  for (double t = traj.start(); t + 0.1 < traj.end() && t < traj.start() + minutes * 60; t += 0.1, ++n) {
+    scan.clear();
+    for (const auto& p : sim::sweep(world, sim::LidarModel::vlp16(), [&](double dt) { return traj.pose(t + dt); }, rng)) {
+      scan.push_back({Eigen::Vector3f(p.x, p.y, p.z), p.time_offset, p.ring});
+    }
+    core.process(static_cast<int64_t>(t * 1e9), scan);
+    if (n % 600 == 599) {
+      samples.push_back({{"minute", (n + 1) / 600}, {"rss_kb", rss_kb("VmRSS:")}, {"map_voxels", core.map_voxels()}});
+      std::printf("minute %zu: RSS %ld kB, %zu map voxels\n", (n + 1) / 600, rss_kb("VmRSS:"), core.map_voxels());
+      std::fflush(stdout);
+    }
+  }
+  return {{"minutes", minutes}, {"scans", n}, {"rss_before_kb", before}, {"samples", samples}, {"peak_rss_kb", rss_kb("VmHWM:")}};
+}
 
 long peak_rss_kb() {
   std::ifstream in("/proc/self/status");
@@ -105,8 +158,15 @@ int main(int argc, char** argv) {
   app.add_option("--configs", configs, "configurations to run")->capture_default_str();
   app.add_option("--out", out_dir, "write per-configuration trajectories here");
   bool no_deskew = false;
+  double memory_minutes = 0;
+  app.add_option("--memory-minutes", memory_minutes, "instead: a drive this long, reporting resident memory every minute");
   app.add_flag("--no-deskew", no_deskew, "turn deskewing off (for comparison)");
   CLI11_PARSE(app, argc, argv);
+  if (memory_minutes > 0) {
+    nlohmann::json j{{"memory", memory_run(memory_minutes)}};
+    std::cout << j.dump() << '\n';
+    return 0;
+  }
   const std::string poses = data + "/kitti/poses/" + seq + ".txt";
   if (!std::filesystem::exists(poses)) {
     std::cerr << "cdc-bench-frontend: " << poses << " not found (set --data or CDC_DATA_DIR)\n";

@@ -73,7 +73,10 @@ std::vector<Eigen::Vector3d> range_image_normals(const std::vector<Eigen::Vector
   for (uint16_t r : rings) nrings = std::max(nrings, static_cast<int>(r) + 1);
   std::vector<int> image(static_cast<size_t>(nrings) * static_cast<size_t>(columns), -1);
   std::vector<int> col(n);
+  std::vector<char> usable(n, 0);
   for (size_t i = 0; i < n; ++i) {
+    if (!points[i].allFinite()) continue;  // never index the image with a non-finite angle
+    usable[i] = 1;
     double az = std::atan2(points[i].y(), points[i].x());
     if (az < 0) az += 2 * M_PI;
     col[i] = std::min(columns - 1, static_cast<int>(az / (2 * M_PI) * columns));
@@ -94,6 +97,7 @@ std::vector<Eigen::Vector3d> range_image_normals(const std::vector<Eigen::Vector
     return -1;
   };
   for (size_t i = 0; i < n; ++i) {
+    if (!usable[i]) continue;
     const int r = rings[i], c = col[i];
     const Eigen::Vector3d& p = points[i];
     const int a = find(r, c, 1), b = find(r, c, -1);
