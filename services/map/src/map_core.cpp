@@ -1,0 +1,115 @@
+#include "cdc/map/map_core.hpp"
+
+#include "cdc/geometry/se3.hpp"
+
+#include <octomap/octomap.h>
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <stdexcept>
+#include <unordered_set>
+
+namespace cdc::map {
+
+MapCore::MapCore(const MapParams& params) : p_(params), tree_(std::make_unique<octomap::OcTree>(params.octree_resolution_m)) {}
+
+MapCore::~MapCore() = default;
+
+void MapCore::place(const Id& id, const Eigen::Isometry3d& T) {
+  const auto c = clouds_.find(id);
+  if (c == clouds_.end()) return;
+  Placed& pl = placed_[id];
+  pl.T_world = T;
+  pl.world.clear();
+  pl.world.reserve(c->second.size());
+  const Eigen::Isometry3f Tf = T.cast<float>();
+  for (const auto& p : c->second) pl.world.push_back(Tf * p);
+  ++stats_.placements;
+  tree_dirty_ = true;
+}
+
+void MapCore::add_keyframe(uint32_t robot, uint32_t id, std::vector<Eigen::Vector3f> cloud) {
+  const Id key{robot, id};
+  if (clouds_.count(key) != 0) return;
+  clouds_[key] = std::move(cloud);
+  ++stats_.keyframes;
+  const auto p = poses_.find(key);
+  if (p != poses_.end()) place(key, p->second);
+}
+
+size_t MapCore::set_poses(uint32_t robot, const std::vector<std::pair<uint32_t, Eigen::Isometry3d>>& poses) {
+  ++stats_.pose_updates;
+  size_t moved = 0;
+  for (const auto& [id, T] : poses) {
+    const Id key{robot, id};
+    poses_[key] = T;
+    if (clouds_.count(key) == 0) {
+      ++stats_.unknown_keyframe_poses;
+      continue;
+    }
+    const auto it = placed_.find(key);
+    if (it != placed_.end()) {
+      const Eigen::Isometry3d d = it->second.T_world.inverse() * T;
+      if (d.translation().norm() <= p_.moved_m && geometry::rotation_angle(d.rotation()) <= p_.moved_rad) continue;
+    }
+    place(key, T);
+    ++moved;
+  }
+  return moved;
+}
+
+std::vector<Eigen::Vector3f> MapCore::global_cloud() const {
+  struct Hash {
+    size_t operator()(const Eigen::Vector3i& k) const noexcept {
+      return (static_cast<size_t>(static_cast<uint32_t>(k.x())) * 73856093u) ^
+             (static_cast<size_t>(static_cast<uint32_t>(k.y())) * 19349663u) ^
+             (static_cast<size_t>(static_cast<uint32_t>(k.z())) * 83492791u);
+    }
+  };
+  std::unordered_set<Eigen::Vector3i, Hash> seen;
+  std::vector<Eigen::Vector3f> out;
+  const double v = p_.voxel_m;
+  for (const auto& [id, pl] : placed_) {
+    for (const auto& p : pl.world) {
+      const Eigen::Vector3i k(static_cast<int>(std::floor(p.x() / v)), static_cast<int>(std::floor(p.y() / v)),
+                              static_cast<int>(std::floor(p.z() / v)));
+      if (seen.insert(k).second) out.push_back(p);
+    }
+  }
+  return out;
+}
+
+const octomap::OcTree& MapCore::octree() {
+  if (tree_dirty_) {
+    tree_ = std::make_unique<octomap::OcTree>(p_.octree_resolution_m);
+    for (const auto& [id, pl] : placed_) {
+      octomap::Pointcloud cloud;
+      cloud.reserve(pl.world.size());
+      for (const auto& p : pl.world) cloud.push_back(p.x(), p.y(), p.z());
+      const Eigen::Vector3d o = pl.T_world.translation();
+      tree_->insertPointCloud(cloud, octomap::point3d(static_cast<float>(o.x()), static_cast<float>(o.y()), static_cast<float>(o.z())),
+                              p_.max_range_m, false, true);
+    }
+    tree_->updateInnerOccupancy();
+    tree_dirty_ = false;
+    ++stats_.octree_rebuilds;
+  }
+  return *tree_;
+}
+
+void MapCore::write_pcd(const std::string& path) const {
+  const std::vector<Eigen::Vector3f> pts = global_cloud();
+  std::ofstream out(path, std::ios::binary);
+  if (!out) throw std::runtime_error(path + ": cannot write");
+  out << "# .PCD v0.7 - cdc-map global cloud\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
+      << "WIDTH " << pts.size() << "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " << pts.size() << "\nDATA binary\n";
+  for (const auto& p : pts) out.write(reinterpret_cast<const char*>(p.data()), 3 * sizeof(float));
+  if (!out) throw std::runtime_error(path + ": write failed");
+}
+
+void MapCore::write_octomap(const std::string& path) {
+  if (!octree().writeBinaryConst(path)) throw std::runtime_error(path + ": cannot write the OctoMap");
+}
+
+}  // namespace cdc::map
