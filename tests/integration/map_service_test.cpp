@@ -1,0 +1,116 @@
+// cdc-map over DDS (loopback configuration): keyframes of two robots and the central's poses in;
+// SIGUSR1 writes the map while it runs, a malformed keyframe is rejected and counted, and
+// SIGTERM writes it again and exits cleanly.
+#include "cdc/dds/convert.hpp"
+#include "cdc/dds/participant.hpp"
+#include "cdc/dds/pubsub.hpp"
+#include "cdc/dds/topics.hpp"
+#include "child_process.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+#include <sys/wait.h>
+#include <thread>
+#include <unistd.h>
+
+namespace cdc {
+namespace {
+
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+
+TEST(MapService, BuildsAndWritesTheMapFromKeyframesAndCentralPoses) {
+  ASSERT_NE(std::getenv("CDC_MAP_BIN"), nullptr);
+  const fs::path dir = fs::temp_directory_path() / ("cdc_map_service_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  std::ofstream(dir / "map.yaml") << "robots: 2\n";
+  dds::ParticipantOptions po;
+  po.domain_id = dds::domain_from_env(0);
+  dds::Participant participant(po);
+  dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
+  dds::Topic<cdc_msg_OptimizedPoses> t_opt(participant, dds::topics::kCentralOptimized);
+  dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096));
+  dds::Writer<cdc_msg_OptimizedPoses> w_opt(participant, t_opt, dds::qos::monitored_writer(std::chrono::seconds(1)));
+  test::ChildProcess map = test::ChildProcess::spawn(
+      {std::getenv("CDC_MAP_BIN"), "--config", (dir / "map.yaml").string(), "--out", (dir / "out").string(), "--stats-out",
+       (dir / "stats.json").string()},
+      (dir / "map.log").string());
+  ASSERT_TRUE(w_kf.wait_for_readers(1, 15s));
+  ASSERT_TRUE(w_opt.wait_for_readers(1, 15s));
+  // Each keyframe: a 10 x 10 m wall of points 5 m ahead, 1,000 points.
+  std::vector<cdc_msg_PointXYZI> cloud;
+  for (int i = 0; i < 40; ++i) {
+    for (int j = 0; j < 25; ++j) cloud.push_back(cdc_msg_PointXYZI{5.0f, -5.0f + 0.25f * static_cast<float>(i), -2.0f + 0.25f * static_cast<float>(j), 0.5f});
+  }
+  for (uint32_t r = 0; r < 2; ++r) {
+    for (uint32_t k = 0; k < 5; ++k) {
+      cdc_msg_Keyframe m{};
+      m.robot_id = r;
+      m.keyframe_id = k;
+      m.T_odom_keyframe = dds::to_msg(Eigen::Isometry3d::Identity());
+      m.T_prev_keyframe = dds::to_msg(Eigen::Isometry3d::Identity());
+      dds::information_to_msg(dds::Matrix6d::Identity(), m.information);
+      m.point_count = static_cast<uint32_t>(cloud.size());
+      dds::borrow(m.cloud, cloud);
+      w_kf.write(m);
+    }
+  }
+  {
+    cdc_msg_Keyframe bad{};  // a point count that disagrees with the cloud
+    bad.robot_id = 0;
+    bad.keyframe_id = 77;
+    bad.T_odom_keyframe = dds::to_msg(Eigen::Isometry3d::Identity());
+    bad.T_prev_keyframe = dds::to_msg(Eigen::Isometry3d::Identity());
+    dds::information_to_msg(dds::Matrix6d::Identity(), bad.information);
+    bad.point_count = 3;
+    w_kf.write(bad);
+  }
+  std::vector<cdc_msg_KeyframePose> poses;
+  for (uint32_t r = 0; r < 2; ++r) {
+    poses.clear();
+    for (uint32_t k = 0; k < 5; ++k) {
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      T.translation() = Eigen::Vector3d(20.0 * r, 12.0 * k, 0);
+      poses.push_back(cdc_msg_KeyframePose{r, k, dds::to_msg(T)});
+    }
+    cdc_msg_OptimizedPoses m{};
+    m.robot_id = r;
+    m.sender_robot_id = 200;
+    m.graph_version = 1;
+    m.source = cdc_msg_SOURCE_CENTRAL;
+    m.T_world_robot = dds::to_msg(Eigen::Isometry3d::Identity());
+    dds::borrow(m.poses, poses);
+    w_opt.write(m);
+  }
+  std::this_thread::sleep_for(1500ms);
+  map.signal(SIGUSR1);
+  for (int i = 0; i < 50 && !fs::exists(dir / "out" / "map.bt"); ++i) std::this_thread::sleep_for(100ms);
+  EXPECT_TRUE(fs::exists(dir / "out" / "map.pcd"));
+  EXPECT_TRUE(fs::exists(dir / "out" / "map.bt"));
+  map.signal(SIGTERM);
+  const auto st = map.wait(10s);
+  ASSERT_TRUE(st && WIFEXITED(*st) && WEXITSTATUS(*st) == 0) << "see " << dir / "map.log";
+  std::ifstream sin(dir / "stats.json");
+  const nlohmann::json s = nlohmann::json::parse(sin);
+  EXPECT_EQ(s["keyframes"].get<int>(), 10);
+  EXPECT_EQ(s["placed"].get<int>(), 10);
+  EXPECT_EQ(s["writes"].get<int>(), 2) << "one on SIGUSR1, one at shutdown";
+  EXPECT_EQ(s["rejected"][dds::topics::kKeyframe].get<int>(), 1);
+  // 10 walls of 10 x 6 m, disjoint: 10 x 40 x 25 points survive the 0.2 m voxel filter.
+  std::ifstream pcd(dir / "out" / "map.pcd", std::ios::binary);
+  std::string line;
+  size_t points = 0;
+  while (std::getline(pcd, line) && line != "DATA binary") {
+    if (line.rfind("POINTS ", 0) == 0) points = std::stoul(line.substr(7));
+  }
+  EXPECT_EQ(points, 10u * 1000u);
+  if (!HasFailure()) fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace cdc
