@@ -16,7 +16,9 @@ PACKAGES=(
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   # network namespaces and fault injection used by tests
-  iproute2 iptables util-linux procps
+  iproute2 iptables util-linux procps tcpdump
+  # deployment checks: docker-compose.yml validation (no engine needed), systemd unit verification
+  docker-compose systemd
 )
 
 usage() {

@@ -115,6 +115,8 @@ int main(int argc, char** argv) {
   };
   CLI::App* play = app.add_subcommand("play", "publish a dataset written by 'cdc-sim generate'");
   play->add_option("dataset", dataset_dir, "dataset folder")->required();
+  play->add_option("--robot", po.only_robot, "play only this robot's sensors (a player beside each robot)")
+      ->check(CLI::Range(0, 254));
   play_options(play);
   CLI::App* play_k = app.add_subcommand("play-kitti", "publish a real KITTI velodyne folder");
   play_k->add_option("--velodyne", ko.velodyne_dir, "folder of NNNNNN.bin scans")->required();

@@ -207,7 +207,12 @@ PlaySummary play_dataset(const std::string& dir, const PlayOptions& o) {
   if (!fs::is_directory(dir)) {
     throw std::runtime_error(dir + ": not a dataset folder");
   }
-  const std::vector<ScanRef> scans = list_dataset_scans(dir, o.max_scans);
+  std::vector<ScanRef> scans = list_dataset_scans(dir, o.max_scans);
+  if (o.only_robot >= 0) {
+    scans.erase(std::remove_if(scans.begin(), scans.end(), [&](const ScanRef& s) { return s.robot != static_cast<uint32_t>(o.only_robot); }),
+                scans.end());
+    if (scans.empty()) throw std::runtime_error(dir + ": no scans of robot " + std::to_string(o.only_robot));
+  }
   std::map<uint32_t, std::vector<cdc_msg_ImuSample>> imu;
   for (const ScanRef& s : scans) {
     if (imu.count(s.robot) == 0) imu[s.robot] = read_imu(fs::path(dir) / ("robot_" + std::to_string(s.robot)) / "imu.csv");

@@ -15,6 +15,7 @@ struct PlayOptions {
   uint32_t wait_readers = 0;      // LiDAR readers to wait for before starting
   uint32_t incarnation = 1;
   size_t max_scans = 0;           // per robot; 0: all
+  int only_robot = -1;            // >= 0: play only this robot's sensors (a player beside each robot)
 };
 
 struct PlaySummary {
