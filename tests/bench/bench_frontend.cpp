@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include <chrono>
+#include <malloc.h>
 #include <cstring>
 #include <cstdio>
 #include <filesystem>
@@ -70,8 +71,12 @@ nlohmann::json memory_run(double minutes) {
     }
     core.process(static_cast<int64_t>(t * 1e9), scan);
     if (n % 600 == 599) {
-      samples.push_back({{"minute", (n + 1) / 600}, {"rss_kb", rss_kb("VmRSS:")}, {"map_voxels", core.map_voxels()}});
-      std::printf("minute %zu: RSS %ld kB, %zu map voxels\n", (n + 1) / 600, rss_kb("VmRSS:"), core.map_voxels());
+      // glibc's view: bytes in use by the program against bytes the heap holds (fragmentation).
+      const struct mallinfo2 mi = mallinfo2();
+      samples.push_back({{"minute", (n + 1) / 600}, {"rss_kb", rss_kb("VmRSS:")}, {"map_voxels", core.map_voxels()},
+                         {"heap_in_use_kb", mi.uordblks / 1024}, {"heap_held_kb", (mi.arena + mi.hblkhd) / 1024}});
+      std::printf("minute %zu: RSS %ld kB, %zu map voxels, heap in use %zu kB of %zu kB held\n", (n + 1) / 600,
+                  rss_kb("VmRSS:"), core.map_voxels(), mi.uordblks / 1024, (mi.arena + mi.hblkhd) / 1024);
       std::fflush(stdout);
     }
   }
