@@ -111,6 +111,41 @@ TEST_F(SimPlay, LockStepDeliversEveryScanExactlyOnceInOrder) {
   }
 }
 
+TEST_F(SimPlay, APlayerBesideARobotPlaysOnlyThatRobot) {
+  const fs::path sc = dir_ / "small.yaml";
+  std::ofstream(sc) << "name: small\nseed: 5\ntrajectories:\n  source: procedural\n  pattern: loops\n  robots: 2\n"
+                       "  duration_s: 10\n  size_m: 40\nradio:\n  central_robot: 0\n";
+  sim::GenerateOptions g;
+  g.max_scans = 10;
+  sim::generate_dataset(sim::load_scenario(sc.string()), sc.string(), (dir_ / "ds").string(), g);
+  test::ChildProcess player = test::ChildProcess::spawn(
+      {std::getenv("CDC_SIM_BIN"), "play", (dir_ / "ds").string(), "--robot", "1", "--lockstep", "--wait-readers", "1"},
+      (dir_ / "player.log").string());
+  std::map<uint32_t, size_t> per_robot;
+  const auto deadline = std::chrono::steady_clock::now() + 30s;
+  while (per_robot[1] < 10 && std::chrono::steady_clock::now() < deadline) {
+    r_lidar_->take(16).for_each_valid([&](const cdc_msg_LidarScan& s, const dds_sample_info_t&) {
+      ++per_robot[s.robot_id];
+      w_progress_->write(cdc_msg_ConsumerProgress{s.robot_id, s.incarnation, s.seq});
+    });
+    std::this_thread::sleep_for(1ms);
+  }
+  const auto st = player.wait(20s);
+  ASSERT_TRUE(st && WIFEXITED(*st) && WEXITSTATUS(*st) == 0) << "player failed, see " << (dir_ / "player.log");
+  r_lidar_->take(64).for_each_valid([&](const cdc_msg_LidarScan& s, const dds_sample_info_t&) { ++per_robot[s.robot_id]; });
+  EXPECT_EQ(per_robot[1], 10u);
+  EXPECT_EQ(per_robot[0], 0u) << "robot 0's sweeps were played too";
+  // A robot the dataset does not have is named.
+  test::ChildProcess bad = test::ChildProcess::spawn({std::getenv("CDC_SIM_BIN"), "play", (dir_ / "ds").string(), "--robot", "7"},
+                                                     (dir_ / "bad.log").string());
+  const auto bs = bad.wait(20s);
+  ASSERT_TRUE(bs && WIFEXITED(*bs));
+  EXPECT_NE(WEXITSTATUS(*bs), 0);
+  std::ifstream log(dir_ / "bad.log");
+  const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("no scans of robot 7"), std::string::npos) << text;
+}
+
 TEST_F(SimPlay, KittiPlayerPublishesRealScansWithTheirGroundTruth) {
   const char* env = std::getenv("CDC_DATA_DIR");
   const fs::path data = env != nullptr ? env : "../shared/data";
