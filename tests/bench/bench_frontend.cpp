@@ -28,6 +28,20 @@ namespace {
 
 using namespace cdc;
 
+// The continuous-time drive through a 10 Hz trajectory's poses, and a city generated around it.
+void drive_and_world(const geometry::Trajectory& poses, uint64_t seed, sim::SplineTrajectory& traj, sim::World& world) {
+  std::vector<Eigen::Isometry3d> controls;
+  std::vector<Eigen::Vector3d> path;
+  for (const auto& sp : poses) {
+    controls.push_back(sp.pose);
+    path.push_back(sp.pose.translation());
+  }
+  traj = sim::SplineTrajectory(controls, static_cast<double>(poses.front().stamp_ns) * 1e-9, 0.1);
+  sim::WorldOptions wo;
+  wo.seed = seed;
+  world = sim::World::generate({path}, wo);
+}
+
 long rss_kb(const char* field) {
   std::ifstream in("/proc/self/status");
   std::string line;
@@ -46,18 +60,9 @@ nlohmann::json memory_run(double minutes) {
   mo.speed_mps = 8;
   mo.size_m = 400;
   mo.duration_s = minutes * 60 + 2;
-  const geometry::Trajectory path = sim::procedural_mission(mo).front();
-  std::vector<Eigen::Isometry3d> controls;
-  std::vector<Eigen::Vector3d> pts;
-  for (const auto& sp : path) {
-    controls.push_back(sp.pose);
-    pts.push_back(sp.pose.translation());
-  }
-  const double t0 = static_cast<double>(path.front().stamp_ns) * 1e-9;
-  const sim::SplineTrajectory traj(controls, t0, 0.1);
-  sim::WorldOptions wo;
-  wo.seed = 2;
-  const sim::World world = sim::World::generate({pts}, wo);
+  sim::SplineTrajectory traj;
+  sim::World world;
+  drive_and_world(sim::procedural_mission(mo).front(), 2, traj, world);
   frontend::FrontendCore core(frontend::FrontendParams{});
   std::mt19937_64 rng(3);
   nlohmann::json samples = nlohmann::json::array();
@@ -179,17 +184,7 @@ int main(int argc, char** argv) {
   }
   const auto full = sim::kitti_lidar_trajectory(poses, sim::read_kitti_calib(data + "/kitti/calib_Tr.txt", "Tr_04_10"));
   Setup s;
-  std::vector<Eigen::Isometry3d> controls;
-  std::vector<Eigen::Vector3d> path;
-  for (const auto& sp : full) {
-    controls.push_back(sp.pose);
-    path.push_back(sp.pose.translation());
-  }
-  const double t0 = static_cast<double>(full.front().stamp_ns) * 1e-9;
-  s.traj = sim::SplineTrajectory(controls, t0, 0.1);
-  sim::WorldOptions wo;
-  wo.seed = 5;
-  s.world = sim::World::generate({path}, wo);
+  drive_and_world(full, 5, s.traj, s.world);
   for (double t = s.traj.start(); t + 0.1 < s.traj.end(); t += 0.1) {
     s.stamps.push_back(t);
     if (max_scans > 0 && s.stamps.size() >= max_scans) break;
