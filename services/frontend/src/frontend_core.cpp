@@ -26,18 +26,30 @@ void FrontendCore::add_imu(const ImuIn& s) {
   while (imu_.size() > 2 && imu_[1].stamp_ns < last_stamp_ - 500'000'000) imu_.pop_front();
 }
 
-// Rotation of the IMU from `from` to `to` by integrating the gyro (sample-and-hold), expressed in
-// the LiDAR frame; none when the samples do not cover the interval.
-std::optional<Eigen::Matrix3d> FrontendCore::imu_rotation(int64_t from, int64_t to) const {
-  if (imu_.size() < 2 || imu_.front().stamp_ns > from || imu_.back().stamp_ns < to) return std::nullopt;
-  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-  for (size_t i = 0; i + 1 < imu_.size(); ++i) {
-    const int64_t a = std::max(imu_[i].stamp_ns, from), b = std::min(imu_[i + 1].stamp_ns, to);
-    if (b <= a) continue;
-    R = R * geometry::so3_exp(imu_[i].gyro * (static_cast<double>(b - a) * 1e-9));
-  }
+// Rotations of the IMU from `from` to each instant of `to` (ascending) by integrating the gyro
+// (sample-and-hold) once, expressed in the LiDAR frame; none where the samples do not cover.
+std::vector<std::optional<Eigen::Matrix3d>> FrontendCore::imu_rotations(int64_t from, const std::vector<int64_t>& to) const {
+  std::vector<std::optional<Eigen::Matrix3d>> out(to.size());
+  if (imu_.size() < 2 || imu_.front().stamp_ns > from) return out;
   const Eigen::Matrix3d R_li = p_.T_lidar_imu.rotation();
-  return R_li * R * R_li.transpose();
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  int64_t reached = from;
+  size_t i = 0;
+  for (size_t k = 0; k < to.size(); ++k) {
+    if (imu_.back().stamp_ns < to[k]) break;  // nor are later instants covered
+    while (reached < to[k]) {
+      while (imu_[i + 1].stamp_ns <= reached) ++i;  // the sample held at `reached`
+      const int64_t end = std::min(imu_[i + 1].stamp_ns, to[k]);
+      R = R * geometry::so3_exp(imu_[i].gyro * (static_cast<double>(end - reached) * 1e-9));
+      reached = end;
+    }
+    out[k] = R_li * R * R_li.transpose();
+  }
+  return out;
+}
+
+std::optional<Eigen::Matrix3d> FrontendCore::imu_rotation(int64_t from, int64_t to) const {
+  return imu_rotations(from, {to}).front();
 }
 
 std::vector<Eigen::Vector3d> FrontendCore::prepare(int64_t stamp_ns, const std::vector<ScanPoint>& points,
@@ -50,12 +62,16 @@ std::vector<Eigen::Vector3d> FrontendCore::prepare(int64_t stamp_ns, const std::
   const double span = std::max(1e-3, static_cast<double>(t_max));
   std::array<Eigen::Isometry3d, kSlots + 1> slot;
   const Vector6d xi = geometry::se3_log(sweep_motion);  // over `span`
+  std::vector<int64_t> instants(kSlots + 1);
   for (int k = 0; k <= kSlots; ++k) {
     const double f = static_cast<double>(k) / kSlots;
     slot[static_cast<size_t>(k)] = geometry::se3_exp(xi * f);
-    if (!imu_.empty()) {
-      const auto R = imu_rotation(stamp_ns, stamp_ns + static_cast<int64_t>(f * span * 1e9));
-      if (R) slot[static_cast<size_t>(k)].linear() = *R;
+    instants[static_cast<size_t>(k)] = stamp_ns + static_cast<int64_t>(f * span * 1e9);
+  }
+  if (!imu_.empty()) {
+    const auto R = imu_rotations(stamp_ns, instants);  // one pass over the samples for all slots
+    for (size_t k = 0; k < R.size(); ++k) {
+      if (R[k]) slot[k].linear() = *R[k];
     }
   }
   std::vector<Eigen::Vector3d> out;

@@ -105,6 +105,7 @@ class FrontendCore {
   std::vector<Eigen::Vector3d> prepare(int64_t stamp_ns, const std::vector<ScanPoint>& points, const Eigen::Isometry3d& delta,
                                        std::vector<uint16_t>& rings);
   std::optional<Eigen::Matrix3d> imu_rotation(int64_t from_ns, int64_t to_ns) const;
+  std::vector<std::optional<Eigen::Matrix3d>> imu_rotations(int64_t from_ns, const std::vector<int64_t>& to_ns) const;
 
   FrontendParams p_;
   odometry::VoxelMap map_;
