@@ -73,11 +73,7 @@ bool VoxelMap::nearest(const Eigen::Vector3d& q, Eigen::Vector3d& out, double& b
 
 std::vector<size_t> voxel_filter_indices(const std::vector<Eigen::Vector3d>& points, double voxel_m) {
   struct Hash {
-    size_t operator()(const Eigen::Vector3i& k) const noexcept {
-      return (static_cast<size_t>(static_cast<uint32_t>(k.x())) * 73856093u) ^
-             (static_cast<size_t>(static_cast<uint32_t>(k.y())) * 19349663u) ^
-             (static_cast<size_t>(static_cast<uint32_t>(k.z())) * 83492791u);
-    }
+    size_t operator()(const Eigen::Vector3i& k) const noexcept { return voxel_hash(k.x(), k.y(), k.z()); }
   };
   std::unordered_map<Eigen::Vector3i, bool, Hash> seen;
   seen.reserve(points.size());

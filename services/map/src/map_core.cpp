@@ -1,6 +1,7 @@
 #include "cdc/map/map_core.hpp"
 
 #include "cdc/geometry/se3.hpp"
+#include "cdc/odometry/voxel_map.hpp"
 
 #include <octomap/octomap.h>
 
@@ -8,7 +9,6 @@
 #include <cstring>
 #include <fstream>
 #include <stdexcept>
-#include <unordered_set>
 
 namespace cdc::map {
 
@@ -60,23 +60,12 @@ size_t MapCore::set_poses(uint32_t robot, const std::vector<std::pair<uint32_t, 
 }
 
 std::vector<Eigen::Vector3f> MapCore::global_cloud() const {
-  struct Hash {
-    size_t operator()(const Eigen::Vector3i& k) const noexcept {
-      return (static_cast<size_t>(static_cast<uint32_t>(k.x())) * 73856093u) ^
-             (static_cast<size_t>(static_cast<uint32_t>(k.y())) * 19349663u) ^
-             (static_cast<size_t>(static_cast<uint32_t>(k.z())) * 83492791u);
-    }
-  };
-  std::unordered_set<Eigen::Vector3i, Hash> seen;
-  std::vector<Eigen::Vector3f> out;
-  const double v = p_.voxel_m;
+  std::vector<Eigen::Vector3d> all;
   for (const auto& [id, pl] : placed_) {
-    for (const auto& p : pl.world) {
-      const Eigen::Vector3i k(static_cast<int>(std::floor(p.x() / v)), static_cast<int>(std::floor(p.y() / v)),
-                              static_cast<int>(std::floor(p.z() / v)));
-      if (seen.insert(k).second) out.push_back(p);
-    }
+    for (const auto& p : pl.world) all.push_back(p.cast<double>());
   }
+  std::vector<Eigen::Vector3f> out;
+  for (size_t i : odometry::voxel_filter_indices(all, p_.voxel_m)) out.push_back(all[i].cast<float>());
   return out;
 }
 

@@ -6,12 +6,19 @@
 
 #include <Eigen/Core>
 
+#include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <unordered_map>
 #include <vector>
 
 namespace cdc::odometry {
+
+// The spatial hash of an integer voxel coordinate (Teschner et al.), shared by the map and the filter.
+inline size_t voxel_hash(int32_t x, int32_t y, int32_t z) noexcept {
+  return (static_cast<size_t>(static_cast<uint32_t>(x)) * 73856093u) ^ (static_cast<size_t>(static_cast<uint32_t>(y)) * 19349663u) ^
+         (static_cast<size_t>(static_cast<uint32_t>(z)) * 83492791u);
+}
 
 struct VoxelMapParams {
   double voxel_m = 1.0;
@@ -42,11 +49,7 @@ class VoxelMap {
     bool operator==(const Key& o) const noexcept { return x == o.x && y == o.y && z == o.z; }
   };
   struct KeyHash {
-    size_t operator()(const Key& k) const noexcept {
-      return (static_cast<size_t>(static_cast<uint32_t>(k.x)) * 73856093u) ^
-             (static_cast<size_t>(static_cast<uint32_t>(k.y)) * 19349663u) ^
-             (static_cast<size_t>(static_cast<uint32_t>(k.z)) * 83492791u);
-    }
+    size_t operator()(const Key& k) const noexcept { return voxel_hash(k.x, k.y, k.z); }
   };
   Key key_of(const Eigen::Vector3d& p) const;
 
