@@ -19,6 +19,8 @@ PACKAGES=(
   iproute2 iptables util-linux procps tcpdump
   # deployment checks: docker-compose.yml validation (no engine needed), systemd unit verification
   docker-compose systemd
+  # run reports: PNG copies of the SVG plots (rsvg-convert)
+  librsvg2-bin
 )
 
 usage() {

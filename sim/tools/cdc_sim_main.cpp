@@ -110,6 +110,8 @@ int main(int argc, char** argv) {
     c->add_option("--lockstep-timeout", po.lockstep_timeout_s, "[s]")->capture_default_str();
     c->add_option("--wait-readers", po.wait_readers, "LiDAR readers to wait for before starting");
     c->add_option("--max-scans", po.max_scans, "scans per robot (0: all)");
+    c->add_option("--clock-file", po.clock_file,
+                  "after each sweep write '<stamp ns> <sweeps played>' here (atomically), for a launcher");
     c->add_option("--domain", domain, "DDS domain id (default: CDC_DDS_DOMAIN or 0)")->check(CLI::Range(0, 232));
     c->add_option("--dds-config", po.dds_config, "Cyclone DDS configuration (default: CYCLONEDDS_URI)");
   };

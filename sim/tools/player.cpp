@@ -201,6 +201,18 @@ std::vector<std::pair<int64_t, std::vector<cdc_msg_RadioLink>>> read_radio(const
   return out;
 }
 
+// Replaces the clock file atomically so that a reader never sees half a line.
+void write_clock(const std::string& path, int64_t stamp_ns, size_t scans) {
+  if (path.empty()) return;
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::trunc);
+    if (!out) throw std::runtime_error(path + ": cannot write the clock file");
+    out << stamp_ns << ' ' << scans << '\n';
+  }
+  fs::rename(tmp, path);
+}
+
 }  // namespace
 
 PlaySummary play_dataset(const std::string& dir, const PlayOptions& o) {
@@ -242,6 +254,7 @@ PlaySummary play_dataset(const std::string& dir, const PlayOptions& o) {
     }
     pub.publish_scan(s);
     ++sum.scans;
+    write_clock(o.clock_file, s.stamp_ns, sum.scans);
   }
   return sum;
 }
@@ -287,6 +300,7 @@ PlaySummary play_kitti(const KittiPlayOptions& k, const PlayOptions& o) {
     pub.pace(s.stamp_ns);
     pub.publish_scan(s);
     ++sum.scans;
+    write_clock(o.clock_file, s.stamp_ns, sum.scans);
   }
   return sum;
 }

@@ -16,6 +16,8 @@ struct PlayOptions {
   uint32_t incarnation = 1;
   size_t max_scans = 0;           // per robot; 0: all
   int only_robot = -1;            // >= 0: play only this robot's sensors (a player beside each robot)
+  std::string clock_file;         // non-empty: after each sweep, "<sweep stamp ns> <sweeps played>" is
+                                  // written here (atomically replaced), for a launcher that follows sim time
 };
 
 struct PlaySummary {

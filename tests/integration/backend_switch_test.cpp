@@ -69,7 +69,9 @@ class BackendSwarm : public ::testing::Test {
     dds::Qos deep;
     deep.reliable().keep_last(4096).transient_local();
     r_mode_ = std::make_unique<dds::Reader<cdc_msg_ModeState>>(*participant_, *t_mode_, deep);
-    r_corr_ = std::make_unique<dds::Reader<cdc_msg_OptimizedPoses>>(*participant_, *t_corr_, dds::qos::event_stream(4096));
+    // Corrections are written in each robot's partition (for its own front-end).
+    r_corr_ = std::make_unique<dds::Reader<cdc_msg_OptimizedPoses>>(
+        *participant_, *t_corr_, dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
   }
 
   void TearDown() override {

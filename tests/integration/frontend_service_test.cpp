@@ -46,7 +46,8 @@ TEST(FrontendService, OdometryAndKeyframesFromAPlayedDrive) {
   dds::Topic<cdc_msg_LidarScan> t_scan(participant, dds::topics::kLidar);
   dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
   dds::Writer<cdc_msg_LidarScan> w_scan(participant, t_scan, dds::qos::sensor_stream(16, true));
-  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096));
+  // The front-end writes its keyframes in its robot's partition, as the central node reads them.
+  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
 
   test::ChildProcess fe = test::ChildProcess::spawn(
       {std::getenv("CDC_FRONTEND_BIN"), "--robot", "0", "--config", (dir / "frontend.yaml").string(), "--stats-out",

@@ -1,5 +1,7 @@
 #include "cdc/dds/qos.hpp"
 
+#include "cdc/dds/pubsub.hpp"
+
 #include <utility>
 
 namespace cdc::dds {
@@ -44,6 +46,27 @@ Qos& Qos::keep_all() {
   dds_qset_history(qos_, DDS_HISTORY_KEEP_ALL, DDS_LENGTH_UNLIMITED);
   return *this;
 }
+Qos& Qos::partitions(const std::vector<std::string>& names) {
+  std::vector<const char*> ps;
+  for (const auto& n : names) ps.push_back(n.c_str());
+  dds_qset_partition(qos_, static_cast<uint32_t>(ps.size()), ps.data());
+  return *this;
+}
+
+std::vector<std::string> Qos::partitions() const {
+  uint32_t n = 0;
+  char** ps = nullptr;
+  std::vector<std::string> out;
+  if (dds_qget_partition(qos_, &n, &ps)) {
+    for (uint32_t i = 0; i < n; ++i) {
+      out.emplace_back(ps[i]);
+      dds_free(ps[i]);
+    }
+    dds_free(ps);
+  }
+  return out;
+}
+
 Qos& Qos::transient_local() {
   dds_qset_durability(qos_, DDS_DURABILITY_TRANSIENT_LOCAL);
   return *this;
@@ -101,4 +124,22 @@ Qos monitored_reader() {
 }
 
 }  // namespace qos
+namespace detail {
+Entity make_group(const Participant& participant, const Qos& qos, bool publisher) {
+  const std::vector<std::string> names = qos.partitions();
+  if (names.empty()) return Entity();
+  Qos group;
+  group.partitions(names);
+  const dds_entity_t e = publisher ? dds_create_publisher(participant.handle(), group.get(), nullptr)
+                                   : dds_create_subscriber(participant.handle(), group.get(), nullptr);
+  return Entity(check(e, publisher ? "create publisher" : "create subscriber"));
+}
+}  // namespace detail
+
+namespace partitions {
+std::string robot(uint32_t robot_id) { return "robot/" + std::to_string(robot_id); }
+std::vector<std::string> own_reader(uint32_t robot_id) { return {robot(robot_id), ""}; }
+std::vector<std::string> all_robots_reader() { return {kAllRobots, ""}; }
+}  // namespace partitions
+
 }  // namespace cdc::dds

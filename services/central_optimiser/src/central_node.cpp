@@ -110,7 +110,7 @@ int run_central(const CentralNodeOptions& o) {
   dds::Topic<cdc_msg_Acknowledgement> t_ack(participant, topics::kCentralAck);
   dds::Topic<cdc_msg_RobotStatus> t_status(participant, topics::kRobotStatus);
 
-  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096));
+  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
   dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop, dds::qos::event_stream(4096));
   dds::Reader<cdc_msg_WorldTransform> r_world(participant, t_world, dds::qos::keyed_state());
   dds::Writer<cdc_msg_OptimizedPoses> w_opt(participant, t_opt,

@@ -15,6 +15,7 @@
 #include <spdlog/spdlog.h>
 
 #include <fstream>
+#include <optional>
 
 namespace cdc::frontend {
 namespace {
@@ -66,26 +67,41 @@ int run_frontend(const FrontendNodeOptions& o) {
   po.domain_id = o.domain;
   po.config = o.dds_config;
   dds::Participant participant(po);
-  dds::Topic<cdc_msg_LidarScan> t_scan(participant, topics::kLidar);
-  dds::Topic<cdc_msg_ImuBatch> t_imu(participant, topics::kImu);
+  // Sensors and lock-step progress may live on a domain of their own (the simulator's), so that
+  // they never cross the emulated radio; by default they share the SLAM domain.
+  std::optional<dds::Participant> sensor_participant;
+  if (o.sensor_domain >= 0 && static_cast<uint32_t>(o.sensor_domain) != o.domain) {
+    dds::ParticipantOptions so = po;
+    so.domain_id = static_cast<uint32_t>(o.sensor_domain);
+    sensor_participant.emplace(so);
+  }
+  const dds::Participant& sensors = sensor_participant ? *sensor_participant : participant;
+  dds::Topic<cdc_msg_LidarScan> t_scan(sensors, topics::kLidar);
+  dds::Topic<cdc_msg_ImuBatch> t_imu(sensors, topics::kImu);
+  dds::Topic<cdc_msg_ConsumerProgress> t_progress(sensors, topics::kProgress);
   dds::Topic<cdc_msg_OptimizedPoses> t_corr(participant, topics::kCorrection);
   dds::Topic<cdc_msg_Odometry> t_odom(participant, topics::kOdometry);
   dds::Topic<cdc_msg_Keyframe> t_kf(participant, topics::kKeyframe);
-  dds::Topic<cdc_msg_ConsumerProgress> t_progress(participant, topics::kProgress);
-  dds::Reader<cdc_msg_LidarScan> r_scan(participant, t_scan, dds::qos::sensor_stream(16, true));
-  dds::Reader<cdc_msg_ImuBatch> r_imu(participant, t_imu, dds::qos::sensor_stream(64, true));
-  dds::Reader<cdc_msg_OptimizedPoses> r_corr(participant, t_corr, dds::qos::event_stream(64));
-  dds::Writer<cdc_msg_Odometry> w_odom(participant, t_odom, dds::qos::sensor_stream(16, true));
-  dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096));
-  dds::Writer<cdc_msg_ConsumerProgress> w_progress(participant, t_progress, dds::qos::keyed_state());
-  dds::GuardCondition stop(participant);
+  dds::Reader<cdc_msg_LidarScan> r_scan(sensors, t_scan, dds::qos::sensor_stream(16, true));
+  dds::Reader<cdc_msg_ImuBatch> r_imu(sensors, t_imu, dds::qos::sensor_stream(64, true));
+  dds::Reader<cdc_msg_OptimizedPoses> r_corr(participant, t_corr, dds::qos::event_stream(64).partitions(dds::partitions::own_reader(me)));
+  dds::Writer<cdc_msg_Odometry> w_odom(participant, t_odom, dds::qos::sensor_stream(16, true).partitions({dds::partitions::robot(me)}));
+  dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096).partitions({dds::partitions::robot(me)}));
+  dds::Writer<cdc_msg_ConsumerProgress> w_progress(sensors, t_progress, dds::qos::keyed_state());
+  // The waitset belongs to the sensors' participant; corrections are taken on every wake-up
+  // (at least every 200 ms) when they arrive on the other one.
+  dds::GuardCondition stop(sensors);
   dds::ShutdownSignal::add_guard(&stop);
-  dds::ReadCondition rc_scan(r_scan.handle()), rc_imu(r_imu.handle()), rc_corr(r_corr.handle());
-  dds::WaitSet ws(participant);
+  dds::ReadCondition rc_scan(r_scan.handle()), rc_imu(r_imu.handle());
+  dds::WaitSet ws(sensors);
   ws.attach(stop.handle(), 0);
   ws.attach(rc_scan.handle(), 1);
   ws.attach(rc_imu.handle(), 2);
-  ws.attach(rc_corr.handle(), 3);
+  std::optional<dds::ReadCondition> rc_corr;
+  if (!sensor_participant) {
+    rc_corr.emplace(r_corr.handle());
+    ws.attach(rc_corr->handle(), 3);
+  }
 
   dds::ValidationLimits limits;
   limits.robot_count = o.robots;
@@ -101,6 +117,7 @@ int run_frontend(const FrontendNodeOptions& o) {
   spdlog::info("front-end of robot {} up: {}deskewing, IMU {}, keyframes every {} m / {} deg, domain {}", me,
                o.core.deskew ? "" : "no ", o.use_imu ? "on" : "off", o.core.keyframe_distance_m,
                o.core.keyframe_angle_rad * 180 / M_PI, o.domain);
+  if (sensor_participant) spdlog::info("sensors and lock-step progress on domain {}", o.sensor_domain);
   auto reject = [&](const char* topic, dds::Validation v) {
     if (rejected.record(topic, v)) {
       spdlog::warn("rejected {}: {}", topic, rejected.last_reason());
@@ -132,7 +149,7 @@ int run_frontend(const FrontendNodeOptions& o) {
       }
     });
     r_corr.take(16).for_each_valid([&](const cdc_msg_OptimizedPoses& m, const dds_sample_info_t&) {
-      if (m.robot_id != me) return;
+      if (m.robot_id != me || !o.take_corrections) return;
       if (reject(topics::kCorrection, dds::validate(m, limits))) return;
       // The newest keyframe of the result that this front-end knows carries the correction.
       for (int64_t i = static_cast<int64_t>(m.poses._length) - 1; i >= 0; --i) {

@@ -25,7 +25,14 @@ int main(int argc, char** argv) {
   app.add_option("--config", config_path, "YAML configuration (see services/frontend/config)")->check(CLI::ExistingFile);
   app.add_option("--dds-config", dds_config, "Cyclone DDS configuration (file://...); default: CYCLONEDDS_URI");
   app.add_option("--domain", domain, "DDS domain id (default: CDC_DDS_DOMAIN or 0)")->check(CLI::Range(0, 232));
+  int sensor_domain = -1;
+  app.add_option("--sensor-domain", sensor_domain,
+                 "DDS domain of the sweeps, IMU and lock-step progress (default: the SLAM domain)")
+      ->check(CLI::Range(0, 232));
   app.add_flag("--lidar-only", lidar_only, "ignore the IMU");
+  bool no_corrections = false;
+  app.add_flag("--no-corrections", no_corrections,
+               "ignore the back-end's corrections: publish raw odometry (the paper's 'without correction' ablation)");
   app.add_option("--trajectory-out", trajectory_out, "write the published odometry (TUM) here at shutdown");
   app.add_option("--stats-out", stats_out, "write counters (JSON) here at shutdown");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error");
@@ -39,9 +46,11 @@ int main(int argc, char** argv) {
     o.robot = robot;
     o.domain = domain >= 0 ? static_cast<uint32_t>(domain) : cdc::dds::domain_from_env(0);
     o.dds_config = dds_config;
+    o.sensor_domain = sensor_domain;
     o.stats_out = stats_out;
     o.trajectory_out = trajectory_out;
     if (lidar_only) o.use_imu = false;
+    if (no_corrections) o.take_corrections = false;
     if (!log_level.empty()) o.log_level = log_level;
     cdc::runtime::init_logging("cdc-frontend-" + std::to_string(robot), o.log_level);
     return cdc::frontend::run_frontend(o);

@@ -16,6 +16,7 @@
 
 #include <fstream>
 #include <map>
+#include <memory>
 
 namespace cdc::loops {
 namespace {
@@ -89,13 +90,20 @@ int run_loop_closure(const LoopNodeOptions& o) {
   dds::Topic<cdc_msg_LoopClosure> t_loop(participant, topics::kLoopClosure);
   dds::Topic<cdc_msg_CloudRequest> t_req(participant, topics::kCloudRequest);
   dds::Topic<cdc_msg_CloudReply> t_rep(participant, topics::kCloudReply);
-  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096));
+  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(me)));
   dds::Reader<cdc_msg_Descriptor> r_desc(participant, t_desc, dds::qos::event_stream(4096));
   dds::Reader<cdc_msg_CloudRequest> r_req(participant, t_req, dds::qos::event_stream(256));
-  dds::Reader<cdc_msg_CloudReply> r_rep(participant, t_rep, dds::qos::event_stream(256));
+  dds::Reader<cdc_msg_CloudReply> r_rep(participant, t_rep, dds::qos::event_stream(256).partitions(dds::partitions::own_reader(me)));
   dds::Writer<cdc_msg_LoopClosure> w_loop(participant, t_loop, dds::qos::event_stream(4096));
   dds::Writer<cdc_msg_CloudRequest> w_req(participant, t_req, dds::qos::event_stream(256));
-  dds::Writer<cdc_msg_CloudReply> w_rep(participant, t_rep, dds::qos::event_stream(256));
+  // Cloud replies go only to the robot that asked: one writer per robot, in that robot's partition
+  // (made up front: a writer's first sample can be lost before it has matched).
+  std::vector<std::unique_ptr<dds::Writer<cdc_msg_CloudReply>>> w_rep_to(o.robots);
+  for (uint32_t r = 0; r < o.robots; ++r) {
+    if (r == me) continue;
+    w_rep_to[r] = std::make_unique<dds::Writer<cdc_msg_CloudReply>>(
+        participant, t_rep, dds::qos::event_stream(256).partitions({dds::partitions::robot(r)}));
+  }
   dds::GuardCondition stop(participant);
   dds::ShutdownSignal::add_guard(&stop);
   dds::ReadCondition rc_kf(r_kf.handle()), rc_desc(r_desc.handle()), rc_req(r_req.handle()), rc_rep(r_rep.handle());
@@ -233,7 +241,8 @@ int run_loop_closure(const LoopNodeOptions& o) {
       }
       rep.point_count = static_cast<uint32_t>(reply_storage.size());
       dds::borrow(rep.cloud, reply_storage);
-      w_rep.write(rep);
+      if (m.requester_robot_id >= w_rep_to.size() || !w_rep_to[m.requester_robot_id]) return;  // validated above
+      w_rep_to[m.requester_robot_id]->write(rep);
       traffic.out(topics::kCloudReply, dds::wire_size(rep), m.requester_robot_id);
     });
     r_rep.take(16).for_each_valid([&](const cdc_msg_CloudReply& m, const dds_sample_info_t&) {

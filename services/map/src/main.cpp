@@ -44,6 +44,7 @@ void load(const std::string& path, Options& o) {
   r.get<double>("cloud_voxel_m", o.core.voxel_m, positive, "> 0");
   r.get<double>("octree_resolution_m", o.core.octree_resolution_m, positive, "> 0");
   r.get<double>("max_range_m", o.core.max_range_m, positive, "> 0");
+  r.get<double>("ray_spacing_m", o.core.ray_spacing_m, [](const double& v) { return v >= 0; }, ">= 0");
   r.get<double>("write_period_s", o.write_period_s, [](const double& v) { return v >= 0; }, ">= 0");
   r.get<std::string>("log_level", o.log_level);
   r.finish();
@@ -58,7 +59,7 @@ int run(const Options& o) {
   dds::Participant participant(po);
   dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
   dds::Topic<cdc_msg_OptimizedPoses> t_opt(participant, dds::topics::kCentralOptimized);
-  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096));
+  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
   dds::Reader<cdc_msg_OptimizedPoses> r_opt(participant, t_opt, dds::qos::monitored_reader());
   dds::GuardCondition stop(participant);
   dds::ShutdownSignal::add_guard(&stop);

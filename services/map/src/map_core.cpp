@@ -5,6 +5,8 @@
 
 #include <octomap/octomap.h>
 
+#include <map>
+
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -72,13 +74,26 @@ std::vector<Eigen::Vector3f> MapCore::global_cloud() const {
 const octomap::OcTree& MapCore::octree() {
   if (tree_dirty_) {
     tree_ = std::make_unique<octomap::OcTree>(p_.octree_resolution_m);
+    // Ray casting dominates the cost (every ray crosses range / resolution cells) and consecutive
+    // keyframes see the same free space: rays from keyframes ray_spacing_m apart, occupied cells
+    // from all of them.
+    std::map<uint32_t, Eigen::Vector3d> last_ray_origin;  // per robot
     for (const auto& [id, pl] : placed_) {
-      octomap::Pointcloud cloud;
-      cloud.reserve(pl.world.size());
-      for (const auto& p : pl.world) cloud.push_back(p.x(), p.y(), p.z());
       const Eigen::Vector3d o = pl.T_world.translation();
-      tree_->insertPointCloud(cloud, octomap::point3d(static_cast<float>(o.x()), static_cast<float>(o.y()), static_cast<float>(o.z())),
-                              p_.max_range_m, false, true);
+      const uint32_t robot = id.first;
+      auto last = last_ray_origin.find(robot);
+      if (last == last_ray_origin.end() || (o - last->second).norm() >= p_.ray_spacing_m) {
+        octomap::Pointcloud cloud;
+        cloud.reserve(pl.world.size());
+        for (const auto& p : pl.world) cloud.push_back(p.x(), p.y(), p.z());
+        tree_->insertPointCloud(cloud, octomap::point3d(static_cast<float>(o.x()), static_cast<float>(o.y()), static_cast<float>(o.z())),
+                                p_.max_range_m, false, true);
+        last_ray_origin[robot] = o;
+      } else {
+        for (const auto& p : pl.world) {
+          if ((p.cast<double>() - o).norm() <= p_.max_range_m) tree_->updateNode(p.x(), p.y(), p.z(), true, true);
+        }
+      }
     }
     tree_->updateInnerOccupancy();
     tree_dirty_ = false;

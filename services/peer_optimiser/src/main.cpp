@@ -27,6 +27,10 @@ int main(int argc, char** argv) {
   app.add_option("--dds-config", dds_config, "Cyclone DDS configuration (file://...); default: CYCLONEDDS_URI");
   app.add_option("--domain", domain, "DDS domain id (default: CDC_DDS_DOMAIN or 0)")->check(CLI::Range(0, 232));
   app.add_option("--stats-out", stats_out, "write counters (JSON) here at shutdown");
+  std::string mode_out, trajectory_out;
+  app.add_option("--mode-out", mode_out, "write every mode transition (CSV) here as it happens");
+  app.add_option("--trajectory-out", trajectory_out,
+                 "write the robot's keyframes in the world frame as last corrected (TUM) here at shutdown");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error");
   CLI11_PARSE(app, argc, argv);
   try {
@@ -40,6 +44,8 @@ int main(int argc, char** argv) {
     o.domain = domain >= 0 ? static_cast<uint32_t>(domain) : cdc::dds::domain_from_env(0);
     o.dds_config = dds_config;
     o.stats_out = stats_out;
+    o.mode_out = mode_out;
+    o.trajectory_out = trajectory_out;
     if (!log_level.empty()) {
       o.log_level = log_level;
     }

@@ -9,10 +9,12 @@
 #include "cdc/dds/topics.hpp"
 #include "cdc/dds/validate.hpp"
 #include "cdc/dds/waitset.hpp"
+#include "cdc/geometry/trajectory.hpp"
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include <cstdio>
 #include <fstream>
 #include <map>
 
@@ -96,17 +98,17 @@ int run_peer(const PeerNodeOptions& o) {
   dds::Topic<cdc_msg_OptimizedPoses> t_corr(participant, topics::kCorrection);
   dds::Topic<cdc_msg_WorldTransform> t_world(participant, topics::kWorldTransform);
 
-  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096));
+  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(me)));
   dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop, dds::qos::event_stream(4096));
   dds::Reader<cdc_msg_OptimizedPoses> r_central(participant, t_central, dds::qos::monitored_reader());
   dds::Reader<cdc_msg_Acknowledgement> r_ack(participant, t_ack, dds::qos::keyed_state());
   dds::Reader<cdc_msg_SeparatorPoses> r_sep(participant, t_sep, dds::qos::event_stream(256));
   dds::Reader<cdc_msg_RobotStatus> r_status(participant, t_status, dds::qos::keyed_state());
   dds::Writer<cdc_msg_ModeState> w_mode(participant, t_mode, dds::qos::keyed_state(8));
-  dds::Writer<cdc_msg_OptimizedPoses> w_corr(participant, t_corr, dds::qos::event_stream(64));
+  dds::Writer<cdc_msg_OptimizedPoses> w_corr(participant, t_corr, dds::qos::event_stream(64).partitions({dds::partitions::robot(me)}));
   dds::Writer<cdc_msg_SeparatorPoses> w_sep(participant, t_sep, dds::qos::event_stream(256));
   dds::Writer<cdc_msg_WorldTransform> w_world(participant, t_world, dds::qos::keyed_state());
-  dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096));
+  dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096).partitions({dds::partitions::robot(me)}));
   dds::Writer<cdc_msg_LoopClosure> w_loop(participant, t_loop, dds::qos::event_stream(4096));
   dds::Writer<cdc_msg_RobotStatus> w_status(participant, t_status, dds::qos::keyed_state());
   dds::LivelinessMonitor central_liveliness(participant, t_central.handle(), "central optimiser");
@@ -138,6 +140,14 @@ int run_peer(const PeerNodeOptions& o) {
   auto last_status = Clock::now() - std::chrono::hours(1);
   auto last_mode = last_status;
   std::vector<cdc_msg_KeyframePose> pose_storage;
+  std::map<uint32_t, Eigen::Isometry3d> latest_world;  // own keyframes, T_world, as last corrected
+  int64_t sim_stamp_ns = 0;                            // newest own keyframe's data time
+  std::ofstream mode_log;
+  if (!o.mode_out.empty()) {
+    mode_log.open(o.mode_out);
+    if (!mode_log) throw std::runtime_error(o.mode_out + ": cannot write the mode timeline");
+    mode_log << "wall_ns,sim_ns,robot,from,to,reason,distance_m,keyframes\n" << std::flush;
+  }
   spdlog::info("peer optimiser of robot {} up: CR_0 {} m, dwell {} ms, mask {} ms, domain {}", me,
                o.core.rtdos.range_m, o.core.rtdos.dwell.count() / 1'000'000, o.core.rtdos.mask.count() / 1'000'000,
                o.domain);
@@ -167,6 +177,7 @@ int run_peer(const PeerNodeOptions& o) {
         return;
       }
       incarnation = m.incarnation;
+      sim_stamp_ns = std::max(sim_stamp_ns, m.stamp_ns);
       StoredKeyframe& s = own_keyframes[m.keyframe_id];
       s.msg = m;
       s.cloud.assign(m.cloud._buffer, m.cloud._buffer + m.cloud._length);
@@ -248,6 +259,13 @@ int run_peer(const PeerNodeOptions& o) {
                    out.transition->distance_m ? std::to_string(*out.transition->distance_m) + " m" : "unknown");
       publish_mode(out.transition->reason);
       last_mode = Clock::now();
+      if (mode_log.is_open()) {
+        mode_log << dds::now_ns() << ',' << sim_stamp_ns << ',' << me << ',' << to_string(out.transition->from) << ','
+                 << to_string(out.transition->to) << ',' << to_string(out.transition->reason) << ','
+                 << (out.transition->distance_m ? std::to_string(*out.transition->distance_m) : std::string("")) << ','
+                 << own_keyframes.size() << '\n'
+                 << std::flush;
+      }
     } else if (Clock::now() - last_mode >= std::chrono::milliseconds(o.mode_period_ms)) {
       publish_mode(core.rtdos().last_reason());
       last_mode = Clock::now();
@@ -301,6 +319,7 @@ int run_peer(const PeerNodeOptions& o) {
       pose_storage.clear();
       for (const auto& [id, T] : out.correction->poses) {
         pose_storage.push_back(cdc_msg_KeyframePose{me, id, dds::to_msg(T)});
+        latest_world[id] = T;
       }
       cdc_msg_OptimizedPoses m{};
       m.robot_id = me;
@@ -327,10 +346,37 @@ int run_peer(const PeerNodeOptions& o) {
       s.is_central = false;
       w_status.write(s);
       last_status = Clock::now();
+      if (!o.mode_out.empty()) {
+        // "<mode> <keyframes> <transitions> <central alive 0|1>", replaced atomically, for a launcher.
+        const std::string now_path = o.mode_out + ".now", tmp = now_path + ".tmp";
+        std::ofstream(tmp, std::ios::trunc) << to_string(core.mode()) << ' ' << own_keyframes.size() << ' '
+                                            << core.rtdos().transitions() << ' ' << (alive ? 1 : 0) << '\n';
+        std::rename(tmp.c_str(), now_path.c_str());
+      }
     }
   }
   dds::ShutdownSignal::remove_guard(&stop);
   central_liveliness.set_notify(nullptr);
+  if (!o.trajectory_out.empty()) {
+    // Every own keyframe in W: as last corrected, or chained by odometry from the nearest corrected
+    // keyframe before it (after it for keyframes older than every corrected one).
+    geometry::Trajectory traj;
+    std::optional<std::pair<uint32_t, Eigen::Isometry3d>> anchor;
+    for (const auto& [id, kf] : own_keyframes) {
+      const Eigen::Isometry3d T_odom = dds::to_eigen(kf.msg.T_odom_keyframe);
+      auto it = latest_world.find(id);
+      if (it != latest_world.end()) {
+        anchor = {id, it->second * T_odom.inverse()};  // T_world_odom at this keyframe
+      } else if (!anchor && !latest_world.empty()) {
+        const auto& [fid, fT] = *latest_world.begin();
+        auto f = own_keyframes.find(fid);
+        if (f != own_keyframes.end()) anchor = {fid, fT * dds::to_eigen(f->second.msg.T_odom_keyframe).inverse()};
+      }
+      const Eigen::Isometry3d T_world_odom = anchor ? anchor->second : Eigen::Isometry3d::Identity();
+      traj.push_back({kf.msg.stamp_ns, it != latest_world.end() ? it->second : T_world_odom * T_odom});
+    }
+    geometry::write_tum(o.trajectory_out, traj);
+  }
   if (!o.stats_out.empty()) {
     nlohmann::json j{{"robot", me},
                      {"transitions", core.rtdos().transitions()},

@@ -18,6 +18,8 @@ struct PeerNodeOptions {
   int status_period_ms = 250;
   int mode_period_ms = 1000;   // the mode is re-published this often besides every transition
   std::string stats_out;
+  std::string mode_out;        // CSV of every mode transition, written as it happens
+  std::string trajectory_out;  // TUM: own keyframes in W as last corrected, written at shutdown
   std::string log_level = "info";
 };
 

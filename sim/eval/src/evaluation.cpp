@@ -134,7 +134,8 @@ std::string format_table(const std::vector<Evaluation>& evaluations) {
   return s.str();
 }
 
-std::string render_svg(const std::vector<Evaluation>& evaluations, const std::string& plane, const std::string& title) {
+std::string render_svg(const std::vector<Evaluation>& evaluations, const std::string& plane, const std::string& title,
+                       const std::vector<SvgMarker>& markers, const std::string& marker_legend) {
   static const std::array<const char*, 6> kColors = {"#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
   const auto axes = choose_axes(evaluations, plane);
   const char* names = "xyz";
@@ -187,6 +188,24 @@ std::string render_svg(const std::vector<Evaluation>& evaluations, const std::st
         << "<text x=\"" << margin + 20 + 260 * static_cast<double>(k % 3) << "\" y=\"" << legend_y << "\">" << xml_escape(e.name)
         << " (ATE " << fmt(e.ate.translation.rmse, 3) << " m)</text>\n";
     ++k;
+  }
+  for (const SvgMarker& m : markers) {
+    const double x = px(m.position[axes[0]]), y = py(m.position[axes[1]]);
+    if (m.triangle) {
+      svg << "<polygon points=\"" << fmt(x, 1) << ',' << fmt(y - 7, 1) << ' ' << fmt(x - 6, 1) << ',' << fmt(y + 5, 1) << ' '
+          << fmt(x + 6, 1) << ',' << fmt(y + 5, 1) << "\" fill=\"" << m.color << "\" stroke=\"black\" stroke-width=\"0.8\"/>";
+    } else {
+      svg << "<circle cx=\"" << fmt(x, 1) << "\" cy=\"" << fmt(y, 1) << "\" r=\"5\" fill=\"white\" stroke=\"" << m.color
+          << "\" stroke-width=\"2\"/>";
+    }
+    if (!m.label.empty()) {
+      svg << "<text x=\"" << fmt(x + 8, 1) << "\" y=\"" << fmt(y - 6, 1) << "\" font-size=\"10\">" << xml_escape(m.label)
+          << "</text>";
+    }
+    svg << "\n";
+  }
+  if (!marker_legend.empty()) {
+    svg << "<text x=\"" << margin << "\" y=\"50\" font-size=\"12\" fill=\"#333333\">" << xml_escape(marker_legend) << "</text>\n";
   }
   svg << "<text x=\"" << w - 220 << "\" y=\"" << legend_y << "\" fill=\"#555555\">- - ground truth</text>\n";
   svg << "</svg>\n";

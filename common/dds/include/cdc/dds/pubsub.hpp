@@ -18,6 +18,11 @@
 
 namespace cdc::dds {
 
+namespace detail {
+// A publisher (or subscriber) carrying the partitions `qos` names; an empty Entity when it names none.
+Entity make_group(const Participant& participant, const Qos& qos, bool publisher);
+}  // namespace detail
+
 // Polls until pred() holds or timeout passes; returns pred()'s last value.
 template <class Pred>
 bool wait_until(Pred pred, std::chrono::milliseconds timeout) {
@@ -53,7 +58,9 @@ class Writer {
  public:
   Writer(const Participant& participant, const Topic<T>& topic, const Qos& qos)
       : topic_name_(topic.name()),
-        writer_(check(dds_create_writer(participant.handle(), topic.handle(), qos.get(), nullptr),
+        publisher_(detail::make_group(participant, qos, true)),
+        writer_(check(dds_create_writer(publisher_ ? publisher_.handle() : participant.handle(), topic.handle(),
+                                        qos.get(), nullptr),
                       "create writer on '" + topic.name() + "'")) {}
 
   void write(const T& sample) {
@@ -89,6 +96,7 @@ class Writer {
 
  private:
   std::string topic_name_;
+  Entity publisher_;  // own publisher when the QoS names partitions (deleted after the writer)
   Entity writer_;
   std::atomic<uint64_t> samples_written_{0};
 };
@@ -140,7 +148,9 @@ class Reader {
  public:
   Reader(const Participant& participant, const Topic<T>& topic, const Qos& qos)
       : topic_name_(topic.name()),
-        reader_(check(dds_create_reader(participant.handle(), topic.handle(), qos.get(), nullptr),
+        subscriber_(detail::make_group(participant, qos, false)),
+        reader_(check(dds_create_reader(subscriber_ ? subscriber_.handle() : participant.handle(), topic.handle(),
+                                        qos.get(), nullptr),
                       "create reader on '" + topic.name() + "'")) {}
 
   // Takes up to max samples (removing them from the reader's cache).
@@ -170,6 +180,7 @@ class Reader {
 
  private:
   std::string topic_name_;
+  Entity subscriber_;  // own subscriber when the QoS names partitions (deleted after the reader)
   Entity reader_;
   std::atomic<uint64_t> samples_taken_{0};
 };

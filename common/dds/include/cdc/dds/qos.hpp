@@ -5,6 +5,8 @@
 
 #include <chrono>
 #include <cstdint>
+#include <string>
+#include <vector>
 
 namespace cdc::dds {
 
@@ -29,6 +31,11 @@ class Qos {
   Qos& volatile_durability();
   Qos& liveliness_manual_by_topic(std::chrono::nanoseconds lease);
   Qos& liveliness_automatic(std::chrono::nanoseconds lease);
+  // DDS partitions (wildcards allowed on readers). A partition is a publisher/subscriber policy:
+  // Writer and Reader create their own publisher/subscriber carrying it. Writers and readers match
+  // only when their partitions do, and Cyclone sends nothing to readers that do not match.
+  Qos& partitions(const std::vector<std::string>& names);
+  std::vector<std::string> partitions() const;
 
  private:
   dds_qos_t* qos_;
@@ -55,4 +62,15 @@ Qos monitored_writer(std::chrono::nanoseconds lease);
 Qos monitored_reader();
 
 }  // namespace qos
+
+// Partition names: the one place they are spelled. Data meant for one robot's own services
+// (keyframes with their clouds, corrections, cloud replies) is written in that robot's partition,
+// so that it never crosses the radio to other robots. Readers of such data also accept the
+// default partition (tools and tests that do not partition).
+namespace partitions {
+std::string robot(uint32_t robot_id);                      // "robot/<id>"
+inline const char* const kAllRobots = "robot/*";           // the central node's readers
+std::vector<std::string> own_reader(uint32_t robot_id);    // {"robot/<id>", ""}
+std::vector<std::string> all_robots_reader();              // {"robot/*", ""}
+}  // namespace partitions
 }  // namespace cdc::dds

@@ -45,7 +45,17 @@ std::string format_table(const std::vector<Evaluation>& evaluations);
 
 // Top-view SVG of every estimate (aligned) against ground truth. plane: "xy", "xz", "yz" or
 // "auto" (the two axes along which the ground truth extends most).
+// A point of interest drawn over the plot, in the ground truth's frame (e.g. where a robot
+// switched mode): a triangle or a circle with a short label.
+struct SvgMarker {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  bool triangle = true;
+  std::string color = "#000000";
+  std::string label;
+};
+
 std::string render_svg(const std::vector<Evaluation>& evaluations, const std::string& plane,
-                       const std::string& title);
+                       const std::string& title, const std::vector<SvgMarker>& markers = {},
+                       const std::string& marker_legend = "");
 
 }  // namespace cdc::eval

@@ -1,0 +1,498 @@
+// cdc-launch: starts a whole simulated swarm (the simulator's player, every robot's services, the
+// central node) from a swarm file, emulates the radio on real DDS traffic, shows progress, stops
+// everything cleanly (also on Ctrl-C) and writes the run's results and report.
+#include "network.hpp"
+#include "process.hpp"
+#include "report.hpp"
+#include "swarm.hpp"
+
+#include "cdc/config/reader.hpp"
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <signal.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <memory>
+#include <sstream>
+#include <thread>
+
+namespace fs = std::filesystem;
+using namespace cdc::launch;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+std::atomic<int> g_signal{0};
+extern "C" void on_signal(int sig) { g_signal = sig; }
+
+void install_signals() {
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigemptyset(&sa.sa_mask);
+  for (int s : {SIGINT, SIGTERM, SIGHUP}) sigaction(s, &sa, nullptr);
+}
+
+std::string timestamp() {
+  const std::time_t t = std::time(nullptr);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y%m%d-%H%M%S", std::localtime(&t));
+  return buf;
+}
+
+std::string read_file(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+struct RobotNow {
+  std::string mode = "-";
+  uint64_t keyframes = 0;
+  bool central_alive = false;
+};
+
+RobotNow read_now(const fs::path& p) {
+  RobotNow r;
+  std::istringstream in(read_file(p));
+  uint64_t transitions = 0;
+  int alive = 0;
+  if (in >> r.mode >> r.keyframes >> transitions >> alive) r.central_alive = alive != 0;
+  return r;
+}
+
+struct Options {
+  std::string swarm, out, bin_dir = "build/release", root = ".", network;
+  int max_scans = -1;
+  int slam_domain = -1, sim_domain = -1;
+  bool no_progress = false;
+  double stop_after_s = 0;  // testing aid: stop (as on Ctrl-C) after this much sim time
+};
+
+class Launcher {
+ public:
+  Launcher(const Options& o, SwarmConfig c) : o_(o), c_(std::move(c)) {}
+
+  int run();
+
+ private:
+  std::string bin(const std::string& rel) const {
+    const fs::path p = fs::path(o_.bin_dir) / rel;
+    if (!fs::exists(p)) throw std::runtime_error(p.string() + ": missing; build first (./cdc build --preset release)");
+    return fs::absolute(p).string();
+  }
+  void ensure_dataset();
+  void start_services();
+  Process& spawn(const std::string& name, uint32_t node, std::vector<std::string> argv, std::vector<std::string> env = {});
+  std::string dds_config(uint32_t node) const {
+    return net_ ? net_->dds_config(node) : "file://" + fs::absolute(fs::path(o_.root) / "deploy/cyclonedds/loopback.xml").string();
+  }
+  void apply_radio(double t_s);
+  void sample_traffic();
+  void progress(double t_s, bool final_line);
+  void stop_all();
+  bool interrupted() const { return g_signal.load() != 0; }
+  // processes.txt: every process started, "name pid", so that anyone can check none is left.
+  void record_pid(const Process& p) {
+    std::ofstream(run_ / "processes.txt", std::ios::app) << p.name() << ' ' << p.pid() << '\n';
+  }
+
+  Options o_;
+  SwarmConfig c_;
+  bool netns_ = false;
+  fs::path run_;
+  std::vector<uint32_t> robots_;
+  std::vector<RadioPeriod> periods_;
+  std::unique_ptr<NetnsNetwork> net_;
+  std::vector<std::unique_ptr<Process>> services_;  // in start order
+  std::unique_ptr<Process> player_;
+  RunInfo info_;
+  Clock::time_point t0_ = Clock::now();
+  std::map<std::pair<uint32_t, uint32_t>, LinkBytes> last_counters_;
+  std::map<uint32_t, uint64_t> last_keyframes_;
+  double sim_total_s_ = 0;
+  bool startup_ = false;  // traffic counted now belongs to start-up (discovery), not to a mode
+};
+
+void Launcher::ensure_dataset() {
+  if (fs::exists(fs::path(c_.dataset) / "dataset.json")) return;
+  if (c_.scenario.empty()) throw std::runtime_error(c_.dataset + ": no dataset there and no scenario to generate it from");
+  std::cout << "cdc-launch: generating the dataset " << c_.dataset << " from " << c_.scenario << " (once)" << std::endl;
+  fs::create_directories(fs::path(c_.dataset).parent_path());
+  std::vector<std::string> argv = {bin("sim/tools/cdc-sim"), "generate", "--scenario", c_.scenario, "--out", c_.dataset};
+  if (c_.max_scans > 0) argv.insert(argv.end(), {"--max-scans", std::to_string(c_.max_scans)});
+  Process gen(ProcessSpec{"generate", argv, {}, "", (run_ / "logs" / "generate.log").string()});
+  record_pid(gen);
+  while (gen.running()) {
+    if (interrupted()) {
+      gen.stop(std::chrono::seconds(5));
+      fs::remove_all(c_.dataset);  // never leave half a dataset behind
+      throw std::runtime_error("interrupted while generating the dataset");
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  if (gen.exit_status().value_or(-1) != 0) {
+    fs::remove_all(c_.dataset);
+    throw std::runtime_error("dataset generation failed: see " + (run_ / "logs" / "generate.log").string());
+  }
+}
+
+Process& Launcher::spawn(const std::string& name, uint32_t node, std::vector<std::string> argv, std::vector<std::string> env) {
+  std::string log = name;
+  std::replace(log.begin(), log.end(), '/', '_');
+  env.push_back("CYCLONEDDS_URI=" + dds_config(node));
+  ProcessSpec spec{name, std::move(argv), std::move(env), net_ ? net_->netns(node) : "", (run_ / "logs" / (log + ".log")).string()};
+  services_.push_back(std::make_unique<Process>(std::move(spec)));
+  record_pid(*services_.back());
+  return *services_.back();
+}
+
+void Launcher::start_services() {
+  const std::string slam = std::to_string(c_.slam_domain), sim = std::to_string(c_.sim_domain);
+  if (info_.central) {
+    spawn("central/central-optimiser", kCentralNode,
+          {bin("services/central_optimiser/cdc-central-optimiser"), "--config", c_.central_config, "--domain", slam,
+           "--graph-out", (run_ / "global_graph.g2o").string(), "--stats-out", (run_ / "central.stats.json").string()});
+    if (c_.map) {
+      spawn("central/map", kCentralNode,
+            {bin("services/map/cdc-map"), "--config", c_.map_config, "--domain", slam, "--out", (run_ / "map").string(),
+             "--stats-out", (run_ / "map.stats.json").string()});
+    }
+  }
+  for (uint32_t r : robots_) {
+    const std::string id = std::to_string(r);
+    const fs::path rd = run_ / ("robot_" + id);
+    fs::create_directories(rd);
+    std::vector<std::string> fe = {bin("services/frontend/cdc-frontend"), "--robot", id, "--config", c_.frontend_config,
+                                   "--domain", slam, "--sensor-domain", sim, "--trajectory-out", (rd / "odometry.tum").string(),
+                                   "--stats-out", (rd / "frontend.stats.json").string()};
+    if (c_.lidar_only) fe.push_back("--lidar-only");
+    if (!c_.frontend_correction) fe.push_back("--no-corrections");
+    spawn("robot" + id + "/frontend", r, fe);
+    spawn("robot" + id + "/descriptor", r,
+          {bin("services/descriptor/cdc-descriptor"), "--robot", id, "--config", c_.descriptor_config, "--domain", slam,
+           "--stats-out", (rd / "descriptor.stats.json").string()});
+    spawn("robot" + id + "/loop-closure", r,
+          {bin("services/loop_closure/cdc-loop-closure"), "--robot", id, "--config", c_.loop_closure_config, "--domain", slam,
+           "--stats-out", (rd / "loop_closure.stats.json").string()});
+    spawn("robot" + id + "/peer-optimiser", r,
+          {bin("services/peer_optimiser/cdc-peer-optimiser"), "--robot", id, "--config", c_.peer_config, "--domain", slam,
+           "--mode-out", (rd / "modes.csv").string(), "--trajectory-out", (rd / "keyframes.tum").string(), "--stats-out",
+           (rd / "peer_optimiser.stats.json").string()});
+  }
+}
+
+void Launcher::apply_radio(double t_s) {
+  if (!net_) return;
+  std::vector<uint32_t> nodes = robots_;
+  if (info_.central) nodes.push_back(kCentralNode);
+  for (size_t i = 0; i < nodes.size(); ++i) {
+    for (size_t j = i + 1; j < nodes.size(); ++j) {
+      const uint32_t a = nodes[i], b = nodes[j];
+      bool up = c_.variant != Variant::kSingle && in_range(periods_, a, b, t_s);
+      if (net_->link_up(a, b) != up) {
+        net_->set_link(a, b, up);
+        info_.links.push_back({std::chrono::duration<double>(Clock::now() - t0_).count(), t_s, a, b, up});
+      }
+    }
+  }
+}
+
+void Launcher::sample_traffic() {
+  std::map<uint32_t, RobotNow> now;
+  for (uint32_t r : robots_) {
+    now[r] = read_now(run_ / ("robot_" + std::to_string(r)) / "modes.csv.now");
+    if (startup_) now[r].mode = "STARTUP";
+  }
+  for (uint32_t r : robots_) {
+    const std::string mode = now[r].mode == "-" ? (info_.central ? "CENTRALIZED" : "DISTRIBUTED") : now[r].mode;
+    ModeTraffic& t = info_.traffic[r];
+    const uint64_t kf = now[r].keyframes;
+    t.keyframes[mode] += kf - std::min(kf, last_keyframes_[r]);
+    last_keyframes_[r] = std::max(kf, last_keyframes_[r]);
+  }
+  if (!net_) return;
+  const auto counters = net_->counters();
+  for (const auto& [key, b] : counters) {
+    const auto [r, peer] = key;
+    const std::string mode = now[r].mode == "-" ? (info_.central ? "CENTRALIZED" : "DISTRIBUTED") : now[r].mode;
+    LinkBytes& last = last_counters_[key];
+    LinkBytes& acc = info_.traffic[r].bytes[mode][peer];
+    acc.sent += b.sent - std::min(b.sent, last.sent);
+    acc.received += b.received - std::min(b.received, last.received);
+    last = b;
+  }
+}
+
+void Launcher::progress(double t_s, bool final_line) {
+  std::ostringstream s;
+  const double frac = sim_total_s_ > 0 ? std::clamp(t_s / sim_total_s_, 0.0, 1.0) : 0.0;
+  const int width = 24, filled = static_cast<int>(frac * width);
+  s << '[' << std::string(static_cast<size_t>(filled), '#') << std::string(static_cast<size_t>(width - filled), '.') << "] sim "
+    << std::fixed;
+  s.precision(1);
+  s << t_s << '/' << sim_total_s_ << " s, wall " << std::chrono::duration<double>(Clock::now() - t0_).count() << " s";
+  for (uint32_t r : robots_) {
+    const RobotNow n = read_now(run_ / ("robot_" + std::to_string(r)) / "modes.csv.now");
+    s << " | r" << r << ' ' << (n.mode == "-" ? "-" : n.mode.substr(0, 4)) << ' ' << n.keyframes << " kf";
+  }
+  if (isatty(STDOUT_FILENO)) {
+    std::cout << '\r' << s.str() << "\033[K" << (final_line ? "\n" : "") << std::flush;
+  } else {
+    std::cout << s.str() << std::endl;
+  }
+}
+
+void Launcher::stop_all() {
+  if (player_) player_->stop(std::chrono::seconds(5));
+  // Robots first (front-ends before back-ends), then the central node, whose final full
+  // optimisation and the map's files take longest.
+  for (auto it = services_.rbegin(); it != services_.rend(); ++it) {
+    if ((*it)->name().rfind("central/", 0) == 0) continue;
+    (*it)->signal(SIGINT);
+  }
+  for (auto& p : services_) {
+    if (p->name().rfind("central/", 0) == 0) continue;
+    if (!p->wait_for(std::chrono::seconds(20))) {
+      std::cerr << "cdc-launch: " << p->name() << " (pid " << p->pid() << ") did not stop within 20 s: killed\n";
+      p->stop(std::chrono::milliseconds(0));
+    }
+  }
+  for (auto& p : services_) {
+    if (p->name().rfind("central/", 0) != 0) continue;
+    p->signal(SIGINT);
+  }
+  for (auto& p : services_) {
+    if (p->name().rfind("central/", 0) != 0) continue;
+    if (!p->wait_for(std::chrono::seconds(90))) {
+      std::cerr << "cdc-launch: " << p->name() << " (pid " << p->pid() << ") did not stop within 90 s: killed\n";
+      p->stop(std::chrono::milliseconds(0));
+    }
+  }
+}
+
+int Launcher::run() {
+  install_signals();
+  run_ = o_.out.empty() ? fs::path(o_.root) / "results" / (c_.name + "-" + timestamp()) : fs::path(o_.out);
+  run_ = fs::absolute(run_);
+  fs::create_directories(run_ / "logs");
+  fs::create_directories(run_ / "dds");
+  fs::copy_file(c_.path, run_ / "swarm.yaml", fs::copy_options::overwrite_existing);
+  ensure_dataset();
+  for (int r = 0; r < 255; ++r) {
+    if (fs::is_directory(fs::path(c_.dataset) / ("robot_" + std::to_string(r)))) robots_.push_back(static_cast<uint32_t>(r));
+  }
+  if (robots_.empty()) throw std::runtime_error(c_.dataset + ": no robot_K folders");
+  const fs::path periods_path = fs::path(c_.dataset) / "radio_periods.csv";
+  if (fs::exists(periods_path)) periods_ = read_radio_periods(periods_path.string());
+  // Sim time span: the latest sweep of any robot (within max_scans).
+  for (uint32_t r : robots_) {
+    std::ifstream in(fs::path(c_.dataset) / ("robot_" + std::to_string(r)) / "times.txt");
+    double t = 0, last = 0;
+    size_t n = 0;
+    while (in >> t && (c_.max_scans == 0 || n < c_.max_scans)) {
+      last = t;
+      ++n;
+    }
+    sim_total_s_ = std::max(sim_total_s_, last);
+  }
+  info_.name = c_.name;
+  info_.variant = to_string(c_.variant);
+  if (c_.variant == Variant::kSwitching && !c_.frontend_correction) info_.variant = "switching-without-correction";
+  info_.dataset = fs::absolute(c_.dataset).string();
+  info_.run_dir = run_.string();
+  info_.swarm_file = c_.path;
+  info_.robots = robots_;
+  info_.central = c_.variant == Variant::kSwitching;
+
+  std::string why;
+  netns_ = c_.network == NetworkMode::kNetns ||
+           (c_.network == NetworkMode::kAuto && NetnsNetwork::available(&why));
+  if (c_.network == NetworkMode::kNetns && !NetnsNetwork::available(&why)) {
+    throw std::runtime_error("network: netns requested but not possible here (" + why + ")");
+  }
+  if (!netns_ && c_.variant != Variant::kSwitching) {
+    throw std::runtime_error("variant " + std::string(to_string(c_.variant)) +
+                             " needs the netns network mode (loopback cannot cut links between robots)");
+  }
+  info_.network = netns_ ? "netns" : "loopback";
+  if (netns_) {
+    std::vector<uint32_t> nodes = robots_;
+    if (info_.central) nodes.push_back(kCentralNode);
+    nodes.push_back(kSimNode);
+    net_ = std::make_unique<NetnsNetwork>(std::to_string(getpid()), nodes, c_.slam_domain, (run_ / "dds").string());
+    {
+      std::ofstream nf(run_ / "namespaces.txt");
+      for (const auto& ns : net_->namespaces()) nf << ns << '\n';
+    }
+    std::cout << "cdc-launch: network netns: " << nodes.size() << " namespaces on a private bridge (198.18.0.0/24); "
+              << "the radio timeline cuts SLAM-domain traffic per pair with iptables" << std::endl;
+  } else {
+    info_.notes.push_back(
+        "loopback network: every process on lo; the radio timeline is not applied (loopback cannot cut single pairs; "
+        "use netns, as root or in a user+network namespace, for the emulated radio)");
+    std::cout << "cdc-launch: network loopback (" << (why.empty() ? "requested" : why)
+              << "): all processes on lo. Loopback cannot cut single pairs: the radio timeline is NOT applied, so robots "
+                 "stay in range" << std::endl;
+  }
+  info_.traffic_measured = netns_;
+
+  std::cout << "cdc-launch: " << c_.name << ": " << robots_.size() << " robots, variant " << info_.variant << ", "
+            << sim_total_s_ << " s of sim time, results in " << run_.string() << std::endl;
+  start_services();
+  // Wait until every peer optimiser runs (and sees the central, when there is one).
+  const auto ready_deadline = Clock::now() + std::chrono::seconds(30);
+  while (true) {
+    bool ready = true;
+    for (uint32_t r : robots_) {
+      const fs::path now = run_ / ("robot_" + std::to_string(r)) / "modes.csv.now";
+      if (!fs::exists(now)) {
+        ready = false;
+        continue;
+      }
+      // With a central, the run starts with every robot in range: wait until each has seen it and
+      // switched to CENTRALIZED (after its dwell), so that every later switch comes from the radio.
+      const RobotNow n = read_now(now);
+      if (info_.central && (!n.central_alive || n.mode != "CENTRALIZED")) ready = false;
+    }
+    for (auto& p : services_) {
+      if (!p->running()) throw std::runtime_error(p->name() + " ended at start-up (exit " + std::to_string(p->exit_status().value_or(-1)) +
+                                                  "): see " + p->spec().log_path);
+    }
+    if (ready) break;
+    if (interrupted()) break;
+    if (Clock::now() > ready_deadline) {
+      throw std::runtime_error("the robots' peer optimisers did not come up (or did not reach CENTRALIZED with the central) "
+                               "within 30 s; see " + (run_ / "logs").string());
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  const fs::path clock_file = run_ / "sim_clock";
+  // Discovery and start-up traffic is reported apart from the modes.
+  startup_ = true;
+  sample_traffic();
+  startup_ = false;
+  if (!interrupted()) {
+    std::vector<std::string> play = {bin("sim/tools/cdc-sim"), "play", c_.dataset, "--domain", std::to_string(c_.sim_domain),
+                                     "--wait-readers", std::to_string(robots_.size()), "--clock-file", clock_file.string()};
+    if (c_.lockstep) {
+      play.insert(play.end(), {"--lockstep", "--lockstep-timeout", "120"});
+    } else {
+      play.insert(play.end(), {"--rate", std::to_string(c_.rate)});
+    }
+    if (c_.max_scans > 0) play.insert(play.end(), {"--max-scans", std::to_string(c_.max_scans)});
+    player_ = std::make_unique<Process>(ProcessSpec{"sim/player", play, {"CYCLONEDDS_URI=" + dds_config(kSimNode)},
+                                                    net_ ? net_->netns(kSimNode) : "", (run_ / "logs" / "sim_player.log").string()});
+    record_pid(*player_);
+  }
+  double t_s = 0;
+  auto last_sample = Clock::now(), last_progress = Clock::now() - std::chrono::seconds(10);
+  std::optional<Clock::time_point> settle_until;
+  std::string failure;
+  while (!interrupted()) {
+    std::istringstream cl(read_file(clock_file));
+    int64_t stamp = 0;
+    if (cl >> stamp) t_s = static_cast<double>(stamp) * 1e-9;
+    apply_radio(t_s);
+    if (Clock::now() - last_sample > std::chrono::milliseconds(500)) {
+      sample_traffic();
+      last_sample = Clock::now();
+    }
+    const auto period = isatty(STDOUT_FILENO) ? std::chrono::milliseconds(500) : std::chrono::milliseconds(10000);
+    if (!o_.no_progress && Clock::now() - last_progress > period) {
+      progress(t_s, false);
+      last_progress = Clock::now();
+    }
+    for (auto& p : services_) {
+      if (!p->running()) failure = p->name() + " ended unexpectedly (exit " + std::to_string(p->exit_status().value_or(-1)) + "): see " + p->spec().log_path;
+    }
+    if (!failure.empty()) break;
+    if (!settle_until && player_ && !player_->running()) {
+      if (player_->exit_status().value_or(-1) != 0) {
+        failure = "the player failed (exit " + std::to_string(player_->exit_status().value_or(-1)) + "): see " + player_->spec().log_path;
+        break;
+      }
+      settle_until = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(c_.settle_s));
+    }
+    if (settle_until && Clock::now() >= *settle_until) break;
+    if (o_.stop_after_s > 0 && t_s >= o_.stop_after_s) {
+      g_signal = SIGINT;  // as if Ctrl-C had been pressed now
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  sample_traffic();
+  if (!o_.no_progress) progress(t_s, true);
+  if (interrupted()) std::cout << "cdc-launch: interrupted (signal " << g_signal.load() << "): stopping every process" << std::endl;
+  else std::cout << "cdc-launch: stopping the swarm" << std::endl;
+  stop_all();
+  if (net_) {
+    net_->teardown();
+    net_.reset();
+  }
+  info_.wall_s = std::chrono::duration<double>(Clock::now() - t0_).count();
+  info_.sim_end_s = t_s;
+  info_.interrupted = interrupted();
+  if (!failure.empty()) {
+    std::cerr << "cdc-launch: " << failure << '\n';
+    return 1;
+  }
+  if (info_.interrupted) {
+    std::cout << "cdc-launch: stopped cleanly; partial results in " << run_.string() << std::endl;
+    return 130;
+  }
+  const nlohmann::json j = write_report(info_);
+  std::cout << read_file(run_ / "report.md") << std::endl;
+  std::cout << "cdc-launch: results in " << run_.string() << std::endl;
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "cdc-launch: runs a simulated swarm from a swarm file (deploy/swarms/*.yaml): the simulator's player, every\n"
+      "robot's front-end, descriptor, loop-closure and peer-optimiser services and the central node's optimiser and\n"
+      "map. Network modes: netns (default where possible: every node in its own network namespace, the radio\n"
+      "timeline applied per pair with iptables on the SLAM domain) or loopback (all on lo, no radio). Ctrl-C stops\n"
+      "every process and removes every namespace. Results: results/<name>-<time>/ (report.md, report.json, plots)."};
+  Options o;
+  app.add_option("swarm", o.swarm, "swarm file")->required()->check(CLI::ExistingFile);
+  app.add_option("--out", o.out, "results folder (default: results/<name>-<time>)");
+  app.add_option("--bin-dir", o.bin_dir, "build folder holding the binaries")->capture_default_str();
+  app.add_option("--root", o.root, "project root (relative paths of the swarm file)")->capture_default_str();
+  app.add_option("--network", o.network, "override the swarm file: auto, netns or loopback")
+      ->check(CLI::IsMember({"auto", "netns", "loopback"}));
+  app.add_option("--max-scans", o.max_scans, "override: sweeps per robot (0: all)")->check(CLI::NonNegativeNumber);
+  app.add_option("--slam-domain", o.slam_domain, "override the SLAM DDS domain")->check(CLI::Range(0, 232));
+  app.add_option("--sim-domain", o.sim_domain, "override the simulator's DDS domain")->check(CLI::Range(0, 232));
+  app.add_flag("--no-progress", o.no_progress, "no progress display");
+  app.add_option("--stop-after", o.stop_after_s, "stop as on Ctrl-C once this much sim time has passed (testing)");
+  CLI11_PARSE(app, argc, argv);
+  try {
+    SwarmConfig c = load_swarm(o.swarm, o.root);
+    if (!o.network.empty()) {
+      c.network = o.network == "netns" ? NetworkMode::kNetns : o.network == "loopback" ? NetworkMode::kLoopback : NetworkMode::kAuto;
+    }
+    if (o.max_scans >= 0) c.max_scans = static_cast<size_t>(o.max_scans);
+    if (o.slam_domain >= 0) c.slam_domain = static_cast<uint32_t>(o.slam_domain);
+    if (o.sim_domain >= 0) c.sim_domain = static_cast<uint32_t>(o.sim_domain);
+    if (c.slam_domain == c.sim_domain) throw cdc::config::ConfigError("the SLAM and simulator domains must differ");
+    Launcher l(o, std::move(c));
+    return l.run();
+  } catch (const cdc::config::ConfigError& e) {
+    std::cerr << "cdc-launch: " << e.what() << '\n';
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "cdc-launch: " << e.what() << '\n';
+    return 1;
+  }
+}

@@ -1,0 +1,200 @@
+#include "network.hpp"
+
+#include "process.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace cdc::launch {
+namespace {
+
+bool is_robot(uint32_t node) { return node != kCentralNode && node != kSimNode; }
+
+std::string short_name(uint32_t node) {
+  if (node == kCentralNode) return "c";
+  if (node == kSimNode) return "s";
+  std::string s = "r";  // appended: GCC 12 warns falsely (-Wrestrict) on "r" + std::to_string(...)
+  s += std::to_string(node);
+  return s;
+}
+
+}  // namespace
+
+bool NetnsNetwork::available(std::string* why) {
+  auto fail = [&](const std::string& w) {
+    if (why) *why = w;
+    return false;
+  };
+  if (geteuid() != 0) return fail("not root");
+  if (run_command({"ip", "-V"}).status != 0) return fail("iproute2's ip is missing");
+  if (run_command({"iptables", "--version"}).status != 0) return fail("iptables is missing");
+  const std::string probe = "cdc-probe-" + std::to_string(getpid());
+  if (run_command({"ip", "netns", "add", probe}).status != 0) return fail("'ip netns add' is not permitted here");
+  run_command({"ip", "netns", "delete", probe});
+  return true;
+}
+
+std::string NetnsNetwork::address(uint32_t node) const {
+  if (node == kCentralNode) return "198.18.0.100";
+  if (node == kSimNode) return "198.18.0.200";
+  if (node >= 90) throw std::invalid_argument("robot id " + std::to_string(node) + ": netns mode supports ids below 90");
+  return "198.18.0." + std::to_string(10 + node);
+}
+
+void NetnsNetwork::ns_cmd(uint32_t node, std::vector<std::string> argv) const {
+  argv.insert(argv.begin(), {"ip", "netns", "exec", netns_.at(node)});
+  run_checked(argv);
+}
+
+NetnsNetwork::NetnsNetwork(const std::string& tag, const std::vector<uint32_t>& nodes, uint32_t slam_domain,
+                           const std::string& config_dir)
+    : tag_(tag), nodes_(nodes), hub_("cdc" + tag + "-hub") {
+  const uint32_t base = 7400 + 250 * slam_domain;
+  port_range_ = std::to_string(base) + ":" + std::to_string(base + 249);
+  try {
+    run_checked({"ip", "netns", "add", hub_});
+    run_checked({"ip", "-n", hub_, "link", "add", "br0", "type", "bridge"});
+    run_checked({"ip", "-n", hub_, "link", "set", "br0", "up"});
+    for (uint32_t node : nodes_) {
+      const std::string ns = "cdc" + tag + "-" + short_name(node);
+      run_checked({"ip", "netns", "add", ns});
+      netns_[node] = ns;
+      std::string hub_end = "h";
+      hub_end += short_name(node);
+      run_checked({"ip", "-n", hub_, "link", "add", hub_end, "type", "veth", "peer", "name", "eth0", "netns", ns});
+      run_checked({"ip", "-n", hub_, "link", "set", hub_end, "master", "br0", "up"});
+      run_checked({"ip", "-n", ns, "addr", "add", address(node) + "/24", "dev", "eth0"});
+      run_checked({"ip", "-n", ns, "link", "set", "eth0", "up"});
+      run_checked({"ip", "-n", ns, "link", "set", "lo", "up"});
+    }
+    // DDS: each node's veth, unicast discovery of every node, no multicast.
+    std::string peers;
+    for (uint32_t node : nodes_) peers += "        <Peer Address=\"" + address(node) + "\"/>\n";
+    for (uint32_t node : nodes_) {
+      const std::string path = config_dir + "/" + short_name(node) + ".xml";
+      std::ofstream out(path);
+      if (!out) throw std::runtime_error(path + ": cannot write");
+      out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+             "<!-- written by cdc-launch: node " << short_name(node) << " in namespace " << netns_[node] << " -->\n"
+             "<CycloneDDS xmlns=\"https://cdds.io/config\">\n  <Domain Id=\"any\">\n    <General>\n"
+             "      <Interfaces><NetworkInterface name=\"eth0\"/></Interfaces>\n"
+             "      <AllowMulticast>false</AllowMulticast>\n    </General>\n    <Discovery>\n"
+             "      <ParticipantIndex>auto</ParticipantIndex>\n      <MaxAutoParticipantIndex>60</MaxAutoParticipantIndex>\n"
+             "      <SPDPInterval>1s</SPDPInterval>\n"
+             "      <Peers>\n" << peers << "      </Peers>\n    </Discovery>\n  </Domain>\n</CycloneDDS>\n";
+      configs_[node] = path;
+    }
+    // Per robot: radio chains (drops) before accounting chains (what really passed).
+    for (uint32_t node : nodes_) {
+      if (!is_robot(node)) continue;
+      for (const char* chain : {"CDC_RADIO_IN", "CDC_RADIO_OUT", "CDC_ACCT_IN", "CDC_ACCT_OUT"}) {
+        ns_cmd(node, {"iptables", "-w", "-N", chain});
+      }
+      ns_cmd(node, {"iptables", "-w", "-A", "INPUT", "-j", "CDC_RADIO_IN"});
+      ns_cmd(node, {"iptables", "-w", "-A", "INPUT", "-j", "CDC_ACCT_IN"});
+      ns_cmd(node, {"iptables", "-w", "-A", "OUTPUT", "-j", "CDC_RADIO_OUT"});
+      ns_cmd(node, {"iptables", "-w", "-A", "OUTPUT", "-j", "CDC_ACCT_OUT"});
+      for (uint32_t peer : nodes_) {
+        if (peer == node || peer == kSimNode) continue;
+        ns_cmd(node, {"iptables", "-w", "-A", "CDC_ACCT_IN", "-s", address(peer), "-p", "udp", "--dport", port_range_, "-j",
+                      "RETURN"});
+        ns_cmd(node, {"iptables", "-w", "-A", "CDC_ACCT_OUT", "-d", address(peer), "-p", "udp", "--dport", port_range_,
+                      "-j", "RETURN"});
+      }
+    }
+  } catch (...) {
+    teardown();
+    throw;
+  }
+}
+
+NetnsNetwork::~NetnsNetwork() { teardown(); }
+
+std::vector<std::string> NetnsNetwork::namespaces() const {
+  std::vector<std::string> out{hub_};
+  for (const auto& [node, ns] : netns_) out.push_back(ns);
+  return out;
+}
+
+void NetnsNetwork::teardown() {
+  if (torn_down_) return;
+  torn_down_ = true;
+  // Deleting a namespace deletes its veth ends (and so the peers in the hub) and its rules.
+  for (const auto& [node, ns] : netns_) run_command({"ip", "netns", "delete", ns});
+  run_command({"ip", "netns", "delete", hub_});
+}
+
+bool NetnsNetwork::link_up(uint32_t a, uint32_t b) const {
+  auto it = down_.find({std::min(a, b), std::max(a, b)});
+  return it == down_.end() || !it->second;
+}
+
+void NetnsNetwork::set_link(uint32_t a, uint32_t b, bool up) {
+  if (link_up(a, b) == up) return;
+  if (!netns_.count(a) || !netns_.count(b)) return;  // a node this swarm does not run
+  const char* op = up ? "-D" : "-A";
+  for (auto [me, other] : {std::pair{a, b}, std::pair{b, a}}) {
+    if (!is_robot(me)) continue;
+    ns_cmd(me, {"iptables", "-w", op, "CDC_RADIO_IN", "-s", address(other), "-p", "udp", "--dport", port_range_, "-j", "DROP"});
+    ns_cmd(me, {"iptables", "-w", op, "CDC_RADIO_OUT", "-d", address(other), "-p", "udp", "--dport", port_range_, "-j", "DROP"});
+  }
+  down_[{std::min(a, b), std::max(a, b)}] = !up;
+}
+
+std::map<std::pair<uint32_t, uint32_t>, LinkBytes> NetnsNetwork::counters() const {
+  std::map<std::pair<uint32_t, uint32_t>, LinkBytes> out;
+  std::map<std::string, uint32_t> by_address;
+  for (uint32_t n : nodes_) by_address[address(n)] = n;
+  for (uint32_t node : nodes_) {
+    if (!is_robot(node)) continue;
+    for (const char* chain : {"CDC_ACCT_IN", "CDC_ACCT_OUT"}) {
+      const CommandResult r = run_command({"ip", "netns", "exec", netns_.at(node), "iptables", "-w", "-n", "-v", "-x", "-L", chain});
+      if (r.status != 0) continue;
+      std::istringstream in(r.output);
+      std::string line;
+      while (std::getline(in, line)) {
+        std::istringstream f(line);
+        std::string pkts, bytes, target, prot, opt, iface_in, iface_out, src, dst;
+        if (!(f >> pkts >> bytes >> target >> prot >> opt >> iface_in >> iface_out >> src >> dst)) continue;
+        if (target != "RETURN") continue;
+        const bool incoming = std::string(chain) == "CDC_ACCT_IN";
+        auto it = by_address.find(incoming ? src : dst);
+        if (it == by_address.end()) continue;
+        LinkBytes& lb = out[{node, it->second}];
+        (incoming ? lb.received : lb.sent) = std::stoull(bytes);
+      }
+    }
+  }
+  return out;
+}
+
+std::vector<RadioPeriod> read_radio_periods(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(path + ": cannot read the radio periods");
+  std::vector<RadioPeriod> out;
+  std::string line;
+  size_t n = 0;
+  while (std::getline(in, line)) {
+    ++n;
+    if (n == 1 || line.empty()) continue;  // header a,b,start,end
+    RadioPeriod p;
+    if (std::sscanf(line.c_str(), "%u,%u,%lf,%lf", &p.a, &p.b, &p.start_s, &p.end_s) != 4 || p.end_s < p.start_s) {
+      throw std::runtime_error(path + ":" + std::to_string(n) + ": expected a,b,start,end with start <= end");
+    }
+    out.push_back(p);
+  }
+  return out;
+}
+
+bool in_range(const std::vector<RadioPeriod>& periods, uint32_t a, uint32_t b, double t_s) {
+  for (const RadioPeriod& p : periods) {
+    if (((p.a == a && p.b == b) || (p.a == b && p.b == a)) && t_s >= p.start_s && t_s < p.end_s) return false;
+  }
+  return true;
+}
+
+}  // namespace cdc::launch

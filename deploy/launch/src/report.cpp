@@ -1,0 +1,343 @@
+#include "report.hpp"
+
+#include "process.hpp"
+
+#include "cdc/eval/evaluation.hpp"
+#include "cdc/geometry/trajectory.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace cdc::launch {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+struct Transition {
+  int64_t wall_ns = 0, sim_ns = 0;
+  std::string from, to, reason;
+};
+
+std::vector<Transition> read_modes(const fs::path& p) {
+  std::vector<Transition> out;
+  std::ifstream in(p);
+  std::string line;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream ss(line);
+    std::string x;
+    while (std::getline(ss, x, ',')) f.push_back(x);
+    if (f.size() < 6) continue;
+    try {
+      out.push_back({std::stoll(f[0]), std::stoll(f[1]), f[3], f[4], f[5]});
+    } catch (const std::exception&) {
+      continue;  // a line cut short by a killed process
+    }
+  }
+  return out;
+}
+
+std::string fmt(double v, int prec) {
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(prec);
+  s << v;
+  return s.str();
+}
+
+std::string node_name(uint32_t n) {
+  if (n == kCentralNode) return "central";
+  return "robot" + std::to_string(n);
+}
+
+// Position of the ground truth at the stamp nearest to t.
+Eigen::Vector3d gt_position(const geometry::Trajectory& gt, int64_t t) {
+  auto it = std::lower_bound(gt.begin(), gt.end(), t, [](const geometry::StampedPose& p, int64_t v) { return p.stamp_ns < v; });
+  if (it == gt.end()) return gt.back().pose.translation();
+  if (it != gt.begin() && std::abs(std::prev(it)->stamp_ns - t) < std::abs(it->stamp_ns - t)) --it;
+  return it->pose.translation();
+}
+
+const std::array<const char*, 6> kColors = {"#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
+
+// Mode over sim time, one row per robot, with the periods its link to the central was cut.
+std::string render_timeline(const RunInfo& info, const std::map<uint32_t, std::vector<Transition>>& modes) {
+  const double w = 900, left = 90, right = 20, row = 46, top = 50;
+  const double h = top + row * static_cast<double>(info.robots.size()) + 60;
+  const double t_end = std::max(info.sim_end_s, 1.0);
+  auto px = [&](double t) { return left + (w - left - right) * std::clamp(t / t_end, 0.0, 1.0); };
+  std::ostringstream s;
+  s << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << h
+    << "\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
+    << "<text x=\"" << left << "\" y=\"24\" font-size=\"15\">" << info.name << ": back-end mode over sim time</text>\n";
+  double y = top;
+  for (uint32_t r : info.robots) {
+    s << "<text x=\"10\" y=\"" << y + 16 << "\">robot " << r << "</text>\n";
+    std::string mode = info.central ? "CENTRALIZED" : "DISTRIBUTED";
+    double t0 = 0;
+    auto bar = [&](double a, double b, const std::string& m) {
+      s << "<rect x=\"" << fmt(px(a), 1) << "\" y=\"" << y << "\" width=\"" << fmt(std::max(px(b) - px(a), 0.5), 1)
+        << "\" height=\"22\" fill=\"" << (m == "CENTRALIZED" ? "#1f77b4" : "#ff7f0e") << "\"/>\n";
+    };
+    auto it = modes.find(r);
+    if (it != modes.end()) {
+      for (const Transition& t : it->second) {
+        const double ts = static_cast<double>(t.sim_ns) * 1e-9;
+        bar(t0, ts, mode);
+        mode = t.to;
+        t0 = ts;
+      }
+    }
+    bar(t0, t_end, mode);
+    // Link to the central cut (grey) under the bar.
+    double cut_start = -1;  // < 0: the link is up
+    auto cut_bar = [&](double a, double b) {
+      s << "<rect x=\"" << fmt(px(a), 1) << "\" y=\"" << y + 25 << "\" width=\"" << fmt(std::max(px(b) - px(a), 0.5), 1)
+        << "\" height=\"6\" fill=\"#777777\"/>\n";
+    };
+    for (const LinkEvent& e : info.links) {
+      if (!((e.a == r && e.b == kCentralNode) || (e.b == r && e.a == kCentralNode))) continue;
+      if (!e.up && cut_start < 0) cut_start = e.sim_s;
+      if (e.up && cut_start >= 0) {
+        cut_bar(cut_start, e.sim_s);
+        cut_start = -1;
+      }
+    }
+    if (cut_start >= 0) cut_bar(cut_start, t_end);
+    y += row;
+  }
+  // Time axis.
+  s << "<line x1=\"" << left << "\" y1=\"" << y << "\" x2=\"" << w - right << "\" y2=\"" << y << "\" stroke=\"black\"/>\n";
+  const double step = t_end > 200 ? 50 : t_end > 50 ? 10 : 5;
+  for (double t = 0; t <= t_end + 1e-9; t += step) {
+    s << "<line x1=\"" << fmt(px(t), 1) << "\" y1=\"" << y << "\" x2=\"" << fmt(px(t), 1) << "\" y2=\"" << y + 5
+      << "\" stroke=\"black\"/><text x=\"" << fmt(px(t) - 8, 1) << "\" y=\"" << y + 18 << "\">" << fmt(t, 0) << "</text>\n";
+  }
+  s << "<text x=\"" << w - right - 60 << "\" y=\"" << y + 34 << "\">sim time [s]</text>\n"
+    << "<rect x=\"" << left << "\" y=\"" << y + 26 << "\" width=\"12\" height=\"10\" fill=\"#1f77b4\"/><text x=\"" << left + 16
+    << "\" y=\"" << y + 35 << "\">CENTRALIZED</text>"
+    << "<rect x=\"" << left + 120 << "\" y=\"" << y + 26 << "\" width=\"12\" height=\"10\" fill=\"#ff7f0e\"/><text x=\""
+    << left + 136 << "\" y=\"" << y + 35 << "\">DISTRIBUTED</text>"
+    << "<rect x=\"" << left + 240 << "\" y=\"" << y + 29 << "\" width=\"12\" height=\"5\" fill=\"#777777\"/><text x=\""
+    << left + 256 << "\" y=\"" << y + 35 << "\">link to the central cut (emulated radio)</text>\n</svg>\n";
+  return s.str();
+}
+
+void write_png(const fs::path& svg) {
+  fs::path png = svg;
+  png.replace_extension(".png");
+  run_command({"rsvg-convert", "-o", png.string(), svg.string()});  // optional: librsvg2-bin
+}
+
+}  // namespace
+
+json write_report(const RunInfo& info) {
+  const fs::path run(info.run_dir), ds(info.dataset);
+  json j;
+  j["name"] = info.name;
+  j["variant"] = info.variant;
+  j["network"] = info.network;
+  j["dataset"] = info.dataset;
+  j["swarm_file"] = info.swarm_file;
+  j["wall_s"] = info.wall_s;
+  j["sim_s"] = info.sim_end_s;
+  j["interrupted"] = info.interrupted;
+  j["notes"] = info.notes;
+  std::vector<eval::Evaluation> kf_evals;
+  std::vector<eval::SvgMarker> markers;
+  std::map<uint32_t, std::vector<Transition>> modes;
+  eval::EvalOptions eo;
+  std::ofstream all_modes(run / "modes.csv");
+  all_modes << "robot,wall_ns,sim_ns,from,to,reason\n";
+  size_t k = 0;
+  for (uint32_t r : info.robots) {
+    const fs::path rd = run / ("robot_" + std::to_string(r));
+    json jr;
+    const fs::path gt_path = ds / ("robot_" + std::to_string(r)) / "groundtruth.tum";
+    geometry::Trajectory gt;
+    if (fs::exists(gt_path)) gt = geometry::read_tum(gt_path.string());
+    for (const char* kind : {"odometry", "keyframes"}) {
+      const fs::path tum = rd / (std::string(kind) + ".tum");
+      if (!fs::exists(tum)) {
+        jr[kind] = {{"error", "no trajectory written"}};
+        continue;
+      }
+      const geometry::Trajectory est = geometry::read_tum(tum.string());
+      geometry::write_kitti((rd / (std::string(kind) + ".kitti")).string(), est);
+      if (gt.size() < 2 || est.size() < 2) {
+        jr[kind] = {{"error", "too few poses"}, {"poses", est.size()}};
+        continue;
+      }
+      try {
+        eval::Evaluation e = eval::evaluate("robot " + std::to_string(r) + " " + kind, est, gt, eo);
+        json je = eval::to_json(e, eo);
+        je["ate_pct_of_length"] = e.gt_length_m > 0 ? 100.0 * e.ate.translation.rmse / e.gt_length_m : 0.0;
+        jr[kind] = je;
+        if (std::string(kind) == "keyframes") {
+          e.name = "robot " + std::to_string(r);
+          kf_evals.push_back(std::move(e));
+        }
+      } catch (const std::exception& ex) {
+        jr[kind] = {{"error", ex.what()}};
+      }
+    }
+    const std::vector<Transition> tr = read_modes(rd / "modes.csv");
+    modes[r] = tr;
+    json jt = json::array();
+    size_t to_dist = 0, to_cent = 0, by_liveliness = 0;
+    for (const Transition& t : tr) {
+      jt.push_back({{"sim_s", static_cast<double>(t.sim_ns) * 1e-9}, {"from", t.from}, {"to", t.to}, {"reason", t.reason}});
+      all_modes << r << ',' << t.wall_ns << ',' << t.sim_ns << ',' << t.from << ',' << t.to << ',' << t.reason << '\n';
+      if (t.to == "DISTRIBUTED") ++to_dist;
+      if (t.to == "CENTRALIZED") ++to_cent;
+      if (t.reason.find("liveliness") != std::string::npos) ++by_liveliness;
+      if (!gt.empty()) {
+        eval::SvgMarker m;
+        m.position = gt_position(gt, t.sim_ns);
+        m.triangle = t.to == "DISTRIBUTED";
+        m.color = kColors[k % kColors.size()];
+        m.label = (t.to == "DISTRIBUTED" ? "D " : "C ") + fmt(static_cast<double>(t.sim_ns) * 1e-9, 0) + " s";
+        markers.push_back(m);
+      }
+    }
+    jr["transitions"] = jt;
+    jr["switches_to_distributed"] = to_dist;
+    jr["switches_to_centralized"] = to_cent;
+    jr["switches_on_liveliness_lost"] = by_liveliness;
+    for (const char* svc : {"frontend", "descriptor", "loop_closure", "peer_optimiser"}) {
+      const fs::path sp = rd / (std::string(svc) + ".stats.json");
+      if (fs::exists(sp)) {
+        try {
+          std::ifstream in(sp);
+          jr["stats"][svc] = json::parse(in);
+        } catch (const std::exception&) {
+          jr["stats"][svc] = {{"error", "unreadable"}};
+        }
+      }
+    }
+    // Traffic per mode and link.
+    auto tit = info.traffic.find(r);
+    if (info.traffic_measured && tit != info.traffic.end()) {
+      json jm;
+      for (const auto& [mode, peers] : tit->second.bytes) {
+        const uint64_t kfs = tit->second.keyframes.count(mode) ? tit->second.keyframes.at(mode) : 0;
+        for (const auto& [peer, b] : peers) {
+          json l{{"sent_bytes", b.sent}, {"received_bytes", b.received}, {"keyframes_in_mode", kfs}};
+          if (kfs > 0) l["bytes_per_keyframe"] = static_cast<double>(b.sent + b.received) / static_cast<double>(kfs);
+          jm[mode][node_name(peer)] = l;
+        }
+      }
+      jr["traffic"] = jm;
+    }
+    j["robots"][std::to_string(r)] = jr;
+    ++k;
+  }
+  // Link timeline.
+  {
+    std::ofstream lf(run / "links.csv");
+    lf << "wall_s,sim_s,a,b,state\n";
+    for (const LinkEvent& e : info.links) {
+      lf << fmt(e.wall_s, 3) << ',' << fmt(e.sim_s, 3) << ',' << e.a << ',' << e.b << ',' << (e.up ? "up" : "down") << '\n';
+    }
+  }
+  // Totals per mode and link, and the distributed traffic per keyframe per robot-to-robot link.
+  if (info.traffic_measured) {
+    json per_link;
+    double worst_dist_per_kf = 0;
+    for (const auto& [r, t] : info.traffic) {
+      for (const auto& [mode, peers] : t.bytes) {
+        for (const auto& [peer, b] : peers) {
+          const std::string link = node_name(r) + "-" + node_name(peer);
+          per_link[link][mode]["sent_bytes"] = b.sent;
+          per_link[link][mode]["received_bytes"] = b.received;
+          const uint64_t kfs = t.keyframes.count(mode) ? t.keyframes.at(mode) : 0;
+          if (mode == "DISTRIBUTED" && peer != kCentralNode && kfs > 0) {
+            worst_dist_per_kf = std::max(worst_dist_per_kf, static_cast<double>(b.sent + b.received) / static_cast<double>(kfs));
+          }
+        }
+      }
+    }
+    j["traffic"] = {{"per_link", per_link}, {"max_distributed_bytes_per_keyframe_per_link", worst_dist_per_kf}};
+  }
+  // Plots.
+  if (!kf_evals.empty()) {
+    const fs::path svg = run / "trajectories.svg";
+    std::ofstream(svg) << eval::render_svg(kf_evals, "xy", info.name + ": optimised keyframes against ground truth", markers,
+                                           "triangle: switch to DISTRIBUTED, circle: back to CENTRALIZED (sim time)");
+    write_png(svg);
+  }
+  {
+    const fs::path svg = run / "modes.svg";
+    std::ofstream(svg) << render_timeline(info, modes);
+    write_png(svg);
+  }
+  // report.md
+  std::ostringstream md;
+  md << "# Run " << info.name << "\n\n"
+     << "- variant: " << info.variant << ", network: " << info.network << ", robots: " << info.robots.size() << "\n"
+     << "- dataset: `" << info.dataset << "`\n- wall time: " << fmt(info.wall_s, 1) << " s for " << fmt(info.sim_end_s, 1)
+     << " s of sim time" << (info.interrupted ? " (interrupted)" : "") << "\n";
+  for (const auto& n : info.notes) md << "- note: " << n << "\n";
+  md << "\n## Accuracy (SE(3)-aligned per robot)\n\n"
+     << "| robot | trajectory | length m | ATE rmse m | ATE % of length | RPE 1-step m | RPE 100 m (m) |\n"
+     << "|---|---|---|---|---|---|---|\n";
+  for (uint32_t r : info.robots) {
+    const json& jr = j["robots"][std::to_string(r)];
+    for (const char* kind : {"odometry", "keyframes"}) {
+      const json& e = jr[kind];
+      if (!e.contains("ate_m")) {
+        md << "| " << r << " | " << kind << " | - | " << e.value("error", std::string("?")) << " | | | |\n";
+        continue;
+      }
+      md << "| " << r << " | " << kind << " | " << fmt(e["gt_length_m"].get<double>(), 1) << " | "
+         << fmt(e["ate_m"]["rmse"].get<double>(), 3) << " | " << fmt(e["ate_pct_of_length"].get<double>(), 3) << " | "
+         << fmt(e["rpe_frames"]["trans_m"]["rmse"].get<double>(), 3) << " | "
+         << fmt(e["rpe_distance"]["trans_m"]["rmse"].get<double>(), 3) << " |\n";
+    }
+  }
+  md << "\n## Mode switches\n\n| robot | to DISTRIBUTED | back to CENTRALIZED | on liveliness lost | transitions (sim s) |\n"
+     << "|---|---|---|---|---|\n";
+  for (uint32_t r : info.robots) {
+    const json& jr = j["robots"][std::to_string(r)];
+    std::string list;
+    for (const auto& t : jr["transitions"]) {
+      list += (list.empty() ? "" : ", ") + t["to"].get<std::string>().substr(0, 1) + "@" + fmt(t["sim_s"].get<double>(), 1) +
+              " (" + t["reason"].get<std::string>() + ")";
+    }
+    md << "| " << r << " | " << jr["switches_to_distributed"] << " | " << jr["switches_to_centralized"] << " | "
+       << jr["switches_on_liveliness_lost"] << " | " << list << " |\n";
+  }
+  if (info.traffic_measured) {
+    md << "\n## Traffic on the emulated radio (SLAM domain, UDP bytes incl. headers, counted at each robot)\n\n"
+       << "| link | mode | sent | received | keyframes in mode | bytes per keyframe |\n|---|---|---|---|---|---|\n";
+    for (const auto& [r, t] : info.traffic) {
+      for (const auto& [mode, peers] : t.bytes) {
+        const uint64_t kfs = t.keyframes.count(mode) ? t.keyframes.at(mode) : 0;
+        for (const auto& [peer, b] : peers) {
+          md << "| " << node_name(r) << " - " << node_name(peer) << " | " << mode << " | " << b.sent << " | " << b.received
+             << " | " << kfs << " | "
+             << (kfs > 0 ? fmt(static_cast<double>(b.sent + b.received) / static_cast<double>(kfs), 0) : std::string("-"))
+             << " |\n";
+        }
+      }
+    }
+    md << "\nLargest distributed-mode traffic per keyframe on a robot-to-robot link: "
+       << fmt(j["traffic"]["max_distributed_bytes_per_keyframe_per_link"].get<double>(), 0) << " B\n";
+  }
+  md << "\n## Files\n\n- `robot_K/odometry.{tum,kitti}`: the front-end's real-time odometry (fused pose)\n"
+     << "- `robot_K/keyframes.{tum,kitti}`: the final optimised keyframes in the world frame\n"
+     << "- `global_graph.g2o`: the central's graph; `map/map.pcd`, `map/map.bt`: the global map\n"
+     << "- `modes.csv`, `links.csv`: mode timeline and emulated link changes; `logs/`: one log per process\n"
+     << "- `trajectories.svg|png`, `modes.svg|png`: plots\n";
+  std::ofstream(run / "report.md") << md.str();
+  std::ofstream(run / "report.json") << j.dump(2) << '\n';
+  return j;
+}
+
+}  // namespace cdc::launch

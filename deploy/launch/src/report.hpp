@@ -1,0 +1,44 @@
+// The results of a launched run: trajectories in TUM and KITTI formats, ATE/RPE per robot against
+// the dataset's ground truth, the mode timeline, traffic per link and per mode, report.md and
+// report.json, and plots (trajectories with the mode switches marked; mode over time).
+#pragma once
+
+#include "network.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace cdc::launch {
+
+struct LinkEvent {
+  double wall_s = 0, sim_s = 0;
+  uint32_t a = 0, b = 0;
+  bool up = true;
+};
+
+// Bytes and keyframes attributed to the mode the robot was in when they were counted.
+struct ModeTraffic {
+  std::map<std::string, std::map<uint32_t, LinkBytes>> bytes;  // mode -> peer node -> bytes
+  std::map<std::string, uint64_t> keyframes;                   // mode -> keyframes made in it
+};
+
+struct RunInfo {
+  std::string name, variant, network, dataset, run_dir, swarm_file;
+  std::vector<uint32_t> robots;
+  bool central = true;
+  double wall_s = 0, sim_end_s = 0;
+  bool interrupted = false;
+  bool traffic_measured = false;   // per-link counters exist only in netns mode
+  std::vector<LinkEvent> links;
+  std::map<uint32_t, ModeTraffic> traffic;  // per robot
+  std::vector<std::string> notes;           // shown in the report (e.g. limits of the network mode)
+};
+
+// Writes every result file into info.run_dir and returns report.json's content.
+nlohmann::json write_report(const RunInfo& info);
+
+}  // namespace cdc::launch

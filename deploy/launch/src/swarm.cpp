@@ -1,0 +1,86 @@
+#include "swarm.hpp"
+
+#include "cdc/config/reader.hpp"
+
+#include <filesystem>
+
+namespace cdc::launch {
+namespace fs = std::filesystem;
+
+const char* to_string(NetworkMode m) {
+  switch (m) {
+    case NetworkMode::kAuto: return "auto";
+    case NetworkMode::kNetns: return "netns";
+    case NetworkMode::kLoopback: return "loopback";
+  }
+  return "?";
+}
+
+const char* to_string(Variant v) {
+  switch (v) {
+    case Variant::kSingle: return "single";
+    case Variant::kDistributed: return "distributed";
+    case Variant::kSwitching: return "switching";
+  }
+  return "?";
+}
+
+SwarmConfig load_swarm(const std::string& path, const std::string& root) {
+  SwarmConfig c;
+  c.path = path;
+  if (!fs::is_regular_file(path)) throw config::ConfigError(path + ": no such swarm file");
+  config::Reader r(path);
+  r.get<std::string>("name", c.name, [](const std::string& s) {
+    return !s.empty() && s.find_first_of("/ \t") == std::string::npos;
+  }, "a name without spaces or slashes");
+  r.get<std::string>("scenario", c.scenario);
+  r.get<std::string>("dataset", c.dataset);
+  int max_scans = 0;
+  r.get<int>("max_scans", max_scans, [](const int& v) { return v >= 0; }, ">= 0");
+  c.max_scans = static_cast<size_t>(max_scans);
+  std::string network = "auto", variant = "switching";
+  r.get<std::string>("network", network, [](const std::string& s) {
+    return s == "auto" || s == "netns" || s == "loopback";
+  }, "auto, netns or loopback");
+  c.network = network == "netns" ? NetworkMode::kNetns : network == "loopback" ? NetworkMode::kLoopback : NetworkMode::kAuto;
+  int slam = static_cast<int>(c.slam_domain), sim = static_cast<int>(c.sim_domain);
+  auto domain = [](const int& v) { return v >= 0 && v <= 232; };
+  r.get<int>("slam_domain", slam, domain, "0..232");
+  r.get<int>("sim_domain", sim, domain, "0..232");
+  c.slam_domain = static_cast<uint32_t>(slam);
+  c.sim_domain = static_cast<uint32_t>(sim);
+  r.get<bool>("lockstep", c.lockstep);
+  r.get<double>("rate", c.rate, [](const double& v) { return v > 0; }, "> 0");
+  r.get<bool>("lidar_only", c.lidar_only);
+  r.get<std::string>("variant", variant, [](const std::string& s) {
+    return s == "single" || s == "distributed" || s == "switching";
+  }, "single, distributed or switching");
+  c.variant = variant == "single" ? Variant::kSingle : variant == "distributed" ? Variant::kDistributed : Variant::kSwitching;
+  r.get<bool>("frontend_correction", c.frontend_correction);
+  r.get<double>("settle_s", c.settle_s, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get<bool>("map", c.map);
+  r.get<std::string>("configs.frontend", c.frontend_config);
+  r.get<std::string>("configs.descriptor", c.descriptor_config);
+  r.get<std::string>("configs.loop_closure", c.loop_closure_config);
+  r.get<std::string>("configs.peer_optimiser", c.peer_config);
+  r.get<std::string>("configs.central_optimiser", c.central_config);
+  r.get<std::string>("configs.map", c.map_config);
+  if (c.dataset.empty()) r.error("dataset: required (the folder is generated from 'scenario' when missing)");
+  if (slam == sim) r.error("slam_domain and sim_domain must differ (sensors never cross the emulated radio)");
+  auto resolve = [&](std::string& p) {
+    if (!p.empty() && fs::path(p).is_relative()) p = (fs::path(root) / p).lexically_normal().string();
+  };
+  for (std::string* p : {&c.scenario, &c.dataset, &c.frontend_config, &c.descriptor_config, &c.loop_closure_config,
+                         &c.peer_config, &c.central_config, &c.map_config}) {
+    resolve(*p);
+  }
+  for (const std::string* p : {&c.frontend_config, &c.descriptor_config, &c.loop_closure_config, &c.peer_config,
+                               &c.central_config, &c.map_config}) {
+    if (!fs::is_regular_file(*p)) r.error("configs: " + *p + " does not exist");
+  }
+  if (!c.scenario.empty() && !fs::is_regular_file(c.scenario)) r.error("scenario: " + c.scenario + " does not exist");
+  r.finish();
+  return c;
+}
+
+}  // namespace cdc::launch
