@@ -193,6 +193,44 @@ TEST(PubSub, TransientLocalStateReachesALateJoiner) {
   EXPECT_EQ(seen, std::vector<uint32_t>{4});
 }
 
+// A robot's partition keeps its data from other robots' readers; the central's wildcard reader and
+// tools on the default partition still see it.
+TEST(PubSub, PartitionsKeepRobotDataFromOtherRobots) {
+  Participant p(test_options());
+  Topic<cdc_msg_ModeState> topic(p, unique_topic("partitioned"));
+  Writer<cdc_msg_ModeState> robot1(p, topic, qos::keyed_state().partitions({partitions::robot(1)}));
+  Reader<cdc_msg_ModeState> own(p, topic, qos::keyed_state().partitions(partitions::own_reader(1)));
+  Reader<cdc_msg_ModeState> other(p, topic, qos::keyed_state().partitions(partitions::own_reader(2)));
+  Reader<cdc_msg_ModeState> central(p, topic, qos::keyed_state().partitions(partitions::all_robots_reader()));
+  Reader<cdc_msg_ModeState> plain(p, topic, qos::keyed_state());
+  EXPECT_EQ(qos::keyed_state().partitions({partitions::robot(1)}).partitions(), std::vector<std::string>{"robot/1"});
+  ASSERT_TRUE(robot1.wait_for_readers(2, 5000ms));
+  cdc_msg_ModeState m{};
+  m.robot_id = 1;
+  m.mode = cdc_msg_MODE_CENTRALIZED;
+  m.reason = cdc_msg_REASON_STARTUP;
+  robot1.write(m);
+  size_t got_own = 0, got_central = 0;
+  ASSERT_TRUE(wait_until(
+      [&] {
+        got_own += own.take().size();
+        got_central += central.take().size();
+        return got_own > 0 && got_central > 0;
+      },
+      5000ms));
+  std::this_thread::sleep_for(200ms);
+  EXPECT_EQ(robot1.matched_readers(), 2u);  // own and central only
+  EXPECT_EQ(other.take().size(), 0u);
+  EXPECT_EQ(plain.take().size(), 0u);
+  // A tool writing on the default partition reaches a robot's own reader.
+  Writer<cdc_msg_ModeState> tool(p, topic, qos::keyed_state());
+  ASSERT_TRUE(tool.wait_for_readers(4, 5000ms));
+  m.robot_id = 2;
+  tool.write(m);
+  size_t got_other = 0;
+  ASSERT_TRUE(wait_until([&] { return (got_other += other.take().size()) > 0; }, 5000ms));
+}
+
 TEST(WaitSet, GuardConditionWakesTheWaiter) {
   Participant p(test_options());
   GuardCondition guard(p);

@@ -228,6 +228,8 @@ void Launcher::sample_traffic() {
     LinkBytes& acc = info_.traffic[r].bytes[mode][peer];
     acc.sent += b.sent - std::min(b.sent, last.sent);
     acc.received += b.received - std::min(b.received, last.received);
+    acc.meta_sent += b.meta_sent - std::min(b.meta_sent, last.meta_sent);
+    acc.meta_received += b.meta_received - std::min(b.meta_received, last.meta_received);
     last = b;
   }
 }
@@ -347,6 +349,7 @@ int Launcher::run() {
 
   std::cout << "cdc-launch: " << c_.name << ": " << robots_.size() << " robots, variant " << info_.variant << ", "
             << sim_total_s_ << " s of sim time, results in " << run_.string() << std::endl;
+  apply_radio(0.0);  // the links as they are when the run starts (all cut for single robots)
   start_services();
   // Wait until every peer optimiser runs (and sees the central, when there is one).
   const auto ready_deadline = Clock::now() + std::chrono::seconds(30);

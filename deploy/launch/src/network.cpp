@@ -100,10 +100,14 @@ NetnsNetwork::NetnsNetwork(const std::string& tag, const std::vector<uint32_t>& 
       ns_cmd(node, {"iptables", "-w", "-A", "OUTPUT", "-j", "CDC_ACCT_OUT"});
       for (uint32_t peer : nodes_) {
         if (peer == node || peer == kSimNode) continue;
-        ns_cmd(node, {"iptables", "-w", "-A", "CDC_ACCT_IN", "-s", address(peer), "-p", "udp", "--dport", port_range_, "-j",
-                      "RETURN"});
-        ns_cmd(node, {"iptables", "-w", "-A", "CDC_ACCT_OUT", "-d", address(peer), "-p", "udp", "--dport", port_range_,
-                      "-j", "RETURN"});
+        for (const char* kind : {"data", "meta"}) {
+          // Lowest bit of the UDP destination port: 1 for user data, 0 for discovery.
+          const std::string parity = std::string("0>>22&0x3C@0&0x1=") + (std::string(kind) == "data" ? "1" : "0");
+          ns_cmd(node, {"iptables", "-w", "-A", "CDC_ACCT_IN", "-s", address(peer), "-p", "udp", "--dport", port_range_, "-m",
+                        "u32", "--u32", parity, "-m", "comment", "--comment", kind, "-j", "RETURN"});
+          ns_cmd(node, {"iptables", "-w", "-A", "CDC_ACCT_OUT", "-d", address(peer), "-p", "udp", "--dport", port_range_,
+                        "-m", "u32", "--u32", parity, "-m", "comment", "--comment", kind, "-j", "RETURN"});
+        }
       }
     }
   } catch (...) {
@@ -165,7 +169,13 @@ std::map<std::pair<uint32_t, uint32_t>, LinkBytes> NetnsNetwork::counters() cons
         auto it = by_address.find(incoming ? src : dst);
         if (it == by_address.end()) continue;
         LinkBytes& lb = out[{node, it->second}];
-        (incoming ? lb.received : lb.sent) = std::stoull(bytes);
+        const bool meta = line.find("/* meta */") != std::string::npos;
+        const uint64_t b = std::stoull(bytes);
+        if (meta) {
+          (incoming ? lb.meta_received : lb.meta_sent) = b;
+        } else {
+          (incoming ? lb.received : lb.sent) = b;
+        }
       }
     }
   }

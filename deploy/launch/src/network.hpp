@@ -20,8 +20,12 @@ namespace cdc::launch {
 inline constexpr uint32_t kCentralNode = 200;  // the central's node id (as in the radio timeline)
 inline constexpr uint32_t kSimNode = 250;      // the simulator's namespace
 
+// SLAM-domain UDP bytes (IP packets) seen by the robot's side of a link. Cyclone sends user data
+// (samples, their heartbeats and acknowledgements) to odd port offsets and discovery (SPDP, SEDP,
+// participant liveliness) to even ones, which tells the two apart.
 struct LinkBytes {
-  uint64_t sent = 0, received = 0;  // SLAM-domain UDP payload + headers, seen by the robot's side
+  uint64_t sent = 0, received = 0;                // user data
+  uint64_t meta_sent = 0, meta_received = 0;      // discovery
 };
 
 class NetnsNetwork {

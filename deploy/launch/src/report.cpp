@@ -197,7 +197,7 @@ json write_report(const RunInfo& info) {
       if (t.to == "DISTRIBUTED") ++to_dist;
       if (t.to == "CENTRALIZED") ++to_cent;
       if (t.reason.find("liveliness") != std::string::npos) ++by_liveliness;
-      if (!gt.empty()) {
+      if (!gt.empty() && t.sim_ns > 0) {  // (not the start-up transition before the first sweep)
         eval::SvgMarker m;
         m.position = gt_position(gt, t.sim_ns);
         m.triangle = t.to == "DISTRIBUTED";
@@ -228,7 +228,11 @@ json write_report(const RunInfo& info) {
       for (const auto& [mode, peers] : tit->second.bytes) {
         const uint64_t kfs = tit->second.keyframes.count(mode) ? tit->second.keyframes.at(mode) : 0;
         for (const auto& [peer, b] : peers) {
-          json l{{"sent_bytes", b.sent}, {"received_bytes", b.received}, {"keyframes_in_mode", kfs}};
+          json l{{"sent_bytes", b.sent},
+                 {"received_bytes", b.received},
+                 {"discovery_sent_bytes", b.meta_sent},
+                 {"discovery_received_bytes", b.meta_received},
+                 {"keyframes_in_mode", kfs}};
           if (kfs > 0) l["bytes_per_keyframe"] = static_cast<double>(b.sent + b.received) / static_cast<double>(kfs);
           jm[mode][node_name(peer)] = l;
         }
@@ -256,6 +260,7 @@ json write_report(const RunInfo& info) {
           const std::string link = node_name(r) + "-" + node_name(peer);
           per_link[link][mode]["sent_bytes"] = b.sent;
           per_link[link][mode]["received_bytes"] = b.received;
+          per_link[link][mode]["discovery_bytes"] = b.meta_sent + b.meta_received;
           const uint64_t kfs = t.keyframes.count(mode) ? t.keyframes.at(mode) : 0;
           if (mode == "DISTRIBUTED" && peer != kCentralNode && kfs > 0) {
             worst_dist_per_kf = std::max(worst_dist_per_kf, static_cast<double>(b.sent + b.received) / static_cast<double>(kfs));
@@ -314,20 +319,23 @@ json write_report(const RunInfo& info) {
        << jr["switches_on_liveliness_lost"] << " | " << list << " |\n";
   }
   if (info.traffic_measured) {
-    md << "\n## Traffic on the emulated radio (SLAM domain, UDP bytes incl. headers, counted at each robot)\n\n"
-       << "| link | mode | sent | received | keyframes in mode | bytes per keyframe |\n|---|---|---|---|---|---|\n";
+    md << "\n## Traffic on the emulated radio (SLAM domain, IP bytes, counted at each robot)\n\n"
+       << "User data (samples with their heartbeats and acknowledgements) and discovery (SPDP/SEDP, which bursts\n"
+       << "whenever a link comes back) are counted apart. Each mode gets what was counted while the robot was in it.\n\n"
+       << "| link | mode | data sent | data received | discovery | keyframes in mode | data bytes per keyframe |\n"
+       << "|---|---|---|---|---|---|---|\n";
     for (const auto& [r, t] : info.traffic) {
       for (const auto& [mode, peers] : t.bytes) {
         const uint64_t kfs = t.keyframes.count(mode) ? t.keyframes.at(mode) : 0;
         for (const auto& [peer, b] : peers) {
           md << "| " << node_name(r) << " - " << node_name(peer) << " | " << mode << " | " << b.sent << " | " << b.received
-             << " | " << kfs << " | "
+             << " | " << b.meta_sent + b.meta_received << " | " << kfs << " | "
              << (kfs > 0 ? fmt(static_cast<double>(b.sent + b.received) / static_cast<double>(kfs), 0) : std::string("-"))
              << " |\n";
         }
       }
     }
-    md << "\nLargest distributed-mode traffic per keyframe on a robot-to-robot link: "
+    md << "\nLargest distributed-mode user-data traffic per keyframe on a robot-to-robot link: "
        << fmt(j["traffic"]["max_distributed_bytes_per_keyframe_per_link"].get<double>(), 0) << " B\n";
   }
   md << "\n## Files\n\n- `robot_K/odometry.{tum,kitti}`: the front-end's real-time odometry (fused pose)\n"

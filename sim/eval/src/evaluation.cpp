@@ -207,7 +207,8 @@ std::string render_svg(const std::vector<Evaluation>& evaluations, const std::st
   if (!marker_legend.empty()) {
     svg << "<text x=\"" << margin << "\" y=\"50\" font-size=\"12\" fill=\"#333333\">" << xml_escape(marker_legend) << "</text>\n";
   }
-  svg << "<text x=\"" << w - 220 << "\" y=\"" << legend_y << "\" fill=\"#555555\">- - ground truth</text>\n";
+  if (k > 3) legend_y += 18;  // a second row of estimates
+  svg << "<text x=\"" << margin << "\" y=\"" << legend_y + 18 << "\" fill=\"#555555\">- - ground truth</text>\n";
   svg << "</svg>\n";
   return svg.str();
 }
