@@ -76,7 +76,7 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   dds::Topic<cdc_msg_CloudReply> t_rep(participant, dds::topics::kCloudReply);
   dds::Topic<cdc_msg_LoopClosure> t_loop(participant, dds::topics::kLoopClosure);
   dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096));
-  dds::Writer<cdc_msg_Descriptor> w_desc(participant, t_desc, dds::qos::event_stream(4096));
+  dds::Writer<cdc_msg_Descriptor> w_desc(participant, t_desc, dds::qos::keyed_state());  // as cdc-descriptor
   dds::Writer<cdc_msg_CloudReply> w_rep(participant, t_rep, dds::qos::event_stream(256));
   dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop, dds::qos::event_stream(4096));
 

@@ -39,13 +39,7 @@ const std::vector<VariantSpec> kVariants = {
     {"d", "(d) switching + correction", "variant: switching\nfrontend_correction: true\n"},
 };
 
-std::string fmt(double v, int prec) {
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(prec);
-  s << v;
-  return s.str();
-}
+using cdc::launch::fixed;
 
 }  // namespace
 
@@ -119,7 +113,7 @@ int main(int argc, char** argv) {
                                   {"switches_to_distributed", jr["switches_to_distributed"]}};
         }
         table[seq][v.key] = row;
-        std::cout << "cdc-experiment: " << name << " done in " << fmt(wall, 0) << " s" << std::endl;
+        std::cout << "cdc-experiment: " << name << " done in " << fixed(wall, 0) << " s" << std::endl;
       }
     }
     // Table IV: rows = sequence x robot, columns = variant (ATE / RPE).
@@ -137,8 +131,8 @@ int main(int argc, char** argv) {
         for (const VariantSpec& v : kVariants) {
           const json& c = table[seq].contains(v.key) ? table[seq][v.key] : json();
           if (c.contains("robots") && c["robots"].contains(robot)) {
-            md << ' ' << fmt(c["robots"][robot]["ate_m"].get<double>(), 3) << " / "
-               << fmt(c["robots"][robot]["rpe_m"].get<double>(), 4) << " |";
+            md << ' ' << fixed(c["robots"][robot]["ate_m"].get<double>(), 3) << " / "
+               << fixed(c["robots"][robot]["rpe_m"].get<double>(), 4) << " |";
           } else {
             md << " - |";
           }

@@ -120,6 +120,7 @@ class Launcher {
   std::map<uint32_t, uint64_t> last_keyframes_;
   double sim_total_s_ = 0;
   bool startup_ = false;  // traffic counted now belongs to start-up (discovery), not to a mode
+  bool rendezvous_ = false;  // the mission is over: every link is up
 };
 
 void Launcher::ensure_dataset() {
@@ -197,7 +198,7 @@ void Launcher::apply_radio(double t_s) {
   for (size_t i = 0; i < nodes.size(); ++i) {
     for (size_t j = i + 1; j < nodes.size(); ++j) {
       const uint32_t a = nodes[i], b = nodes[j];
-      bool up = c_.variant != Variant::kSingle && in_range(periods_, a, b, t_s);
+      bool up = c_.variant != Variant::kSingle && (rendezvous_ || in_range(periods_, a, b, t_s));
       if (net_->link_up(a, b) != up) {
         net_->set_link(a, b, up);
         info_.links.push_back({std::chrono::duration<double>(Clock::now() - t0_).count(), t_s, a, b, up});
@@ -284,7 +285,7 @@ void Launcher::stop_all() {
 int Launcher::run() {
   install_signals();
   run_ = o_.out.empty() ? fs::path(o_.root) / "results" / (c_.name + "-" + timestamp()) : fs::path(o_.out);
-  run_ = fs::absolute(run_);
+  run_ = fs::absolute(run_).lexically_normal();
   fs::create_directories(run_ / "logs");
   fs::create_directories(run_ / "dds");
   fs::copy_file(c_.path, run_ / "swarm.yaml", fs::copy_options::overwrite_existing);
@@ -423,7 +424,13 @@ int Launcher::run() {
         failure = "the player failed (exit " + std::to_string(player_->exit_status().value_or(-1)) + "): see " + player_->spec().log_path;
         break;
       }
-      settle_until = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(c_.settle_s));
+      double settle = c_.settle_s;
+      if (c_.rendezvous_s > 0 && c_.variant != Variant::kSingle) {
+        rendezvous_ = true;  // applied by apply_radio on the next pass
+        settle = std::max(settle, c_.rendezvous_s);
+        std::cout << "cdc-launch: last sweep played; rendezvous: every robot back in range for " << settle << " s" << std::endl;
+      }
+      settle_until = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(settle));
     }
     if (settle_until && Clock::now() >= *settle_until) break;
     if (o_.stop_after_s > 0 && t_s >= o_.stop_after_s) {

@@ -43,13 +43,6 @@ std::vector<Transition> read_modes(const fs::path& p) {
   return out;
 }
 
-std::string fmt(double v, int prec) {
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(prec);
-  s << v;
-  return s.str();
-}
 
 std::string node_name(uint32_t n) {
   if (n == kCentralNode) return "central";
@@ -82,7 +75,7 @@ std::string render_timeline(const RunInfo& info, const std::map<uint32_t, std::v
     std::string mode = info.central ? "CENTRALIZED" : "DISTRIBUTED";
     double t0 = 0;
     auto bar = [&](double a, double b, const std::string& m) {
-      s << "<rect x=\"" << fmt(px(a), 1) << "\" y=\"" << y << "\" width=\"" << fmt(std::max(px(b) - px(a), 0.5), 1)
+      s << "<rect x=\"" << fixed(px(a), 1) << "\" y=\"" << y << "\" width=\"" << fixed(std::max(px(b) - px(a), 0.5), 1)
         << "\" height=\"22\" fill=\"" << (m == "CENTRALIZED" ? "#1f77b4" : "#ff7f0e") << "\"/>\n";
     };
     auto it = modes.find(r);
@@ -98,7 +91,7 @@ std::string render_timeline(const RunInfo& info, const std::map<uint32_t, std::v
     // Link to the central cut (grey) under the bar.
     double cut_start = -1;  // < 0: the link is up
     auto cut_bar = [&](double a, double b) {
-      s << "<rect x=\"" << fmt(px(a), 1) << "\" y=\"" << y + 25 << "\" width=\"" << fmt(std::max(px(b) - px(a), 0.5), 1)
+      s << "<rect x=\"" << fixed(px(a), 1) << "\" y=\"" << y + 25 << "\" width=\"" << fixed(std::max(px(b) - px(a), 0.5), 1)
         << "\" height=\"6\" fill=\"#777777\"/>\n";
     };
     for (const LinkEvent& e : info.links) {
@@ -116,8 +109,8 @@ std::string render_timeline(const RunInfo& info, const std::map<uint32_t, std::v
   s << "<line x1=\"" << left << "\" y1=\"" << y << "\" x2=\"" << w - right << "\" y2=\"" << y << "\" stroke=\"black\"/>\n";
   const double step = t_end > 200 ? 50 : t_end > 50 ? 10 : 5;
   for (double t = 0; t <= t_end + 1e-9; t += step) {
-    s << "<line x1=\"" << fmt(px(t), 1) << "\" y1=\"" << y << "\" x2=\"" << fmt(px(t), 1) << "\" y2=\"" << y + 5
-      << "\" stroke=\"black\"/><text x=\"" << fmt(px(t) - 8, 1) << "\" y=\"" << y + 18 << "\">" << fmt(t, 0) << "</text>\n";
+    s << "<line x1=\"" << fixed(px(t), 1) << "\" y1=\"" << y << "\" x2=\"" << fixed(px(t), 1) << "\" y2=\"" << y + 5
+      << "\" stroke=\"black\"/><text x=\"" << fixed(px(t) - 8, 1) << "\" y=\"" << y + 18 << "\">" << fixed(t, 0) << "</text>\n";
   }
   s << "<text x=\"" << w - right - 60 << "\" y=\"" << y + 34 << "\">sim time [s]</text>\n"
     << "<rect x=\"" << left << "\" y=\"" << y + 26 << "\" width=\"12\" height=\"10\" fill=\"#1f77b4\"/><text x=\"" << left + 16
@@ -136,6 +129,14 @@ void write_png(const fs::path& svg) {
 }
 
 }  // namespace
+
+std::string fixed(double v, int decimals) {
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(decimals);
+  s << v;
+  return s.str();
+}
 
 json write_report(const RunInfo& info) {
   const fs::path run(info.run_dir), ds(info.dataset);
@@ -202,7 +203,7 @@ json write_report(const RunInfo& info) {
         m.position = gt_position(gt, t.sim_ns);
         m.triangle = t.to == "DISTRIBUTED";
         m.color = kColors[k % kColors.size()];
-        m.label = (t.to == "DISTRIBUTED" ? "D " : "C ") + fmt(static_cast<double>(t.sim_ns) * 1e-9, 0) + " s";
+        m.label = (t.to == "DISTRIBUTED" ? "D " : "C ") + fixed(static_cast<double>(t.sim_ns) * 1e-9, 0) + " s";
         markers.push_back(m);
       }
     }
@@ -247,7 +248,7 @@ json write_report(const RunInfo& info) {
     std::ofstream lf(run / "links.csv");
     lf << "wall_s,sim_s,a,b,state\n";
     for (const LinkEvent& e : info.links) {
-      lf << fmt(e.wall_s, 3) << ',' << fmt(e.sim_s, 3) << ',' << e.a << ',' << e.b << ',' << (e.up ? "up" : "down") << '\n';
+      lf << fixed(e.wall_s, 3) << ',' << fixed(e.sim_s, 3) << ',' << e.a << ',' << e.b << ',' << (e.up ? "up" : "down") << '\n';
     }
   }
   // Totals per mode and link, and the distributed traffic per keyframe per robot-to-robot link.
@@ -286,7 +287,7 @@ json write_report(const RunInfo& info) {
   std::ostringstream md;
   md << "# Run " << info.name << "\n\n"
      << "- variant: " << info.variant << ", network: " << info.network << ", robots: " << info.robots.size() << "\n"
-     << "- dataset: `" << info.dataset << "`\n- wall time: " << fmt(info.wall_s, 1) << " s for " << fmt(info.sim_end_s, 1)
+     << "- dataset: `" << info.dataset << "`\n- wall time: " << fixed(info.wall_s, 1) << " s for " << fixed(info.sim_end_s, 1)
      << " s of sim time" << (info.interrupted ? " (interrupted)" : "") << "\n";
   for (const auto& n : info.notes) md << "- note: " << n << "\n";
   md << "\n## Accuracy (SE(3)-aligned per robot)\n\n"
@@ -300,10 +301,10 @@ json write_report(const RunInfo& info) {
         md << "| " << r << " | " << kind << " | - | " << e.value("error", std::string("?")) << " | | | |\n";
         continue;
       }
-      md << "| " << r << " | " << kind << " | " << fmt(e["gt_length_m"].get<double>(), 1) << " | "
-         << fmt(e["ate_m"]["rmse"].get<double>(), 3) << " | " << fmt(e["ate_pct_of_length"].get<double>(), 3) << " | "
-         << fmt(e["rpe_frames"]["trans_m"]["rmse"].get<double>(), 3) << " | "
-         << fmt(e["rpe_distance"]["trans_m"]["rmse"].get<double>(), 3) << " |\n";
+      md << "| " << r << " | " << kind << " | " << fixed(e["gt_length_m"].get<double>(), 1) << " | "
+         << fixed(e["ate_m"]["rmse"].get<double>(), 3) << " | " << fixed(e["ate_pct_of_length"].get<double>(), 3) << " | "
+         << fixed(e["rpe_frames"]["trans_m"]["rmse"].get<double>(), 3) << " | "
+         << fixed(e["rpe_distance"]["trans_m"]["rmse"].get<double>(), 3) << " |\n";
     }
   }
   md << "\n## Mode switches\n\n| robot | to DISTRIBUTED | back to CENTRALIZED | on liveliness lost | transitions (sim s) |\n"
@@ -312,7 +313,7 @@ json write_report(const RunInfo& info) {
     const json& jr = j["robots"][std::to_string(r)];
     std::string list;
     for (const auto& t : jr["transitions"]) {
-      list += (list.empty() ? "" : ", ") + t["to"].get<std::string>().substr(0, 1) + "@" + fmt(t["sim_s"].get<double>(), 1) +
+      list += (list.empty() ? "" : ", ") + t["to"].get<std::string>().substr(0, 1) + "@" + fixed(t["sim_s"].get<double>(), 1) +
               " (" + t["reason"].get<std::string>() + ")";
     }
     md << "| " << r << " | " << jr["switches_to_distributed"] << " | " << jr["switches_to_centralized"] << " | "
@@ -330,13 +331,13 @@ json write_report(const RunInfo& info) {
         for (const auto& [peer, b] : peers) {
           md << "| " << node_name(r) << " - " << node_name(peer) << " | " << mode << " | " << b.sent << " | " << b.received
              << " | " << b.meta_sent + b.meta_received << " | " << kfs << " | "
-             << (kfs > 0 ? fmt(static_cast<double>(b.sent + b.received) / static_cast<double>(kfs), 0) : std::string("-"))
+             << (kfs > 0 ? fixed(static_cast<double>(b.sent + b.received) / static_cast<double>(kfs), 0) : std::string("-"))
              << " |\n";
         }
       }
     }
     md << "\nLargest distributed-mode user-data traffic per keyframe on a robot-to-robot link: "
-       << fmt(j["traffic"]["max_distributed_bytes_per_keyframe_per_link"].get<double>(), 0) << " B\n";
+       << fixed(j["traffic"]["max_distributed_bytes_per_keyframe_per_link"].get<double>(), 0) << " B\n";
   }
   md << "\n## Files\n\n- `robot_K/odometry.{tum,kitti}`: the front-end's real-time odometry (fused pose)\n"
      << "- `robot_K/keyframes.{tum,kitti}`: the final optimised keyframes in the world frame\n"

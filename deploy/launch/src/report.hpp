@@ -38,6 +38,9 @@ struct RunInfo {
   std::vector<std::string> notes;           // shown in the report (e.g. limits of the network mode)
 };
 
+// A number with a fixed count of decimals (tables of the reports).
+std::string fixed(double v, int decimals);
+
 // Writes every result file into info.run_dir and returns report.json's content.
 nlohmann::json write_report(const RunInfo& info);
 

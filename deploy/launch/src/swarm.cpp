@@ -59,6 +59,7 @@ SwarmConfig load_swarm(const std::string& path, const std::string& root) {
   r.get<bool>("frontend_correction", c.frontend_correction);
   r.get<double>("settle_s", c.settle_s, [](const double& v) { return v >= 0; }, ">= 0");
   r.get<bool>("map", c.map);
+  r.get<double>("rendezvous_s", c.rendezvous_s, [](const double& v) { return v >= 0; }, ">= 0");
   r.get<std::string>("configs.frontend", c.frontend_config);
   r.get<std::string>("configs.descriptor", c.descriptor_config);
   r.get<std::string>("configs.loop_closure", c.loop_closure_config);

@@ -31,6 +31,8 @@ struct SwarmConfig {
   Variant variant = Variant::kSwitching;
   bool frontend_correction = true;  // (d) with, (c) without
   double settle_s = 5.0;     // after the last sweep: time for the back-ends before shutdown
+  double rendezvous_s = 0;   // > 0: after the last sweep every robot comes back in range (the end of the
+                             // mission) and the swarm runs this long (at least) before shutdown
   std::string frontend_config = "services/frontend/config/frontend.yaml";
   std::string descriptor_config = "services/descriptor/config/descriptor.yaml";
   std::string loop_closure_config = "services/loop_closure/config/loop_closure.yaml";

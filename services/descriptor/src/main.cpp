@@ -51,7 +51,8 @@ int run(const Options& o) {
   dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
   dds::Topic<cdc_msg_Descriptor> t_desc(participant, dds::topics::kDescriptor);
   dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(o.robot)));
-  dds::Writer<cdc_msg_Descriptor> w_desc(participant, t_desc, dds::qos::event_stream(4096));
+  // Transient-local, one sample per keyframe: robots that come in range later get them all.
+  dds::Writer<cdc_msg_Descriptor> w_desc(participant, t_desc, dds::qos::keyed_state());
   dds::GuardCondition stop(participant);
   dds::ShutdownSignal::add_guard(&stop);
   dds::ReadCondition rc_kf(r_kf.handle());

@@ -77,6 +77,11 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
     }
   }
   const bool searches = query_robot && local_.count(me) != 0;
+  // A peer's descriptor (a robot's service only) is searched the other way round, among this
+  // robot's own keyframes: peers' descriptors arrive in bursts when a peer comes back in range
+  // (the history of everything it described meanwhile), and a peer's place this robot saw long
+  // ago would otherwise only be found if this robot passed there again.
+  const bool reverse = query_robot_ && d.robot != *query_robot_;
   std::vector<lidar::ScanContextDatabase::Candidate> candidates;
   if (searches) {
     ++stats_.queries;
@@ -84,6 +89,9 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
       const auto& [robot, k] = owner_[id];
       return robot != d.robot || k + p_.exclude_recent < d.id;
     });
+  } else if (reverse) {
+    ++stats_.reverse_queries;
+    candidates = db_.query(d.context, p_.knn, [&](size_t id) { return owner_[id].first == *query_robot_; });
   }
   db_.add(std::move(d.context));
   owner_.push_back(me);
@@ -93,7 +101,9 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
     if (c.match.distance > p_.max_sc_distance || taken >= p_.max_verify) break;
     ++taken;
     ++stats_.candidates;
-    const Job job{me, owner_[c.id], c.match.yaw_rad};
+    // The job's query is always one of this robot's keyframes and its candidate the other one: for
+    // a reverse search the roles swap, and so does the sign of the yaw between them.
+    const Job job = reverse ? Job{owner_[c.id], me, -c.match.yaw_rad} : Job{me, owner_[c.id], c.match.yaw_rad};
     if (clouds_.count(job.candidate) != 0) {
       out.append(verify(job));
       continue;

@@ -91,7 +91,9 @@ int run_loop_closure(const LoopNodeOptions& o) {
   dds::Topic<cdc_msg_CloudRequest> t_req(participant, topics::kCloudRequest);
   dds::Topic<cdc_msg_CloudReply> t_rep(participant, topics::kCloudReply);
   dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(me)));
-  dds::Reader<cdc_msg_Descriptor> r_desc(participant, t_desc, dds::qos::event_stream(4096));
+  // Descriptors are state per keyframe, transient-local: a peer that comes back in range (a new
+  // match after its lease lapsed) receives every descriptor it missed.
+  dds::Reader<cdc_msg_Descriptor> r_desc(participant, t_desc, dds::qos::keyed_state());
   dds::Reader<cdc_msg_CloudRequest> r_req(participant, t_req, dds::qos::event_stream(256));
   dds::Reader<cdc_msg_CloudReply> r_rep(participant, t_rep, dds::qos::event_stream(256).partitions(dds::partitions::own_reader(me)));
   dds::Writer<cdc_msg_LoopClosure> w_loop(participant, t_loop, dds::qos::event_stream(4096));
@@ -289,6 +291,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
                      {"keyframes", core.keyframes()},
                      {"loops_published", loops_sent},
                      {"queries", s.queries},
+                     {"reverse_queries", s.reverse_queries},
                      {"verified", s.verified},
                      {"verification_failed", s.verification_failed},
                      {"intra_accepted", s.intra_accepted},

@@ -126,11 +126,12 @@ TEST(LoopCore, RequestsPeerCloudsAndVerifiesWhenTheyArrive) {
   Nanos now{0};
   for (uint32_t k = 0; c.truth.count({1, k}) != 0; ++k) {
     now += std::chrono::milliseconds(200);
-    EXPECT_TRUE(core.add_descriptor(c.descriptor(0, k, params), now).requests.empty());  // peers' never search
+    // A peer's descriptor is searched among this robot's own keyframes (a reverse search).
+    LoopEvents ev = core.add_descriptor(c.descriptor(0, k, params), now);
     // The own descriptor may come before its keyframe: the search waits for the keyframe.
-    LoopEvents ev = core.add_descriptor(c.descriptor(1, k, params), now);
-    EXPECT_TRUE(ev.requests.empty() && ev.loops.empty());
-    ev = core.add_keyframe_data(c.keyframe(1, k), now);
+    LoopEvents own = core.add_descriptor(c.descriptor(1, k, params), now);
+    EXPECT_TRUE(own.requests.empty() && own.loops.empty());
+    ev.append(core.add_keyframe_data(c.keyframe(1, k), now));
     for (const auto& r : ev.requests) {
       EXPECT_EQ(r.robot, 0u);
       EXPECT_TRUE(asked.insert({r.robot, r.id}).second) << "asked twice for " << r.id;
@@ -154,6 +155,41 @@ TEST(LoopCore, RequestsPeerCloudsAndVerifiesWhenTheyArrive) {
   EXPECT_EQ(core.stats().replies_unexpected, 1u);
 }
 
+// A peer that was out of range comes back and its descriptors arrive all at once, after this robot
+// has passed every one of those places: the reverse search still finds the loops.
+TEST(LoopCore, DescriptorsOfAPeerBackInRangeAreSearchedAmongOwnKeyframes) {
+  const Circle c(30, 2);
+  LoopParams params;
+  params.exclude_recent = 1000;  // inter-robot loops only
+  LoopCore core(params, 1u);
+  Nanos now{0};
+  for (uint32_t k = 0; c.truth.count({1, k}) != 0; ++k) {
+    LoopEvents ev = core.add_keyframe_data(c.keyframe(1, k), now);
+    ev.append(core.add_descriptor(c.descriptor(1, k, params), now));
+    EXPECT_TRUE(ev.requests.empty() && ev.loops.empty()) << "nothing to find before the peer is heard";
+  }
+  std::vector<LoopOut> loops;
+  size_t requests = 0;
+  for (uint32_t k = 0; c.truth.count({0, k}) != 0; ++k) {
+    now += std::chrono::milliseconds(10);
+    LoopEvents ev = core.add_descriptor(c.descriptor(0, k, params), now);
+    for (const auto& r : ev.requests) {
+      EXPECT_EQ(r.robot, 0u);
+      ++requests;
+      ev.append(core.on_cloud(r.robot, r.id, c.clouds.at({r.robot, r.id}), now));
+    }
+    loops.insert(loops.end(), ev.loops.begin(), ev.loops.end());
+  }
+  EXPECT_GE(core.stats().reverse_queries, 10u);
+  EXPECT_GE(requests, 5u);
+  ASSERT_GE(loops.size(), 4u);
+  for (const auto& l : loops) {
+    EXPECT_EQ(l.robot_a, 0u);
+    EXPECT_EQ(l.robot_b, 1u);
+    c.expect_true(l);
+  }
+}
+
 TEST(LoopCore, AnUnansweredRequestTimesOutWithoutBlockingOtherCandidates) {
   // Robot 2's service; robot 0 never answers, robot 1 does.
   const Circle c(30, 3);
@@ -167,8 +203,9 @@ TEST(LoopCore, AnUnansweredRequestTimesOutWithoutBlockingOtherCandidates) {
   Nanos now{0};
   for (uint32_t k = 0; c.truth.count({2, k}) != 0; ++k) {
     now += std::chrono::milliseconds(200);
-    for (uint32_t r : {0u, 1u}) core.add_descriptor(c.descriptor(r, k, params), now);
-    LoopEvents ev = core.add_keyframe_data(c.keyframe(2, k), now);
+    LoopEvents ev;
+    for (uint32_t r : {0u, 1u}) ev.append(core.add_descriptor(c.descriptor(r, k, params), now));  // reverse searches
+    ev.append(core.add_keyframe_data(c.keyframe(2, k), now));
     ev.append(core.add_descriptor(c.descriptor(2, k, params), now));
     for (const auto& r : ev.requests) {
       if (r.robot == 0) {

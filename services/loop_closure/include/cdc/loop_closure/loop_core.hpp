@@ -9,7 +9,9 @@
 // held locally becomes a cloud request (returned to the caller, answered with on_cloud or
 // on_cloud_missing, or dropped by tick after its deadline), and its verification waits while the
 // other candidates go on. Robots whose odometry is not held locally are chained through the
-// descriptors' pose hints with a nominal noise model (PCM needs both robots' odometry).
+// descriptors' pose hints with a nominal noise model (PCM needs both robots' odometry). A peer's
+// descriptor is also searched among this robot's own keyframes (a reverse search), so that places
+// both robots saw are found when the peer's descriptors arrive, whichever robot passed first.
 #pragma once
 
 #include "cdc/graph/pcm.hpp"
@@ -86,6 +88,7 @@ struct LoopStats {
   uint64_t intra_accepted = 0, intra_inconsistent = 0, inter_proposed = 0, inter_accepted = 0, withdrawn = 0;
   uint64_t requests = 0, replies = 0, replies_unexpected = 0, missing = 0, timed_out = 0, unreachable = 0;
   uint64_t duplicate_descriptors = 0, deferred_dropped = 0;
+  uint64_t reverse_queries = 0;  // peers' descriptors searched among this robot's own keyframes
 };
 
 class LoopCore {
