@@ -4,6 +4,7 @@
 
 #include "cdc/eval/evaluation.hpp"
 #include "cdc/geometry/trajectory.hpp"
+#include "cdc/graph/g2o.hpp"
 
 #include <algorithm>
 #include <array>
@@ -55,6 +56,36 @@ Eigen::Vector3d gt_position(const geometry::Trajectory& gt, int64_t t) {
   if (it == gt.end()) return gt.back().pose.translation();
   if (it != gt.begin() && std::abs(std::prev(it)->stamp_ns - t) < std::abs(it->stamp_ns - t)) --it;
   return it->pose.translation();
+}
+
+// The central's final graph (after its last full optimisation) as one trajectory per robot:
+// keyframe ids from the keys (robot << 56 | session << 32 | id), stamps from the robot's own
+// keyframe list (the peer optimiser's keyframes.tum holds every keyframe, in id order).
+std::map<uint32_t, geometry::Trajectory> central_trajectories(const fs::path& g2o, const fs::path& run,
+                                                              const std::vector<uint32_t>& robots) {
+  std::map<uint32_t, geometry::Trajectory> out;
+  if (!fs::exists(g2o)) return out;
+  graph::PoseGraph g;
+  try {
+    g = graph::read_g2o(g2o.string());
+  } catch (const std::exception&) {
+    return out;
+  }
+  for (uint32_t r : robots) {
+    const fs::path kf = run / ("robot_" + std::to_string(r)) / "keyframes.tum";
+    if (!fs::exists(kf)) continue;
+    const geometry::Trajectory own = geometry::read_tum(kf.string());
+    std::map<uint32_t, Eigen::Isometry3d> by_id;  // the latest session wins
+    for (const auto& [key, T] : g.poses) {
+      if (graph::robot_of(key) == r) by_id[static_cast<uint32_t>(key & 0xffffffffu)] = T;
+    }
+    geometry::Trajectory t;
+    for (const auto& [id, T] : by_id) {
+      if (id < own.size()) t.push_back({own[id].stamp_ns, T});
+    }
+    if (t.size() * 10 >= own.size() * 9) out[r] = std::move(t);  // the robot is (nearly) all there
+  }
+  return out;
 }
 
 const std::array<const char*, 6> kColors = {"#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
@@ -156,21 +187,28 @@ json write_report(const RunInfo& info) {
   eval::EvalOptions eo;
   std::ofstream all_modes(run / "modes.csv");
   all_modes << "robot,wall_ns,sim_ns,from,to,reason\n";
+  // Final optimised keyframes: the central's final graph for the robots it holds, else the peer's.
+  const auto central = central_trajectories(run / "global_graph.g2o", run, info.robots);
   size_t k = 0;
   for (uint32_t r : info.robots) {
     const fs::path rd = run / ("robot_" + std::to_string(r));
+    if (central.count(r)) {
+      geometry::write_tum((rd / "keyframes_central.tum").string(), central.at(r));
+    }
     json jr;
     const fs::path gt_path = ds / ("robot_" + std::to_string(r)) / "groundtruth.tum";
     geometry::Trajectory gt;
     if (fs::exists(gt_path)) gt = geometry::read_tum(gt_path.string());
+    jr["keyframes_source"] = central.count(r) ? "central's final graph" : "peer optimiser";
     for (const char* kind : {"odometry", "keyframes"}) {
-      const fs::path tum = rd / (std::string(kind) + ".tum");
+      const std::string file = std::string(kind) == "keyframes" && central.count(r) ? "keyframes_central" : kind;
+      const fs::path tum = rd / (file + ".tum");
       if (!fs::exists(tum)) {
         jr[kind] = {{"error", "no trajectory written"}};
         continue;
       }
       const geometry::Trajectory est = geometry::read_tum(tum.string());
-      geometry::write_kitti((rd / (std::string(kind) + ".kitti")).string(), est);
+      geometry::write_kitti((rd / (file + ".kitti")).string(), est);
       if (gt.size() < 2 || est.size() < 2) {
         jr[kind] = {{"error", "too few poses"}, {"poses", est.size()}};
         continue;
@@ -340,7 +378,8 @@ json write_report(const RunInfo& info) {
        << fixed(j["traffic"]["max_distributed_bytes_per_keyframe_per_link"].get<double>(), 0) << " B\n";
   }
   md << "\n## Files\n\n- `robot_K/odometry.{tum,kitti}`: the front-end's real-time odometry (fused pose)\n"
-     << "- `robot_K/keyframes.{tum,kitti}`: the final optimised keyframes in the world frame\n"
+     << "- `robot_K/keyframes.{tum,kitti}`: the robot's keyframes in the world frame as its peer optimiser last had them;\n"
+     << "  `robot_K/keyframes_central.{tum,kitti}`: the same keyframes in the central's final graph (evaluated when present)\n"
      << "- `global_graph.g2o`: the central's graph; `map/map.pcd`, `map/map.bt`: the global map\n"
      << "- `modes.csv`, `links.csv`: mode timeline and emulated link changes; `logs/`: one log per process\n"
      << "- `trajectories.svg|png`, `modes.svg|png`: plots\n";

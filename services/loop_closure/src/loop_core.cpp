@@ -112,6 +112,16 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
       ++stats_.unreachable;
       continue;
     }
+    if (p_.peer_request_spacing > 0 && pending_.count(job.candidate) == 0) {
+      std::set<uint32_t>& asked = requested_[job.candidate.first];
+      const uint32_t id = job.candidate.second;
+      const auto near = asked.lower_bound(id > p_.peer_request_spacing ? id - p_.peer_request_spacing : 0);
+      if (near != asked.end() && *near <= id + p_.peer_request_spacing) {
+        ++stats_.skipped_near_requested;
+        continue;
+      }
+      asked.insert(id);
+    }
     auto [it, fresh] = pending_.try_emplace(job.candidate);
     it->second.jobs.push_back(job);
     if (fresh) {

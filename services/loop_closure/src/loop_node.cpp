@@ -54,6 +54,9 @@ LoopNodeOptions load_loop_options(const std::string& path) {
   int knn = static_cast<int>(p.knn), verify = static_cast<int>(p.max_verify), recent = static_cast<int>(p.exclude_recent);
   int support = static_cast<int>(p.min_inter_support), cache = static_cast<int>(p.cloud_cache);
   r.get<int>("retrieval.knn", knn, positive_i, "> 0");
+  int spacing = static_cast<int>(p.peer_request_spacing);
+  r.get<int>("retrieval.peer_request_spacing", spacing, [](const int& v) { return v >= 0; }, ">= 0");
+  p.peer_request_spacing = static_cast<uint32_t>(spacing);
   r.get<double>("retrieval.max_sc_distance", p.max_sc_distance, [](const double& v) { return v > 0 && v <= 1; }, "(0, 1]");
   r.get<int>("retrieval.exclude_recent", recent, [](const int& v) { return v >= 0; }, ">= 0");
   r.get<int>("retrieval.max_verify", verify, positive_i, "> 0");
@@ -292,6 +295,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
                      {"loops_published", loops_sent},
                      {"queries", s.queries},
                      {"reverse_queries", s.reverse_queries},
+                     {"skipped_near_requested", s.skipped_near_requested},
                      {"verified", s.verified},
                      {"verification_failed", s.verification_failed},
                      {"intra_accepted", s.intra_accepted},

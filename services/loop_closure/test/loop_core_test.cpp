@@ -7,6 +7,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <map>
 #include <random>
 #include <set>
@@ -120,6 +122,7 @@ TEST(LoopCore, RequestsPeerCloudsAndVerifiesWhenTheyArrive) {
   const Circle c(30, 2);
   LoopParams params;
   params.exclude_recent = 1000;  // inter-robot loops only
+  params.peer_request_spacing = 0;  // every candidate's cloud is asked for
   LoopCore core(params, 1u);
   std::vector<LoopOut> loops;
   std::set<std::pair<uint32_t, uint32_t>> asked;
@@ -161,6 +164,7 @@ TEST(LoopCore, DescriptorsOfAPeerBackInRangeAreSearchedAmongOwnKeyframes) {
   const Circle c(30, 2);
   LoopParams params;
   params.exclude_recent = 1000;  // inter-robot loops only
+  params.peer_request_spacing = 0;
   LoopCore core(params, 1u);
   Nanos now{0};
   for (uint32_t k = 0; c.truth.count({1, k}) != 0; ++k) {
@@ -196,6 +200,7 @@ TEST(LoopCore, AnUnansweredRequestTimesOutWithoutBlockingOtherCandidates) {
   LoopParams params;
   params.exclude_recent = 1000;
   params.max_verify = 4;
+  params.peer_request_spacing = 0;
   params.request_timeout = std::chrono::seconds(1);
   LoopCore core(params, 2u);
   std::vector<LoopOut> loops;
@@ -226,6 +231,35 @@ TEST(LoopCore, AnUnansweredRequestTimesOutWithoutBlockingOtherCandidates) {
   core.tick(now + std::chrono::seconds(2));
   EXPECT_EQ(core.pending_requests(), 0u);
   EXPECT_EQ(core.stats().timed_out, to_silent);
+}
+
+// Neighbouring keyframes of a peer close the same loop: with a request spacing of 5 keyframes, no
+// two requested clouds of the peer are closer than that, and loops are still found.
+TEST(LoopCore, PeerCloudRequestsAreSpacedAlongThePeersKeyframes) {
+  const Circle c(30, 2);
+  LoopParams params;
+  params.exclude_recent = 1000;
+  params.peer_request_spacing = 5;
+  LoopCore core(params, 1u);
+  std::vector<uint32_t> asked;
+  size_t loops = 0;
+  Nanos now{0};
+  for (uint32_t k = 0; c.truth.count({1, k}) != 0; ++k) {
+    now += std::chrono::milliseconds(200);
+    LoopEvents ev = core.add_descriptor(c.descriptor(0, k, params), now);
+    ev.append(core.add_keyframe_data(c.keyframe(1, k), now));
+    ev.append(core.add_descriptor(c.descriptor(1, k, params), now));
+    for (const auto& r : ev.requests) {
+      asked.push_back(r.id);
+      ev.append(core.on_cloud(r.robot, r.id, c.clouds.at({r.robot, r.id}), now));
+    }
+    loops += ev.loops.size();
+  }
+  std::sort(asked.begin(), asked.end());
+  for (size_t i = 1; i < asked.size(); ++i) EXPECT_GT(asked[i] - asked[i - 1], 5u);
+  EXPECT_GE(asked.size(), 2u);
+  EXPECT_GE(core.stats().skipped_near_requested, 5u);
+  EXPECT_GE(loops, 2u);
 }
 
 TEST(LoopCore, UnreachableOwnersAreNotAsked) {

@@ -47,6 +47,10 @@ struct LoopParams {
   size_t min_inter_support = 2;    // inter-robot loops are published from a consistent set at least this large
   Nanos request_timeout = std::chrono::seconds(2);  // an unanswered cloud request is dropped after this
   size_t cloud_cache = 256;        // peers' clouds kept after verification (least recently received dropped)
+  // A peer's cloud is not requested when one within this many of that peer's keyframes was requested
+  // already: neighbouring keyframes (1 m apart) close the same loop, and each request is a whole cloud
+  // on the radio. 0: request every candidate.
+  uint32_t peer_request_spacing = 10;
   // Nominal odometry noise for robots chained through pose hints: per step, sigma = a + b * length.
   double hint_sigma_m = 0.02, hint_sigma_m_per_m = 0.01;
   double hint_sigma_rad = 0.002, hint_sigma_rad_per_m = 0.0005;
@@ -89,6 +93,7 @@ struct LoopStats {
   uint64_t requests = 0, replies = 0, replies_unexpected = 0, missing = 0, timed_out = 0, unreachable = 0;
   uint64_t duplicate_descriptors = 0, deferred_dropped = 0;
   uint64_t reverse_queries = 0;  // peers' descriptors searched among this robot's own keyframes
+  uint64_t skipped_near_requested = 0;  // candidates next to a peer keyframe whose cloud was requested
 };
 
 class LoopCore {
@@ -139,6 +144,7 @@ class LoopCore {
   void add_odometry(uint32_t robot, uint32_t from, uint32_t to, const Eigen::Isometry3d& T, const graph::Matrix6d& info);
 
   LoopParams p_;
+  std::map<uint32_t, std::set<uint32_t>> requested_;  // per peer: keyframes whose clouds were requested
   std::optional<uint32_t> query_robot_;
   std::function<bool(uint32_t)> reachable_;
   lidar::ScanContextDatabase db_;
