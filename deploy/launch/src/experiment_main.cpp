@@ -52,6 +52,7 @@ int main(int argc, char** argv) {
   std::string out = "results/experiment", bin_dir = "build/release", root = ".", datasets = "results/datasets";
   std::vector<std::string> sequences = {"05", "06", "07", "09"}, variants = {"a", "b", "c", "d"};
   int max_scans = 0;
+  bool reuse = false;
   app.add_option("--out", out, "output folder")->capture_default_str();
   app.add_option("--sequences", sequences, "KITTI sequences with a sim/scenarios/kittiNN_3robots.yaml")->capture_default_str();
   app.add_option("--variants", variants, "subset of a b c d")->capture_default_str()->check(CLI::IsMember({"a", "b", "c", "d"}));
@@ -59,6 +60,7 @@ int main(int argc, char** argv) {
   app.add_option("--bin-dir", bin_dir, "build folder")->capture_default_str();
   app.add_option("--root", root, "project root")->capture_default_str();
   app.add_option("--datasets", datasets, "where the generated datasets are kept")->capture_default_str();
+  app.add_flag("--reuse", reuse, "keep runs that already have a report.json in OUT (re-tabulate only)");
   CLI11_PARSE(app, argc, argv);
   struct sigaction sa {};
   sa.sa_handler = on_signal;
@@ -84,33 +86,40 @@ int main(int argc, char** argv) {
                              << variant_yaml << "configs:\n  peer_optimiser: "
                              << fs::absolute(fs::path(root) / "deploy/swarms/config/peer_liveliness_only.yaml").string() << "\n";
         const fs::path run = fs::absolute(fs::path(out) / name);
-        std::cout << "cdc-experiment: " << name << " (" << v.label << ")" << std::endl;
         const auto t0 = std::chrono::steady_clock::now();
-        cdc::launch::Process p(cdc::launch::ProcessSpec{
-            name, {fs::absolute(launcher).string(), swarm.string(), "--root", fs::absolute(root).string(), "--bin-dir",
-                   fs::absolute(bin_dir).string(), "--out", run.string(), "--no-progress"},
-            {}, "", (fs::path(out) / (name + ".log")).string()});
-        while (p.running()) {
-          if (g_signal) p.signal(SIGINT);
-          std::this_thread::sleep_for(std::chrono::milliseconds(200));
+        if (!(reuse && fs::exists(run / "report.json"))) {
+          std::cout << "cdc-experiment: " << name << " (" << v.label << ")" << std::endl;
+          cdc::launch::Process p(cdc::launch::ProcessSpec{
+              name, {fs::absolute(launcher).string(), swarm.string(), "--root", fs::absolute(root).string(), "--bin-dir",
+                     fs::absolute(bin_dir).string(), "--out", run.string(), "--no-progress"},
+              {}, "", (fs::path(out) / (name + ".log")).string()});
+          while (p.running()) {
+            if (g_signal) p.signal(SIGINT);
+            std::this_thread::sleep_for(std::chrono::milliseconds(200));
+          }
+          if (p.exit_status().value_or(-1) != 0) {
+            table[seq][v.key] = {{"error", "cdc-launch failed (exit " + std::to_string(p.exit_status().value_or(-1)) + ")"}};
+            std::cout << "cdc-experiment: " << name << " failed; see " << (fs::path(out) / (name + ".log")).string() << std::endl;
+            continue;
+          }
         }
         const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        if (p.exit_status().value_or(-1) != 0) {
-          table[seq][v.key] = {{"error", "cdc-launch failed (exit " + std::to_string(p.exit_status().value_or(-1)) + ")"}};
-          std::cout << "cdc-experiment: " << name << " failed; see " << (fs::path(out) / (name + ".log")).string() << std::endl;
-          continue;
-        }
         std::ifstream in(run / "report.json");
         const json r = json::parse(in);
         json row;
-        row["wall_s"] = wall;
+        row["wall_s"] = r.value("wall_s", wall);  // the run's own wall time
         for (const auto& [robot, jr] : r["robots"].items()) {
           const json& e = jr["odometry"];
+          const json& kf = jr["keyframes"];
           if (!e.contains("ate_m")) continue;
           row["robots"][robot] = {{"ate_m", e["ate_m"]["rmse"]},
                                   {"rpe_m", e["rpe_frames"]["trans_m"]["rmse"]},
                                   {"length_m", e["gt_length_m"]},
                                   {"switches_to_distributed", jr["switches_to_distributed"]}};
+          if (kf.contains("ate_m")) {
+            row["robots"][robot]["keyframes_ate_m"] = kf["ate_m"]["rmse"];
+            row["robots"][robot]["keyframes_source"] = jr["keyframes_source"];
+          }
         }
         table[seq][v.key] = row;
         std::cout << "cdc-experiment: " << name << " done in " << fixed(wall, 0) << " s" << std::endl;
@@ -133,6 +142,27 @@ int main(int argc, char** argv) {
           if (c.contains("robots") && c["robots"].contains(robot)) {
             md << ' ' << fixed(c["robots"][robot]["ate_m"].get<double>(), 3) << " / "
                << fixed(c["robots"][robot]["rpe_m"].get<double>(), 4) << " |";
+          } else {
+            md << " - |";
+          }
+        }
+        md << '\n';
+      }
+    }
+    md << "\nFinal optimised keyframes, ATE [m] (the central's final graph where it holds the robot, else the robot's "
+          "peer optimiser):\n\n| sequence | robot |";
+    for (const VariantSpec& v : kVariants) md << ' ' << v.label << " |";
+    md << "\n|---|---|";
+    for (size_t i = 0; i < kVariants.size(); ++i) md << "---|";
+    md << '\n';
+    for (const std::string& seq : sequences) {
+      if (!table.contains(seq)) continue;
+      for (const char* robot : {"0", "1", "2"}) {
+        md << "| " << seq << " | " << robot << " |";
+        for (const VariantSpec& v : kVariants) {
+          const json& c = table[seq].contains(v.key) ? table[seq][v.key] : json();
+          if (c.contains("robots") && c["robots"].contains(robot) && c["robots"][robot].contains("keyframes_ate_m")) {
+            md << ' ' << fixed(c["robots"][robot]["keyframes_ate_m"].get<double>(), 3) << " |";
           } else {
             md << " - |";
           }
