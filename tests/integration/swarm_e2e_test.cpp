@@ -136,6 +136,9 @@ TEST_F(SwarmEndToEnd, ThreeRobotsSwitchOnLivelinessLapsesAndStayAccurate) {
       EXPECT_LT(jr[kind]["ate_m"]["rmse"].get<double>(), 0.005 * length) << "robot " << robot << " " << kind;
     }
     EXPECT_TRUE(fs::exists(run / ("robot_" + std::string(robot)) / "keyframes.kitti"));
+    if (jr["keyframes_source"] == "central's final graph") {
+      EXPECT_TRUE(fs::exists(run / ("robot_" + std::string(robot)) / "keyframes_central.kitti"));
+    }
     EXPECT_TRUE(fs::exists(run / ("robot_" + std::string(robot)) / "odometry.kitti"));
   }
   // Robot 0 carries the central: never cut off. Robots 1 and 2 lose it when the emulated radio

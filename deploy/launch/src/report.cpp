@@ -200,6 +200,10 @@ json write_report(const RunInfo& info) {
     geometry::Trajectory gt;
     if (fs::exists(gt_path)) gt = geometry::read_tum(gt_path.string());
     jr["keyframes_source"] = central.count(r) ? "central's final graph" : "peer optimiser";
+    for (const char* name : {"odometry", "keyframes", "keyframes_central"}) {  // every trajectory in KITTI format too
+      const fs::path tum = rd / (std::string(name) + ".tum");
+      if (fs::exists(tum)) geometry::write_kitti((rd / (std::string(name) + ".kitti")).string(), geometry::read_tum(tum.string()));
+    }
     for (const char* kind : {"odometry", "keyframes"}) {
       const std::string file = std::string(kind) == "keyframes" && central.count(r) ? "keyframes_central" : kind;
       const fs::path tum = rd / (file + ".tum");
@@ -208,7 +212,6 @@ json write_report(const RunInfo& info) {
         continue;
       }
       const geometry::Trajectory est = geometry::read_tum(tum.string());
-      geometry::write_kitti((rd / (file + ".kitti")).string(), est);
       if (gt.size() < 2 || est.size() < 2) {
         jr[kind] = {{"error", "too few poses"}, {"poses", est.size()}};
         continue;
