@@ -93,6 +93,7 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   ASSERT_TRUE(w_kf.wait_for_readers(4, 15s)) << "services did not subscribe to keyframes";
   ASSERT_TRUE(r_loop.wait_for_writers(2, 15s));
   ASSERT_TRUE(w_desc.wait_for_readers(2, 15s));
+  ASSERT_TRUE(w_rep.wait_for_readers(2, 15s)) << "services did not subscribe to cloud replies";  // else the bad reply is lost
 
   // Bad input first: a descriptor with a NaN in its ring key, and a cloud reply whose declared
   // point count disagrees with its points, addressed to robot 1.
