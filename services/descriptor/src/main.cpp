@@ -19,6 +19,7 @@
 
 #include <fstream>
 #include <iostream>
+#include <set>
 
 namespace {
 
@@ -62,7 +63,10 @@ int run(const Options& o) {
   dds::ValidationLimits limits;
   limits.robot_count = o.robots;
   dds::RejectionCounter rejected;
-  uint64_t published = 0, bytes = 0;
+  uint64_t published = 0, bytes = 0, repeated = 0;
+  // Keyframes the peer optimiser re-sends to a central that lacks them come here too: each
+  // (incarnation, keyframe) is described once (its descriptor is transient-local state already).
+  std::set<std::pair<uint32_t, uint32_t>> described;
   std::vector<Eigen::Vector3f> points;
   std::vector<float> ring_key;
   std::vector<uint8_t> cells;
@@ -76,6 +80,10 @@ int run(const Options& o) {
       }
       if (rejected.record(dds::topics::kKeyframe, dds::validate(m, limits))) {
         spdlog::warn("rejected keyframe: {}", rejected.last_reason());
+        return;
+      }
+      if (!described.insert({m.incarnation, m.keyframe_id}).second) {
+        ++repeated;
         return;
       }
       points.clear();
@@ -99,6 +107,7 @@ int run(const Options& o) {
   if (!o.stats_out.empty()) {
     nlohmann::json j{{"robot", o.robot},
                      {"descriptors", published},
+                     {"repeated_keyframes", repeated},
                      {"bytes", {{dds::topics::kDescriptor, bytes}}},
                      {"bytes_per_descriptor", published > 0 ? static_cast<double>(bytes) / static_cast<double>(published) : 0.0},
                      {"rejected", rejected.by_topic()},
