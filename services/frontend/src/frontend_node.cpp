@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
+#include <deque>
 #include <fstream>
 #include <optional>
 
@@ -113,7 +114,6 @@ int run_frontend(const FrontendNodeOptions& o) {
   uint64_t imu_gaps = 0, odometry_sent = 0, keyframes_sent = 0, corrections_unknown = 0;
   uint32_t incarnation = 0;
   geometry::Trajectory trajectory;
-  std::vector<ScanPoint> points;
   std::vector<cdc_msg_PointXYZI> cloud;
   spdlog::info("front-end of robot {} up: {}deskewing, IMU {}, keyframes every {} m / {} deg, domain {}", me,
                o.core.deskew ? "" : "no ", o.use_imu ? "on" : "off", o.core.keyframe_distance_m,
@@ -127,8 +127,17 @@ int run_frontend(const FrontendNodeOptions& o) {
     return false;
   };
 
+  struct PendingScan {
+    int64_t stamp_ns = 0, end_ns = 0;
+    uint64_t seq = 0;
+    uint32_t incarnation = 0;
+    std::chrono::steady_clock::time_point received;
+    std::vector<ScanPoint> points;
+  };
+  std::deque<PendingScan> pending;
+  uint64_t imu_late = 0;  // sweeps processed before the IMU reached their end (waited imu_wait)
   while (!dds::ShutdownSignal::requested()) {
-    ws.wait(std::chrono::milliseconds(200));
+    ws.wait(pending.empty() ? std::chrono::milliseconds(200) : std::chrono::milliseconds(5));
     // IMU first: a sweep needs the samples up to its end.
     r_imu.take(64).for_each_valid([&](const cdc_msg_ImuBatch& m, const dds_sample_info_t&) {
       if (m.robot_id != me || !o.use_imu) return;
@@ -169,19 +178,32 @@ int run_frontend(const FrontendNodeOptions& o) {
       }
       if (reject(topics::kLidar, v)) return;
       last_scan_stamp = m.stamp_ns;
-      incarnation = m.incarnation;
-      points.clear();
-      points.reserve(m.points._length);
+      PendingScan& scan = pending.emplace_back();
+      scan.stamp_ns = m.stamp_ns;
+      scan.end_ns = m.stamp_ns + static_cast<int64_t>(m.duration_ns);
+      scan.seq = m.seq;
+      scan.incarnation = m.incarnation;
+      scan.received = std::chrono::steady_clock::now();
+      scan.points.reserve(m.points._length);
       for (uint32_t i = 0; i < m.points._length; ++i) {
         const cdc_msg_LidarPoint& p = m.points._buffer[i];
-        points.push_back({Eigen::Vector3f(p.x, p.y, p.z), p.time_offset, p.ring});
+        scan.points.push_back({Eigen::Vector3f(p.x, p.y, p.z), p.time_offset, p.ring});
       }
-      const ScanOut out = core.process(m.stamp_ns, points);
+    });
+    // A sweep and the IMU samples up to its end travel on different topics and may arrive in either
+    // order: a sweep waits (at most imu_wait) until the IMU has reached its end.
+    while (!pending.empty()) {
+      const PendingScan& scan = pending.front();
+      const bool imu_covers = !o.use_imu || last_imu_stamp >= scan.end_ns - static_cast<int64_t>(o.imu_gap_s * 1e9);
+      if (!imu_covers && std::chrono::steady_clock::now() - scan.received < o.imu_wait) break;
+      if (!imu_covers) ++imu_late;
+      incarnation = scan.incarnation;
+      const ScanOut out = core.process(scan.stamp_ns, scan.points);
       cdc_msg_Odometry od{};
       od.robot_id = me;
       od.incarnation = incarnation;
-      od.scan_seq = m.seq;
-      od.stamp_ns = m.stamp_ns;
+      od.scan_seq = scan.seq;
+      od.stamp_ns = scan.stamp_ns;
       od.T_odom_base = dds::to_msg(out.T_odom_base);
       od.world_valid = out.T_world_base.has_value();
       od.T_world_base = dds::to_msg(out.T_world_base.value_or(Eigen::Isometry3d::Identity()));
@@ -189,7 +211,7 @@ int run_frontend(const FrontendNodeOptions& o) {
       od.angular_velocity = dds::to_msg(out.angular_velocity);
       w_odom.write(od);
       ++odometry_sent;
-      if (!o.trajectory_out.empty()) trajectory.push_back({m.stamp_ns, out.T_odom_base});
+      if (!o.trajectory_out.empty()) trajectory.push_back({scan.stamp_ns, out.T_odom_base});
       if (out.keyframe) {
         const KeyframeOut& k = *out.keyframe;
         cloud.clear();
@@ -207,8 +229,9 @@ int run_frontend(const FrontendNodeOptions& o) {
         w_kf.write(kf);
         ++keyframes_sent;
       }
-      w_progress.write(cdc_msg_ConsumerProgress{me, incarnation, m.seq});
-    });
+      w_progress.write(cdc_msg_ConsumerProgress{me, incarnation, scan.seq});
+      pending.pop_front();
+    }
   }
   dds::ShutdownSignal::remove_guard(&stop);
   if (!o.trajectory_out.empty()) geometry::write_tum(o.trajectory_out, trajectory);
@@ -223,6 +246,7 @@ int run_frontend(const FrontendNodeOptions& o) {
                      {"corrections_for_unknown_keyframes", corrections_unknown},
                      {"imu_samples", s.imu_samples},
                      {"imu_gaps", imu_gaps},
+                     {"imu_late", imu_late},
                      {"rejected", rejected.by_topic()},
                      {"rejected_samples", rejected.total()}};
     std::ofstream(o.stats_out) << j.dump(2) << '\n';

@@ -4,6 +4,7 @@
 
 #include "cdc/frontend/frontend_core.hpp"
 
+#include <chrono>
 #include <string>
 
 namespace cdc::frontend {
@@ -16,6 +17,7 @@ struct FrontendNodeOptions {
   bool use_imu = true;
   bool take_corrections = true;     // false: the back-end's corrections are ignored (an ablation)
   double imu_gap_s = 0.05;          // a larger gap between IMU samples is reported and bridged by constant velocity
+  std::chrono::milliseconds imu_wait{100};  // a sweep waits this long at most for the IMU to reach its end
   uint32_t max_scan_points = 500'000;
 };
 
