@@ -12,7 +12,6 @@
 #include <signal.h>
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <functional>
@@ -26,8 +25,6 @@ using nlohmann::json;
 
 namespace {
 
-std::atomic<int> g_signal{0};
-extern "C" void on_signal(int sig) { g_signal = sig; }
 
 struct VariantSpec {
   std::string key, label, yaml;
@@ -63,10 +60,7 @@ int main(int argc, char** argv) {
   app.add_option("--datasets", datasets, "where the generated datasets are kept")->capture_default_str();
   app.add_flag("--reuse", reuse, "keep runs that already have a report.json in OUT (re-tabulate only)");
   CLI11_PARSE(app, argc, argv);
-  struct sigaction sa {};
-  sa.sa_handler = on_signal;
-  sigemptyset(&sa.sa_mask);
-  for (int s : {SIGINT, SIGTERM}) sigaction(s, &sa, nullptr);
+  cdc::launch::install_stop_signals();
   try {
     fs::create_directories(fs::path(out) / "swarms");
     const std::string launcher = (fs::path(bin_dir) / "deploy/launch/cdc-launch").string();
@@ -77,7 +71,7 @@ int main(int argc, char** argv) {
       if (!fs::exists(scenario)) throw std::runtime_error(scenario.string() + ": no such scenario");
       for (const VariantSpec& v : kVariants) {
         if (std::find(variants.begin(), variants.end(), v.key) == variants.end()) continue;
-        if (g_signal) throw std::runtime_error("interrupted");
+        if (cdc::launch::stop_signal() != 0) throw std::runtime_error("interrupted");
         const std::string name = "kitti" + seq + "_" + v.key;
         const fs::path swarm = fs::absolute(fs::path(out) / "swarms" / (name + ".yaml"));
         const std::string& variant_yaml = v.yaml;
@@ -95,7 +89,7 @@ int main(int argc, char** argv) {
                      fs::absolute(bin_dir).string(), "--out", run.string(), "--no-progress"},
               {}, "", (fs::path(out) / (name + ".log")).string()});
           while (p.running()) {
-            if (g_signal) p.signal(SIGINT);
+            if (cdc::launch::stop_signal() != 0) p.signal(SIGINT);
             std::this_thread::sleep_for(std::chrono::milliseconds(200));
           }
           if (p.exit_status().value_or(-1) != 0) {
@@ -157,7 +151,7 @@ int main(int argc, char** argv) {
     std::ofstream(fs::path(out) / "table4.md") << md.str();
     std::ofstream(fs::path(out) / "table4.json") << table.dump(2) << '\n';
     std::cout << md.str();
-    return g_signal ? 130 : 0;
+    return cdc::launch::stop_signal() != 0 ? 130 : 0;
   } catch (const std::exception& e) {
     std::cerr << "cdc-experiment: " << e.what() << '\n';
     return 1;

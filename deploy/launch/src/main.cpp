@@ -14,7 +14,6 @@
 #include <signal.h>
 #include <unistd.h>
 
-#include <atomic>
 #include <chrono>
 #include <ctime>
 #include <filesystem>
@@ -29,16 +28,6 @@ using namespace cdc::launch;
 using Clock = std::chrono::steady_clock;
 
 namespace {
-
-std::atomic<int> g_signal{0};
-extern "C" void on_signal(int sig) { g_signal = sig; }
-
-void install_signals() {
-  struct sigaction sa {};
-  sa.sa_handler = on_signal;
-  sigemptyset(&sa.sa_mask);
-  for (int s : {SIGINT, SIGTERM, SIGHUP}) sigaction(s, &sa, nullptr);
-}
 
 std::string timestamp() {
   const std::time_t t = std::time(nullptr);
@@ -99,7 +88,7 @@ class Launcher {
   void sample_traffic();
   void progress(double t_s, bool final_line);
   void stop_all();
-  bool interrupted() const { return g_signal.load() != 0; }
+  bool interrupted() const { return stop_signal() != 0; }
   // processes.txt: every process started, "name pid", so that anyone can check none is left.
   void record_pid(const Process& p) {
     std::ofstream(run_ / "processes.txt", std::ios::app) << p.name() << ' ' << p.pid() << '\n';
@@ -283,7 +272,7 @@ void Launcher::stop_all() {
 }
 
 int Launcher::run() {
-  install_signals();
+  install_stop_signals();
   run_ = o_.out.empty() ? fs::path(o_.root) / "results" / (c_.name + "-" + timestamp()) : fs::path(o_.out);
   run_ = fs::absolute(run_).lexically_normal();
   fs::create_directories(run_ / "logs");
@@ -434,14 +423,14 @@ int Launcher::run() {
     }
     if (settle_until && Clock::now() >= *settle_until) break;
     if (o_.stop_after_s > 0 && t_s >= o_.stop_after_s) {
-      g_signal = SIGINT;  // as if Ctrl-C had been pressed now
+      request_stop(SIGINT);  // as if Ctrl-C had been pressed now
       break;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   sample_traffic();
   if (!o_.no_progress) progress(t_s, true);
-  if (interrupted()) std::cout << "cdc-launch: interrupted (signal " << g_signal.load() << "): stopping every process" << std::endl;
+  if (interrupted()) std::cout << "cdc-launch: interrupted (signal " << stop_signal() << "): stopping every process" << std::endl;
   else std::cout << "cdc-launch: stopping the swarm" << std::endl;
   stop_all();
   if (net_) {

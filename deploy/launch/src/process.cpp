@@ -5,6 +5,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
 #include <cstring>
 #include <stdexcept>
@@ -12,6 +13,9 @@
 
 namespace cdc::launch {
 namespace {
+
+std::atomic<int> g_stop_signal{0};
+extern "C" void on_stop_signal(int sig) { g_stop_signal = sig; }
 
 std::vector<char*> c_argv(std::vector<std::string>& args) {
   std::vector<char*> out;
@@ -50,6 +54,16 @@ int decode(int wstatus) {
 }
 
 }  // namespace
+
+void install_stop_signals() {
+  struct sigaction sa {};
+  sa.sa_handler = on_stop_signal;
+  sigemptyset(&sa.sa_mask);
+  for (int s : {SIGINT, SIGTERM, SIGHUP}) sigaction(s, &sa, nullptr);
+}
+
+int stop_signal() noexcept { return g_stop_signal.load(); }
+void request_stop(int sig) noexcept { g_stop_signal = sig; }
 
 CommandResult run_command(const std::vector<std::string>& argv) {
   CommandResult r;

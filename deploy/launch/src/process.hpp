@@ -11,6 +11,11 @@
 
 namespace cdc::launch {
 
+// SIGINT, SIGTERM and SIGHUP only set a flag: the program then stops the processes it started itself.
+void install_stop_signals();
+int stop_signal() noexcept;          // the signal that arrived; 0 while none has
+void request_stop(int sig) noexcept;  // as if `sig` had arrived
+
 struct CommandResult {
   int status = -1;     // exit code; 128 + signal when killed; -1 when it could not start
   std::string output;  // stdout and stderr together

@@ -7,7 +7,6 @@
 #include "cdc/graph/g2o.hpp"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -88,7 +87,6 @@ std::map<uint32_t, geometry::Trajectory> central_trajectories(const fs::path& g2
   return out;
 }
 
-const std::array<const char*, 6> kColors = {"#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
 
 // Mode over sim time, one row per robot, with the periods its link to the central was cut.
 std::string render_timeline(const RunInfo& info, const std::map<uint32_t, std::vector<Transition>>& modes) {
@@ -243,7 +241,7 @@ json write_report(const RunInfo& info) {
         eval::SvgMarker m;
         m.position = gt_position(gt, t.sim_ns);
         m.triangle = t.to == "DISTRIBUTED";
-        m.color = kColors[k % kColors.size()];
+        m.color = eval::plot_color(k);
         m.label = (t.to == "DISTRIBUTED" ? "D " : "C ") + fixed(static_cast<double>(t.sim_ns) * 1e-9, 0) + " s";
         markers.push_back(m);
       }

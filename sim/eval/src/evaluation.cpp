@@ -134,9 +134,13 @@ std::string format_table(const std::vector<Evaluation>& evaluations) {
   return s.str();
 }
 
+const char* plot_color(size_t k) {
+  static const std::array<const char*, 6> kColors = {"#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
+  return kColors[k % kColors.size()];
+}
+
 std::string render_svg(const std::vector<Evaluation>& evaluations, const std::string& plane, const std::string& title,
                        const std::vector<SvgMarker>& markers, const std::string& marker_legend) {
-  static const std::array<const char*, 6> kColors = {"#d62728", "#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
   const auto axes = choose_axes(evaluations, plane);
   const char* names = "xyz";
   double xmin = std::numeric_limits<double>::max(), ymin = xmin, xmax = -xmin, ymax = -xmin;
@@ -180,7 +184,7 @@ std::string render_svg(const std::vector<Evaluation>& evaluations, const std::st
   double legend_y = h + 15;
   size_t k = 0;
   for (const auto& e : evaluations) {
-    const char* color = kColors[k % kColors.size()];
+    const char* color = plot_color(k);
     svg << polyline(e.gt_matched, "#555555", " stroke-dasharray=\"4 3\"");
     svg << polyline(e.est_aligned, color, "");
     svg << "<rect x=\"" << margin + 260 * static_cast<double>(k % 3) << "\" y=\"" << legend_y - 10

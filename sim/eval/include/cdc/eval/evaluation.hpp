@@ -45,6 +45,9 @@ std::string format_table(const std::vector<Evaluation>& evaluations);
 
 // Top-view SVG of every estimate (aligned) against ground truth. plane: "xy", "xz", "yz" or
 // "auto" (the two axes along which the ground truth extends most).
+// The colour of the k-th estimate in the plots (cycles through a small palette).
+const char* plot_color(size_t k);
+
 // A point of interest drawn over the plot, in the ground truth's frame (e.g. where a robot
 // switched mode): a triangle or a circle with a short label.
 struct SvgMarker {
