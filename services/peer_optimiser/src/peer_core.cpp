@@ -68,6 +68,31 @@ std::optional<Eigen::Isometry3d> PeerCore::world_pose() const {
   return *published_ * keyframes_.rbegin()->second.T_odom;
 }
 
+std::map<uint32_t, Eigen::Isometry3d> complete_world_poses(const std::map<uint32_t, Eigen::Isometry3d>& T_odom,
+                                                           const std::map<uint32_t, Eigen::Isometry3d>& corrected) {
+  std::map<uint32_t, Eigen::Isometry3d> out;
+  std::optional<Eigen::Isometry3d> T_world_odom;  // from the latest corrected keyframe seen
+  for (const auto& [id, T] : T_odom) {
+    auto c = corrected.find(id);
+    if (c != corrected.end()) {
+      T_world_odom = c->second * T.inverse();
+      out[id] = c->second;
+      continue;
+    }
+    if (!T_world_odom) {
+      for (const auto& [cid, cT] : corrected) {  // the first corrected keyframe with odometry
+        auto o = T_odom.find(cid);
+        if (o != T_odom.end()) {
+          T_world_odom = cT * o->second.inverse();
+          break;
+        }
+      }
+    }
+    out[id] = T_world_odom.value_or(Eigen::Isometry3d::Identity()) * T;
+  }
+  return out;
+}
+
 std::optional<double> PeerCore::distance_to_central() const {
   const auto p = world_pose();
   if (!p || !central_position_) {

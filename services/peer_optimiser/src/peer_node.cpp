@@ -358,22 +358,11 @@ int run_peer(const PeerNodeOptions& o) {
   dds::ShutdownSignal::remove_guard(&stop);
   central_liveliness.set_notify(nullptr);
   if (!o.trajectory_out.empty()) {
-    // Every own keyframe in W: as last corrected, or chained by odometry from the nearest corrected
-    // keyframe before it (after it for keyframes older than every corrected one).
+    std::map<uint32_t, Eigen::Isometry3d> T_odom;
+    for (const auto& [id, kf] : own_keyframes) T_odom[id] = dds::to_eigen(kf.msg.T_odom_keyframe);
     geometry::Trajectory traj;
-    std::optional<std::pair<uint32_t, Eigen::Isometry3d>> anchor;
-    for (const auto& [id, kf] : own_keyframes) {
-      const Eigen::Isometry3d T_odom = dds::to_eigen(kf.msg.T_odom_keyframe);
-      auto it = latest_world.find(id);
-      if (it != latest_world.end()) {
-        anchor = {id, it->second * T_odom.inverse()};  // T_world_odom at this keyframe
-      } else if (!anchor && !latest_world.empty()) {
-        const auto& [fid, fT] = *latest_world.begin();
-        auto f = own_keyframes.find(fid);
-        if (f != own_keyframes.end()) anchor = {fid, fT * dds::to_eigen(f->second.msg.T_odom_keyframe).inverse()};
-      }
-      const Eigen::Isometry3d T_world_odom = anchor ? anchor->second : Eigen::Isometry3d::Identity();
-      traj.push_back({kf.msg.stamp_ns, it != latest_world.end() ? it->second : T_world_odom * T_odom});
+    for (const auto& [id, T] : complete_world_poses(T_odom, latest_world)) {
+      traj.push_back({own_keyframes.at(id).msg.stamp_ns, T});
     }
     geometry::write_tum(o.trajectory_out, traj);
   }

@@ -56,6 +56,23 @@ CentralResult central_for(const test::SwarmStream& s, uint32_t robot, uint32_t u
   return r;
 }
 
+// Keyframes without a corrected pose follow their odometry from the nearest corrected one before
+// them (the first corrected one when none is before them).
+TEST(PeerCore, CompletesWorldPosesFromTheNearestCorrectedKeyframe) {
+  auto at = [](double x) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation().x() = x;
+    return T;
+  };
+  const std::map<uint32_t, Eigen::Isometry3d> T_odom = {{0, at(0)}, {1, at(1)}, {2, at(2)}, {3, at(3)}, {4, at(4)}};
+  const std::map<uint32_t, Eigen::Isometry3d> corrected = {{1, at(11)}, {3, at(23)}};
+  const auto w = complete_world_poses(T_odom, corrected);
+  ASSERT_EQ(w.size(), 5u);
+  const std::vector<double> want = {10, 11, 12, 23, 24};
+  for (uint32_t id = 0; id < 5; ++id) EXPECT_NEAR(w.at(id).translation().x(), want[id], 1e-12) << id;
+  EXPECT_NEAR(complete_world_poses(T_odom, {}).at(4).translation().x(), 4.0, 1e-12);
+}
+
 TEST(PeerCore, RelaysTheCentralWithBoundedStepsAndConverges) {
   const auto s = test::make_swarm_stream({});
   PeerCore core(config(1));

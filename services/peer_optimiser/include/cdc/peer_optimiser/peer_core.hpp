@@ -85,6 +85,12 @@ struct StepOutput {
   std::vector<uint32_t> resend_loops;                 // own loop seqs
 };
 
+// Every keyframe in W (keyframe id -> T_world_keyframe): as in `corrected` where it is there, else
+// placed by its odometry pose T_odom relative to the nearest corrected keyframe before it (the
+// first corrected one for keyframes older than all of them). Without any correction: T_odom.
+std::map<uint32_t, Eigen::Isometry3d> complete_world_poses(const std::map<uint32_t, Eigen::Isometry3d>& T_odom,
+                                                           const std::map<uint32_t, Eigen::Isometry3d>& corrected);
+
 class PeerCore {
  public:
   explicit PeerCore(const PeerConfig& config, Nanos start = Nanos{0});
