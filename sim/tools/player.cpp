@@ -49,6 +49,10 @@ class Publisher {
       throw std::runtime_error("only " + std::to_string(w_lidar_.matched_readers()) + " of " +
                                std::to_string(o.wait_readers) + " LiDAR readers appeared");
     }
+    // Consumers read the IMU too: the first batch, written before its reader has matched, would be
+    // lost (and the first sweep processed without it). Consumers without an IMU reader do not block
+    // this for long.
+    if (o.wait_readers > 0) w_imu_.wait_for_readers(o.wait_readers, std::chrono::seconds(3));
   }
 
   // Ground truth is a stream every sample of which matters (evaluation): reliable, deep, and
