@@ -13,6 +13,8 @@ PACKAGES=(
   libeigen3-dev libpcl-dev libceres-dev liboctomap-dev libnanoflann-dev libsuitesparse-dev
   # configuration, CLI, logging, JSON
   libyaml-cpp-dev libcli11-dev libspdlog-dev nlohmann-json3-dev
+  # compact wire encodings (DEFLATE)
+  zlib1g-dev
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
   # network namespaces and fault injection used by tests

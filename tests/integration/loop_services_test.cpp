@@ -5,6 +5,7 @@
 //    serves them, and the inter-robot loops published are true (1 m / 5 deg).
 //  * A malformed descriptor and a malformed cloud reply are rejected with a reason and counted,
 //    and the services carry on; traffic is counted per topic and per peer.
+#include "cdc/dds/compact.hpp"
 #include "cdc/dds/convert.hpp"
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
@@ -106,9 +107,10 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
     d.max_range = 80;
     d.quant_scale = 0.1f;
     std::vector<float> key = {1.0f, std::nanf("")};
-    std::vector<uint8_t> cells(8, 1);
+    const std::vector<uint8_t> raw_cells(8, 1);
+    std::vector<uint8_t> cells = dds::compact::deflate_bytes(raw_cells.data(), raw_cells.size());
     dds::borrow(d.ring_key, key);
-    dds::borrow(d.cells, cells);
+    dds::borrow(d.packed_cells, cells);
     d.pose_hint = dds::to_msg(Eigen::Isometry3d::Identity());
     w_desc.write(d);
     cdc_msg_CloudReply rep{};
@@ -116,9 +118,10 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
     rep.request_id = 1;
     rep.owner_robot_id = 0;
     rep.found = true;
-    rep.point_count = 5;
-    std::vector<cdc_msg_PointXYZI> pts(2, cdc_msg_PointXYZI{1, 2, 3, 0});
-    dds::borrow(rep.cloud, pts);
+    dds::compact::PackedCloud two = dds::compact::pack_points({{1, 2, 3}, {1, 2, 4}}, 0.01f);
+    rep.point_count = 5;  // but two points packed
+    rep.resolution_m = two.resolution_m;
+    dds::borrow(rep.packed_points, two.bytes);
     w_rep.write(rep);
   }
 
@@ -193,7 +196,7 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   std::ifstream log1(dir / "loops1.log");
   const std::string text((std::istreambuf_iterator<char>(log1)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("ring_key[1]: not a finite number"), std::string::npos);
-  EXPECT_NE(text.find("cloud: declared 5 elements but 2 received"), std::string::npos);
+  EXPECT_NE(text.find("packed_points: unpacks to 12 bytes, 30 expected"), std::string::npos);
   if (!HasFailure()) {
     fs::remove_all(dir);
   } else {

@@ -1,5 +1,7 @@
 #include "cdc/dds/validate.hpp"
 
+#include "cdc/dds/compact.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -228,7 +230,16 @@ Validation validate(const cdc_msg_Descriptor& m, const ValidationLimits& limits)
                             std::to_string(m.sectors) + ")");
   }
   const uint32_t cells = uint32_t{m.rings} * uint32_t{m.sectors};
-  CDC_CHECK(check_sequence(m.cells, cells, limits.max_descriptor_cells, "cells"));
+  if (cells > limits.max_descriptor_cells) {
+    return Validation::fail("rings/sectors: " + std::to_string(cells) + " cells exceed the limit of " +
+                            std::to_string(limits.max_descriptor_cells));
+  }
+  CDC_CHECK(check_sequence_max(m.packed_cells, static_cast<uint32_t>(compact::packed_bound(cells)), "packed_cells"));
+  {
+    thread_local std::vector<uint8_t> scratch;
+    const std::string err = compact::inflate_bytes(m.packed_cells._buffer, m.packed_cells._length, cells, scratch);
+    if (!err.empty()) return Validation::fail("packed_cells: " + err);
+  }
   CDC_CHECK(check_sequence(m.ring_key, m.rings, limits.max_descriptor_cells, "ring_key"));
   for (uint32_t i = 0; i < m.ring_key._length; ++i) {
     CDC_CHECK(check_finite(m.ring_key._buffer[i], "ring_key[" + std::to_string(i) + "]"));
@@ -266,11 +277,20 @@ Validation validate(const cdc_msg_CloudRequest& m, const ValidationLimits& limit
 Validation validate(const cdc_msg_CloudReply& m, const ValidationLimits& limits) {
   CDC_CHECK(validate_robot_id(m.requester_robot_id, "requester_robot_id", limits));
   CDC_CHECK(validate_robot_id(m.owner_robot_id, "owner_robot_id", limits));
-  CDC_CHECK(check_sequence(m.cloud, m.point_count, limits.max_cloud_points, "cloud"));
-  if (!m.found && m.cloud._length != 0) {
-    return Validation::fail("cloud: points in a reply that says the keyframe was not found");
+  if (m.point_count > limits.max_cloud_points) {
+    return Validation::fail("point_count: " + std::to_string(m.point_count) + " points exceed the limit of " +
+                            std::to_string(limits.max_cloud_points));
   }
-  return check_points(m.cloud._buffer, m.cloud._length, "cloud");
+  if (!m.found && (m.point_count != 0 || m.packed_points._length != 0)) {
+    return Validation::fail("packed_points: points in a reply that says the keyframe was not found");
+  }
+  CDC_CHECK(check_sequence_max(m.packed_points, static_cast<uint32_t>(compact::packed_bound(6 * size_t{m.point_count})),
+                               "packed_points"));
+  thread_local std::vector<Eigen::Vector3f> scratch;
+  const std::string err =
+      compact::unpack_points(m.packed_points._buffer, m.packed_points._length, m.point_count, m.resolution_m, scratch);
+  if (!err.empty()) return Validation::fail("packed_points: " + err);
+  return Validation::ok();
 }
 
 Validation validate(const cdc_msg_OptimizedPoses& m, const ValidationLimits& limits) {

@@ -1,4 +1,5 @@
 // Boundary validation: malformed samples are rejected with a reason that names the problem.
+#include "cdc/dds/compact.hpp"
 #include "cdc/dds/convert.hpp"
 #include "cdc/dds/validate.hpp"
 
@@ -158,11 +159,42 @@ TEST(Validation, DescriptorShape) {
   d.max_range = 80.0f;
   d.quant_scale = 0.1f;
   d.pose_hint = identity_pose();
+  std::vector<uint8_t> packed = compact::deflate_bytes(cells.data(), cells.size());
   borrow(d.ring_key, key);
-  borrow(d.cells, cells);
+  borrow(d.packed_cells, packed);
   EXPECT_TRUE(validate(d, ValidationLimits{}));
   d.sectors = 61;
-  EXPECT_THAT(validate(d, ValidationLimits{}).reason(), HasSubstr("cells: declared 1220"));
+  EXPECT_THAT(validate(d, ValidationLimits{}).reason(), HasSubstr("packed_cells: unpacks to 1200 bytes, 1220 expected"));
+  d.sectors = 59;
+  EXPECT_THAT(validate(d, ValidationLimits{}).reason(), HasSubstr("packed_cells: unpacks to more than the 1180 bytes"));
+  d.sectors = 60;
+  packed[packed.size() / 2] ^= 0x5a;  // corrupt the stream (its checksum no longer matches)
+  EXPECT_THAT(validate(d, ValidationLimits{}).reason(), HasSubstr("packed_cells: corrupt packed data"));
+}
+
+TEST(Validation, CloudReplyPackedPoints) {
+  std::vector<Eigen::Vector3f> pts = {{1, 2, 3}, {-4.5f, 0.25f, 7}, {30, -20, 1}};
+  compact::PackedCloud pc = compact::pack_points(pts, 0.01f);
+  cdc_msg_CloudReply r{};
+  r.requester_robot_id = 1;
+  r.owner_robot_id = 0;
+  r.found = true;
+  r.point_count = pc.count;
+  r.resolution_m = pc.resolution_m;
+  borrow(r.packed_points, pc.bytes);
+  EXPECT_TRUE(validate(r, ValidationLimits{}));
+  r.point_count = 5;
+  EXPECT_THAT(validate(r, ValidationLimits{}).reason(), HasSubstr("packed_points: unpacks to 18 bytes, 30 expected"));
+  r.point_count = 3;
+  r.resolution_m = std::nanf("");
+  EXPECT_THAT(validate(r, ValidationLimits{}).reason(), HasSubstr("resolution_m"));
+  r.resolution_m = 0.01f;
+  r.found = false;
+  EXPECT_THAT(validate(r, ValidationLimits{}).reason(), HasSubstr("not found"));
+  r.found = true;
+  ValidationLimits small;
+  small.max_cloud_points = 2;
+  EXPECT_THAT(validate(r, small).reason(), HasSubstr("point_count: 3 points exceed the limit of 2"));
 }
 
 TEST(Validation, LoopClosureChecks) {

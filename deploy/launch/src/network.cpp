@@ -82,8 +82,14 @@ NetnsNetwork::NetnsNetwork(const std::string& tag, const std::vector<uint32_t>& 
              "<!-- written by cdc-launch: node " << short_name(node) << " in namespace " << netns_[node] << " -->\n"
              "<CycloneDDS xmlns=\"https://cdds.io/config\">\n  <Domain Id=\"any\">\n    <General>\n"
              "      <Interfaces><NetworkInterface name=\"eth0\"/></Interfaces>\n"
-             "      <AllowMulticast>false</AllowMulticast>\n    </General>\n    <Discovery>\n"
-             "      <ParticipantIndex>auto</ParticipantIndex>\n      <MaxAutoParticipantIndex>60</MaxAutoParticipantIndex>\n"
+             "      <AllowMulticast>false</AllowMulticast>\n"
+             // Datagrams within a 1500-byte MTU: large samples go as DDSI fragments rather than IP
+             // fragments, as on a real radio, and every byte passes the per-port radio and accounting rules.
+             "      <MaxMessageSize>1456B</MaxMessageSize>\n      <FragmentSize>1344B</FragmentSize>\n"
+             "    </General>\n    <Discovery>\n"
+             // At most 5 participants per node and domain (a robot's four services and its front-end's
+             // sensor participant); unicast discovery probes every index up to this on every peer.
+             "      <ParticipantIndex>auto</ParticipantIndex>\n      <MaxAutoParticipantIndex>9</MaxAutoParticipantIndex>\n"
              "      <SPDPInterval>1s</SPDPInterval>\n"
              "      <Peers>\n" << peers << "      </Peers>\n    </Discovery>\n  </Domain>\n</CycloneDDS>\n";
       configs_[node] = path;

@@ -273,7 +273,10 @@ json write_report(const RunInfo& info) {
                  {"discovery_sent_bytes", b.meta_sent},
                  {"discovery_received_bytes", b.meta_received},
                  {"keyframes_in_mode", kfs}};
-          if (kfs > 0) l["bytes_per_keyframe"] = static_cast<double>(b.sent + b.received) / static_cast<double>(kfs);
+          if (kfs > 0) {
+            l["bytes_per_keyframe"] = static_cast<double>(b.sent + b.received) / static_cast<double>(kfs);
+            l["sent_bytes_per_keyframe"] = static_cast<double>(b.sent) / static_cast<double>(kfs);
+          }
           jm[mode][node_name(peer)] = l;
         }
       }
@@ -293,7 +296,7 @@ json write_report(const RunInfo& info) {
   // Totals per mode and link, and the distributed traffic per keyframe per robot-to-robot link.
   if (info.traffic_measured) {
     json per_link;
-    double worst_dist_per_kf = 0;
+    double worst_dist_per_kf = 0, worst_dist_sent_per_kf = 0;
     for (const auto& [r, t] : info.traffic) {
       for (const auto& [mode, peers] : t.bytes) {
         for (const auto& [peer, b] : peers) {
@@ -304,11 +307,14 @@ json write_report(const RunInfo& info) {
           const uint64_t kfs = t.keyframes.count(mode) ? t.keyframes.at(mode) : 0;
           if (mode == "DISTRIBUTED" && peer != kCentralNode && kfs > 0) {
             worst_dist_per_kf = std::max(worst_dist_per_kf, static_cast<double>(b.sent + b.received) / static_cast<double>(kfs));
+            worst_dist_sent_per_kf = std::max(worst_dist_sent_per_kf, static_cast<double>(b.sent) / static_cast<double>(kfs));
           }
         }
       }
     }
-    j["traffic"] = {{"per_link", per_link}, {"max_distributed_bytes_per_keyframe_per_link", worst_dist_per_kf}};
+    j["traffic"] = {{"per_link", per_link},
+                    {"max_distributed_bytes_per_keyframe_per_link", worst_dist_per_kf},
+                    {"max_distributed_sent_bytes_per_own_keyframe_per_link", worst_dist_sent_per_kf}};
   }
   // Plots.
   if (!kf_evals.empty()) {
@@ -362,21 +368,26 @@ json write_report(const RunInfo& info) {
     md << "\n## Traffic on the emulated radio (SLAM domain, IP bytes, counted at each robot)\n\n"
        << "User data (samples with their heartbeats and acknowledgements) and discovery (SPDP/SEDP, which bursts\n"
        << "whenever a link comes back) are counted apart. Each mode gets what was counted while the robot was in it.\n\n"
-       << "| link | mode | data sent | data received | discovery | keyframes in mode | data bytes per keyframe |\n"
-       << "|---|---|---|---|---|---|---|\n";
+       << "Per keyframe: the robot's own keyframes made in the mode. A robot's keyframe costs what it sends on a\n"
+       << "link (its descriptor, the clouds it serves, acknowledgements); what it receives is the other end's cost.\n\n"
+       << "| link | mode | data sent | data received | discovery | keyframes in mode | sent per keyframe | sent + received per keyframe |\n"
+       << "|---|---|---|---|---|---|---|---|\n";
     for (const auto& [r, t] : info.traffic) {
       for (const auto& [mode, peers] : t.bytes) {
         const uint64_t kfs = t.keyframes.count(mode) ? t.keyframes.at(mode) : 0;
         for (const auto& [peer, b] : peers) {
           md << "| " << node_name(r) << " - " << node_name(peer) << " | " << mode << " | " << b.sent << " | " << b.received
              << " | " << b.meta_sent + b.meta_received << " | " << kfs << " | "
+             << (kfs > 0 ? fixed(static_cast<double>(b.sent) / static_cast<double>(kfs), 0) : std::string("-")) << " | "
              << (kfs > 0 ? fixed(static_cast<double>(b.sent + b.received) / static_cast<double>(kfs), 0) : std::string("-"))
              << " |\n";
         }
       }
     }
-    md << "\nLargest distributed-mode user-data traffic per keyframe on a robot-to-robot link: "
-       << fixed(j["traffic"]["max_distributed_bytes_per_keyframe_per_link"].get<double>(), 0) << " B\n";
+    md << "\nLargest distributed-mode user data per own keyframe on a robot-to-robot link: "
+       << fixed(j["traffic"]["max_distributed_sent_bytes_per_own_keyframe_per_link"].get<double>(), 0) << " B sent ("
+       << fixed(j["traffic"]["max_distributed_bytes_per_keyframe_per_link"].get<double>(), 0)
+       << " B sent and received)\n";
   }
   md << "\n## Files\n\n- `robot_K/odometry.{tum,kitti}`: the front-end's real-time odometry (fused pose)\n"
      << "- `robot_K/keyframes.{tum,kitti}`: the robot's keyframes in the world frame as its peer optimiser last had them;\n"

@@ -1,6 +1,7 @@
 #include "loop_node.hpp"
 
 #include "cdc/config/reader.hpp"
+#include "cdc/dds/compact.hpp"
 #include "cdc/dds/convert.hpp"
 #include "cdc/dds/descriptor_convert.hpp"
 #include "cdc/dds/participant.hpp"
@@ -71,6 +72,8 @@ LoopNodeOptions load_loop_options(const std::string& path) {
   r.get<int>("cloud_cache", cache, positive_i, "> 0");
   r.get<int>("peer_timeout_ms", o.peer_timeout_ms, positive_i, "> 0");
   r.get<int>("tick_ms", o.tick_ms, positive_i, "> 0");
+  r.get<float>("verification.reply_resolution_m", o.reply_resolution_m,
+               [](const float& v) { return v > 0.0f && v <= 0.1f; }, "(0, 0.1]");
   r.get<std::string>("log_level", o.log_level);
   r.finish();
   p.knn = static_cast<size_t>(knn);
@@ -134,7 +137,6 @@ int run_loop_closure(const LoopNodeOptions& o) {
   uint64_t next_request = 1, requests_served = 0, requests_unknown = 0, loops_sent = 0;
   uint32_t incarnation = 0, loop_seq = 0;
   Traffic traffic;
-  std::vector<cdc_msg_PointXYZI> reply_storage;
   spdlog::info("loop-closure service of robot {} up: {} robots, PCM chi2 {}, domain {}", me, o.robots,
                o.core.pcm.chi2_threshold, o.domain);
 
@@ -176,6 +178,41 @@ int run_loop_closure(const LoopNodeOptions& o) {
   while (!dds::ShutdownSignal::requested()) {
     ws.wait(std::chrono::milliseconds(o.tick_ms));
     const Nanos now = now_ns();
+    // Peers' cloud requests first: serving one is cheap, and a requester gives up after its timeout
+    // (descriptor bursts after a reconnection can take seconds to search and verify).
+    r_req.take(64).for_each_valid([&](const cdc_msg_CloudRequest& m, const dds_sample_info_t&) {
+      if (m.owner_robot_id != me) {
+        return;
+      }
+      if (rejected.record(topics::kCloudRequest, dds::validate(m, limits))) {
+        spdlog::warn("rejected cloud request: {}", rejected.last_reason());
+        return;
+      }
+      traffic.in(topics::kCloudRequest, dds::wire_size(m), m.requester_robot_id);
+      last_heard[m.requester_robot_id] = Clock::now();
+      cdc_msg_CloudReply rep{};
+      rep.requester_robot_id = m.requester_robot_id;
+      rep.request_id = m.request_id;
+      rep.owner_robot_id = me;
+      rep.owner_incarnation = incarnation;
+      rep.keyframe_id = m.keyframe_id;
+      const std::vector<Eigen::Vector3f>* cloud = core.cloud(me, m.keyframe_id);
+      rep.found = cloud != nullptr;
+      dds::compact::PackedCloud packed;
+      packed.resolution_m = o.reply_resolution_m;
+      if (cloud != nullptr) {
+        packed = dds::compact::pack_points(*cloud, o.reply_resolution_m);
+        ++requests_served;
+      } else {
+        ++requests_unknown;
+      }
+      rep.point_count = packed.count;
+      rep.resolution_m = packed.resolution_m;
+      dds::borrow(rep.packed_points, packed.bytes);
+      if (m.requester_robot_id >= w_rep_to.size() || !w_rep_to[m.requester_robot_id]) return;  // validated above
+      w_rep_to[m.requester_robot_id]->write(rep);
+      traffic.out(topics::kCloudReply, dds::wire_size(rep), m.requester_robot_id);
+    });
     r_kf.take(64).for_each_valid([&](const cdc_msg_Keyframe& m, const dds_sample_info_t&) {
       if (m.robot_id != me) {
         return;
@@ -196,7 +233,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
       }
       handle(core.add_keyframe_data(std::move(kf), now));
     });
-    r_desc.take(64).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
+    r_desc.take(16).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
       const size_t bytes = dds::wire_size(m);
       dds::Validation v = dds::validate(m, limits);
       if (v && (m.rings != o.core.scan_context.rings || m.sectors != o.core.scan_context.sectors ||
@@ -219,37 +256,6 @@ int run_loop_closure(const LoopNodeOptions& o) {
                                               dds::to_eigen(m.pose_hint)},
                                  now));
     });
-    r_req.take(64).for_each_valid([&](const cdc_msg_CloudRequest& m, const dds_sample_info_t&) {
-      if (m.owner_robot_id != me) {
-        return;
-      }
-      if (rejected.record(topics::kCloudRequest, dds::validate(m, limits))) {
-        spdlog::warn("rejected cloud request: {}", rejected.last_reason());
-        return;
-      }
-      traffic.in(topics::kCloudRequest, dds::wire_size(m), m.requester_robot_id);
-      last_heard[m.requester_robot_id] = Clock::now();
-      cdc_msg_CloudReply rep{};
-      rep.requester_robot_id = m.requester_robot_id;
-      rep.request_id = m.request_id;
-      rep.owner_robot_id = me;
-      rep.owner_incarnation = incarnation;
-      rep.keyframe_id = m.keyframe_id;
-      reply_storage.clear();
-      const std::vector<Eigen::Vector3f>* cloud = core.cloud(me, m.keyframe_id);
-      rep.found = cloud != nullptr;
-      if (cloud != nullptr) {
-        for (const auto& p : *cloud) reply_storage.push_back(cdc_msg_PointXYZI{p.x(), p.y(), p.z(), 0.0f});
-        ++requests_served;
-      } else {
-        ++requests_unknown;
-      }
-      rep.point_count = static_cast<uint32_t>(reply_storage.size());
-      dds::borrow(rep.cloud, reply_storage);
-      if (m.requester_robot_id >= w_rep_to.size() || !w_rep_to[m.requester_robot_id]) return;  // validated above
-      w_rep_to[m.requester_robot_id]->write(rep);
-      traffic.out(topics::kCloudReply, dds::wire_size(rep), m.requester_robot_id);
-    });
     r_rep.take(16).for_each_valid([&](const cdc_msg_CloudReply& m, const dds_sample_info_t&) {
       if (m.requester_robot_id != me) {
         return;
@@ -271,10 +277,8 @@ int run_loop_closure(const LoopNodeOptions& o) {
         return;
       }
       std::vector<Eigen::Vector3f> cloud;
-      cloud.reserve(m.cloud._length);
-      for (uint32_t i = 0; i < m.cloud._length; ++i) {
-        cloud.emplace_back(m.cloud._buffer[i].x, m.cloud._buffer[i].y, m.cloud._buffer[i].z);
-      }
+      dds::compact::unpack_points(m.packed_points._buffer, m.packed_points._length, m.point_count, m.resolution_m,
+                                  cloud);  // validated above
       handle(core.on_cloud(m.owner_robot_id, m.keyframe_id, std::move(cloud), now));
     });
     core.tick(now_ns());

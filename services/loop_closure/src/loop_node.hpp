@@ -15,6 +15,7 @@ struct LoopNodeOptions {
   LoopParams core;
   int peer_timeout_ms = 3000;   // a peer unheard of this long is out of range: no cloud requests to it
   int tick_ms = 100;
+  float reply_resolution_m = 0.01f;  // quantisation of the clouds sent in cloud replies
 };
 
 LoopNodeOptions load_loop_options(const std::string& path);

@@ -20,7 +20,7 @@ inline size_t wire_size(const cdc_msg_Descriptor& m) {
   // robot, keyframe, incarnation (12) | stamp (8) | rings, sectors (4) | max_range, quant_scale (8)
   size_t n = 32;
   n += 4 + 4 * static_cast<size_t>(m.ring_key._length);
-  n += 4 + m.cells._length;
+  n += 4 + m.packed_cells._length;
   n = wire::align(n, 8) + wire::kPose;
   return wire::kEncapsulation + n;
 }
@@ -31,7 +31,8 @@ inline size_t wire_size(const cdc_msg_CloudRequest& m) {
 }
 
 inline size_t wire_size(const cdc_msg_CloudReply& m) {
-  return wire::kEncapsulation + 4 + 4 + 8 + 4 + 4 + 4 + 1 + 3 + 4 + 4 + 16 * static_cast<size_t>(m.cloud._length);
+  // ids (4 + 4, pad, 8), owner, incarnation, keyframe (12), found (1, pad 3), point_count, resolution (8)
+  return wire::kEncapsulation + 4 + 4 + 8 + 4 + 4 + 4 + 1 + 3 + 4 + 4 + 4 + m.packed_points._length;
 }
 
 inline size_t wire_size(const cdc_msg_LoopClosure& m) {

@@ -1,0 +1,91 @@
+#include "cdc/dds/compact.hpp"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <random>
+#include <vector>
+
+namespace cdc::dds::compact {
+namespace {
+
+using ::testing::HasSubstr;
+
+TEST(Compact, BytesRoundTripLosslessly) {
+  std::mt19937 rng(7);
+  std::vector<uint8_t> raw(1200);
+  for (auto& b : raw) b = rng() % 3 == 0 ? 0 : static_cast<uint8_t>(rng() % 256);
+  const std::vector<uint8_t> packed = deflate_bytes(raw.data(), raw.size());
+  std::vector<uint8_t> back;
+  EXPECT_EQ(inflate_bytes(packed.data(), packed.size(), raw.size(), back), "");
+  EXPECT_EQ(back, raw);
+}
+
+TEST(Compact, BrokenPackedBytesAreNamed) {
+  const std::vector<uint8_t> raw(100, 9);
+  std::vector<uint8_t> packed = deflate_bytes(raw.data(), raw.size());
+  std::vector<uint8_t> back;
+  EXPECT_THAT(inflate_bytes(packed.data(), 0, 100, back), HasSubstr("empty"));
+  EXPECT_THAT(inflate_bytes(packed.data(), packed.size() - 3, 100, back), HasSubstr("truncated packed data"));
+  EXPECT_THAT(inflate_bytes(packed.data(), packed.size(), 101, back), HasSubstr("unpacks to 100 bytes, 101 expected"));
+  EXPECT_THAT(inflate_bytes(packed.data(), packed.size(), 99, back), HasSubstr("more than the 99 bytes"));
+  packed.push_back(0);
+  EXPECT_THAT(inflate_bytes(packed.data(), packed.size(), 100, back), HasSubstr("1 bytes after the end"));
+  const std::vector<uint8_t> garbage(50, 0xab);
+  EXPECT_THAT(inflate_bytes(garbage.data(), garbage.size(), 100, back), HasSubstr("corrupt packed data"));
+}
+
+TEST(Compact, PointsComeBackWithinHalfAStepAndPackSmall) {
+  // A keyframe-like cloud: 6,000 points within 80 m.
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-80.0f, 80.0f), h(-2.0f, 10.0f);
+  std::vector<Eigen::Vector3f> pts;
+  for (int i = 0; i < 6000; ++i) pts.emplace_back(u(rng), u(rng), h(rng));
+  for (const float res : {0.01f, 0.02f}) {
+    const PackedCloud pc = pack_points(pts, res);
+    EXPECT_EQ(pc.count, 6000u);
+    EXPECT_EQ(pc.dropped, 0u);
+    EXPECT_LT(pc.bytes.size(), 6000u * 6u) << "no smaller than raw int16 points";
+    std::vector<Eigen::Vector3f> back;
+    ASSERT_EQ(unpack_points(pc.bytes.data(), pc.bytes.size(), pc.count, res, back), "");
+    ASSERT_EQ(back.size(), pts.size());
+    // Order is not kept: match every original to its nearest decoded point through sorting both.
+    auto key = [res](const Eigen::Vector3f& p) {
+      return std::array<long, 3>{std::lround(p.x() / res), std::lround(p.y() / res), std::lround(p.z() / res)};
+    };
+    std::vector<std::pair<std::array<long, 3>, Eigen::Vector3f>> a, b;
+    for (const auto& p : pts) a.emplace_back(key(p), p);
+    for (const auto& p : back) b.emplace_back(key(p), p);
+    auto less = [](const auto& x, const auto& y) { return x.first < y.first; };
+    std::sort(a.begin(), a.end(), less);
+    std::sort(b.begin(), b.end(), less);
+    for (size_t i = 0; i < a.size(); ++i) {
+      EXPECT_LE((a[i].second - b[i].second).cwiseAbs().maxCoeff(), res / 2 + 1e-4f) << "point " << i;
+    }
+  }
+}
+
+TEST(Compact, PointsOutsideTheInt16RangeAreDroppedAndCounted) {
+  const std::vector<Eigen::Vector3f> pts = {{1, 1, 1}, {400, 0, 0}, {0, -330, 0}, {-327, 327, 0}};
+  const PackedCloud pc = pack_points(pts, 0.01f);
+  EXPECT_EQ(pc.count, 2u);
+  EXPECT_EQ(pc.dropped, 2u);
+  std::vector<Eigen::Vector3f> back;
+  ASSERT_EQ(unpack_points(pc.bytes.data(), pc.bytes.size(), pc.count, pc.resolution_m, back), "");
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_NEAR(back[0].x(), -327.0f, 0.006f);
+  EXPECT_NEAR(back[1].z(), 1.0f, 0.006f);
+}
+
+TEST(Compact, EmptyCloudAndBadArguments) {
+  const PackedCloud empty = pack_points({}, 0.01f);
+  std::vector<Eigen::Vector3f> back{{1, 2, 3}};
+  EXPECT_EQ(unpack_points(nullptr, 0, 0, 0.01f, back), "");
+  EXPECT_TRUE(back.empty());
+  EXPECT_EQ(empty.count, 0u);
+  EXPECT_THAT(unpack_points(empty.bytes.data(), empty.bytes.size(), 0, 0.01f, back), HasSubstr("for 0 points"));
+  EXPECT_THAT(unpack_points(empty.bytes.data(), empty.bytes.size(), 4, -1.0f, back), HasSubstr("resolution_m"));
+}
+
+}  // namespace
+}  // namespace cdc::dds::compact
