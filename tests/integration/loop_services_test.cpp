@@ -181,11 +181,15 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   };
   const auto d0 = stats("descriptor0.json"), l0 = stats("loops0.json"), l1 = stats("loops1.json");
   EXPECT_GE(d0.value("descriptors", 0), 10);
-  EXPECT_LE(d0.value("bytes_per_descriptor", 1e9), 1500.0);
+  // Packed descriptors fit one DDSI fragment (1344 B) with their RTPS headers: never fragmented.
+  EXPECT_LE(d0.value("bytes_per_descriptor", 1e9), 1100.0);
   // Robot 1 asked robot 0 for clouds, robot 0 served them; both counted the bytes per peer.
   EXPECT_GT(l1.value("cloud_requests", 0), 0);
   EXPECT_GT(l1.value("cloud_replies", 0), 0);
   EXPECT_GT(l0.value("requests_served", 0), 0);
+  // Served clouds travel packed: at most 5 bytes per point (16 as floats), headers included.
+  EXPECT_GT(l0.value("points_served", 0), 0);
+  EXPECT_LE(l0["bytes_sent"].value(dds::topics::kCloudReply, 1e12), 5.0 * l0.value("points_served", 0));
   EXPECT_GT(l1["bytes_per_peer"]["0"].value("received", 0), 0);
   EXPECT_GT(l0["bytes_per_peer"]["1"].value("sent", 0), 0);
   EXPECT_GT(l1["bytes_received"].value(dds::topics::kDescriptor, 0), 0);

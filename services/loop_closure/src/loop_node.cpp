@@ -134,7 +134,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
     return it != last_heard.end() && Clock::now() - it->second <= std::chrono::milliseconds(o.peer_timeout_ms);
   });
   std::map<uint64_t, std::pair<uint32_t, uint32_t>> requests;  // request id -> (owner, keyframe)
-  uint64_t next_request = 1, requests_served = 0, requests_unknown = 0, loops_sent = 0;
+  uint64_t next_request = 1, requests_served = 0, requests_unknown = 0, loops_sent = 0, points_served = 0;
   uint32_t incarnation = 0, loop_seq = 0;
   Traffic traffic;
   spdlog::info("loop-closure service of robot {} up: {} robots, PCM chi2 {}, domain {}", me, o.robots,
@@ -203,6 +203,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
       if (cloud != nullptr) {
         packed = dds::compact::pack_points(*cloud, o.reply_resolution_m);
         ++requests_served;
+        points_served += packed.count;
       } else {
         ++requests_unknown;
       }
@@ -311,6 +312,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
                      {"cloud_timed_out", s.timed_out},
                      {"cloud_unreachable", s.unreachable},
                      {"requests_served", requests_served},
+                     {"points_served", points_served},
                      {"requests_unknown_keyframe", requests_unknown},
                      {"bytes_sent", traffic.sent},
                      {"bytes_received", traffic.received},
