@@ -7,9 +7,11 @@
 //    and the services carry on; traffic is counted per topic and per peer.
 #include "cdc/dds/compact.hpp"
 #include "cdc/dds/convert.hpp"
+#include "cdc/dds/descriptor_convert.hpp"
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/topics.hpp"
+#include "cdc/lidar/scan_context.hpp"
 #include "cdc/sim/lidar.hpp"
 #include "cdc/sim/missions.hpp"
 #include "cdc/sim/world.hpp"
@@ -24,6 +26,7 @@
 #include <fstream>
 #include <map>
 #include <random>
+#include <set>
 #include <thread>
 #include <unistd.h>
 
@@ -77,7 +80,7 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   dds::Topic<cdc_msg_CloudReply> t_rep(participant, dds::topics::kCloudReply);
   dds::Topic<cdc_msg_LoopClosure> t_loop(participant, dds::topics::kLoopClosure);
   dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096));
-  dds::Writer<cdc_msg_Descriptor> w_desc(participant, t_desc, dds::qos::keyed_state());  // as cdc-descriptor
+  dds::Writer<cdc_msg_Descriptor> w_desc(participant, t_desc, dds::qos::event_stream(256));  // as cdc-descriptor
   dds::Writer<cdc_msg_CloudReply> w_rep(participant, t_rep, dds::qos::event_stream(256));
   dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop, dds::qos::event_stream(4096));
 
@@ -206,6 +209,159 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   } else {
     std::printf("logs kept in %s\n", dir.c_str());
   }
+}
+
+// Descriptors are sent once: a service that sees a gap in a robot's keyframe ids asks the owner for
+// just that range (cdc/place/descriptor_sync), and the owner's descriptor service sends it again to
+// the asker only. Here the test plays robot 2 towards a real loop-closure service (robot 1), and
+// robot 1 towards a real descriptor service (robot 0).
+TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
+  for (const char* v : {"CDC_DESCRIPTOR_BIN", "CDC_LOOP_CLOSURE_BIN"}) {
+    ASSERT_NE(std::getenv(v), nullptr) << v << " must name the binary";
+  }
+  const fs::path dir = fs::temp_directory_path() / ("cdc_descriptor_sync_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const std::string config = (dir / "loops.yaml").string(), dconfig = (dir / "descriptor.yaml").string();
+  std::ofstream(config) << "robots: 3\ndescriptor_sync:\n  resend_ms: 1000\n";
+  std::ofstream(dconfig) << "robots: 3\n";
+
+  dds::ParticipantOptions po;
+  po.domain_id = dds::domain_from_env(0);
+  dds::Participant participant(po);
+  dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
+  dds::Topic<cdc_msg_Descriptor> t_desc(participant, dds::topics::kDescriptor);
+  dds::Topic<cdc_msg_DescriptorSync> t_sync(participant, dds::topics::kDescriptorSync);
+  dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(64));
+  dds::Writer<cdc_msg_Descriptor> w_desc(participant, t_desc, dds::qos::event_stream(64));
+  dds::Writer<cdc_msg_Descriptor> w_desc_to1(participant, t_desc,
+                                             dds::qos::event_stream(64).partitions({dds::partitions::robot(1)}));
+  dds::Writer<cdc_msg_DescriptorSync> w_sync(participant, t_sync, dds::qos::event_stream(64));
+  dds::Reader<cdc_msg_DescriptorSync> r_sync(participant, t_sync, dds::qos::event_stream(64));
+  dds::Reader<cdc_msg_Descriptor> r_live(participant, t_desc, dds::qos::event_stream(256));
+  dds::Reader<cdc_msg_Descriptor> r_to1(participant, t_desc, dds::qos::event_stream(256).partitions({dds::partitions::robot(1)}));
+  dds::Reader<cdc_msg_Descriptor> r_to2(participant, t_desc, dds::qos::event_stream(256).partitions({dds::partitions::robot(2)}));
+
+  std::vector<test::ChildProcess> procs;
+  procs.push_back(test::ChildProcess::spawn({std::getenv("CDC_DESCRIPTOR_BIN"), "--robot", "0", "--config", dconfig,
+                                             "--stats-out", (dir / "descriptor0.json").string()},
+                                            (dir / "descriptor0.log").string()));
+  procs.push_back(test::ChildProcess::spawn({std::getenv("CDC_LOOP_CLOSURE_BIN"), "--robot", "1", "--config", config,
+                                             "--stats-out", (dir / "loops1.json").string(), "--log-level", "debug"},
+                                            (dir / "loops1.log").string()));
+  ASSERT_TRUE(w_kf.wait_for_readers(2, 15s));  // descriptor 0 and loop closure 1 (its own partition and "")
+  ASSERT_TRUE(w_desc.wait_for_readers(1, 15s));
+  ASSERT_TRUE(w_desc_to1.wait_for_readers(1, 15s));
+  ASSERT_TRUE(w_sync.wait_for_readers(1, 15s));
+  ASSERT_TRUE(r_sync.wait_for_writers(1, 15s));
+  ASSERT_TRUE(r_to2.wait_for_writers(1, 15s));
+
+  // A small synthetic scene: a wall and a post, shifted a little per keyframe.
+  auto cloud = [](uint32_t k) {
+    std::vector<Eigen::Vector3f> pts;
+    for (int i = 0; i < 400; ++i) {
+      const auto f = static_cast<float>(i);
+      pts.emplace_back(10.0f, -10.0f + 0.05f * f, 0.5f + 0.01f * static_cast<float>(i % 50));
+      pts.emplace_back(3.0f + 0.001f * f - 0.2f * static_cast<float>(k), 4.0f, 0.005f * f);
+    }
+    return pts;
+  };
+  // Part 1: robot 0's descriptor service describes keyframes 0..4; the test, as robot 2, asks for 1..3.
+  std::vector<cdc_msg_PointXYZI> storage;
+  for (uint32_t k = 0; k < 5; ++k) {
+    cdc_msg_Keyframe m{};
+    m.robot_id = 0;
+    m.keyframe_id = k;
+    m.incarnation = 1;
+    m.T_odom_keyframe = dds::to_msg(Eigen::Isometry3d::Identity());
+    m.T_prev_keyframe = dds::to_msg(Eigen::Isometry3d::Identity());
+    dds::information_to_msg(dds::Matrix6d::Identity(), m.information);
+    storage.clear();
+    for (const auto& p : cloud(k)) storage.push_back(cdc_msg_PointXYZI{p.x(), p.y(), p.z(), 0.5f});
+    m.point_count = static_cast<uint32_t>(storage.size());
+    dds::borrow(m.cloud, storage);
+    w_kf.write(m);
+  }
+  std::set<uint32_t> live;
+  for (int i = 0; i < 100 && live.size() < 5; ++i) {
+    std::this_thread::sleep_for(50ms);
+    r_live.take(64).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
+      if (m.robot_id == 0) live.insert(m.keyframe_id);
+    });
+  }
+  ASSERT_EQ(live.size(), 5u) << "robot 0's live descriptors";
+  {
+    cdc_msg_DescriptorSync q{};
+    q.requester_robot_id = 2;
+    q.owner_robot_id = 0;
+    q.first_keyframe_id = 1;
+    q.last_keyframe_id = 3;
+    w_sync.write(q);
+  }
+  std::vector<uint32_t> resent2;
+  for (int i = 0; i < 100 && resent2.size() < 3; ++i) {
+    std::this_thread::sleep_for(50ms);
+    r_to2.take(64).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
+      if (m.robot_id == 0) resent2.push_back(m.keyframe_id);
+    });
+  }
+  EXPECT_EQ(resent2, (std::vector<uint32_t>{1, 2, 3})) << "just the range asked for, in order";
+  std::this_thread::sleep_for(300ms);
+  size_t to1 = 0;
+  r_to1.take(64).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) { to1 += m.robot_id == 0 ? 1 : 0; });
+  EXPECT_EQ(to1, 0u) << "robot 1 did not ask for robot 0's descriptors, and must not get them again";
+
+  // Part 2: as robot 2, the test sends descriptors 0, 1 and 4 live: robot 1's loop closure asks for 2..3.
+  auto descriptor = [&](uint32_t k, cdc_msg_Descriptor& d, std::vector<float>& key, std::vector<uint8_t>& cells) {
+    lidar::ScanContextParams sc;
+    d = cdc_msg_Descriptor{};
+    d.robot_id = 2;
+    d.keyframe_id = k;
+    d.incarnation = 1;
+    d.pose_hint = dds::to_msg(Eigen::Isometry3d::Identity());
+    dds::descriptor_to_msg(lidar::quantize(lidar::make_scan_context(cloud(k), sc)), static_cast<float>(sc.max_range_m), d,
+                           key, cells);
+  };
+  std::vector<float> key;
+  std::vector<uint8_t> cells;
+  cdc_msg_Descriptor d{};
+  for (uint32_t k : {0u, 1u, 4u}) {
+    descriptor(k, d, key, cells);
+    w_desc.write(d);
+  }
+  std::vector<cdc_msg_DescriptorSync> asked;
+  for (int i = 0; i < 100 && asked.empty(); ++i) {
+    std::this_thread::sleep_for(50ms);
+    r_sync.take(16).for_each_valid([&](const cdc_msg_DescriptorSync& m, const dds_sample_info_t&) {
+      if (m.owner_robot_id == 2) asked.push_back(m);
+    });
+  }
+  ASSERT_FALSE(asked.empty()) << "robot 1 did not ask for the gap";
+  EXPECT_EQ(asked[0].requester_robot_id, 1u);
+  EXPECT_EQ(asked[0].first_keyframe_id, 2u);
+  EXPECT_EQ(asked[0].last_keyframe_id, 3u);
+  // The test answers as robot 2's descriptor service would; robot 1 then stops asking.
+  for (uint32_t k : {2u, 3u}) {
+    descriptor(k, d, key, cells);
+    w_desc_to1.write(d);
+  }
+  std::this_thread::sleep_for(500ms);
+  r_sync.take(16).for_each_valid([&](const cdc_msg_DescriptorSync&, const dds_sample_info_t&) {});
+  std::this_thread::sleep_for(2500ms);  // more than two resend intervals
+  size_t later = 0;
+  r_sync.take(16).for_each_valid([&](const cdc_msg_DescriptorSync& m, const dds_sample_info_t&) {
+    later += m.owner_robot_id == 2 ? 1 : 0;
+  });
+  EXPECT_EQ(later, 0u) << "the gap was filled, yet robot 1 kept asking";
+  for (auto& p : procs) stop(p);
+
+  std::ifstream in1(dir / "loops1.json"), in0(dir / "descriptor0.json");
+  ASSERT_TRUE(in1.good() && in0.good());
+  const auto l1 = nlohmann::json::parse(in1), d0 = nlohmann::json::parse(in0);
+  EXPECT_GE(l1.value("descriptor_sync_requests", 0), 1);
+  EXPECT_EQ(l1.value("descriptor_gaps_skipped", -1), 0);
+  EXPECT_EQ(d0.value("sync_requests", 0), 1);
+  EXPECT_EQ(d0.value("resent", 0), 3);
+  if (!HasFailure()) fs::remove_all(dir);
 }
 
 }  // namespace

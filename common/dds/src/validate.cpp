@@ -274,6 +274,16 @@ Validation validate(const cdc_msg_CloudRequest& m, const ValidationLimits& limit
   return validate_robot_id(m.owner_robot_id, "owner_robot_id", limits);
 }
 
+Validation validate(const cdc_msg_DescriptorSync& m, const ValidationLimits& limits) {
+  CDC_CHECK(validate_robot_id(m.requester_robot_id, "requester_robot_id", limits));
+  CDC_CHECK(validate_robot_id(m.owner_robot_id, "owner_robot_id", limits));
+  if (m.first_keyframe_id > m.last_keyframe_id) {
+    return Validation::fail("last_keyframe_id: " + std::to_string(m.last_keyframe_id) + " is before first_keyframe_id " +
+                            std::to_string(m.first_keyframe_id));
+  }
+  return Validation::ok();
+}
+
 Validation validate(const cdc_msg_CloudReply& m, const ValidationLimits& limits) {
   CDC_CHECK(validate_robot_id(m.requester_robot_id, "requester_robot_id", limits));
   CDC_CHECK(validate_robot_id(m.owner_robot_id, "owner_robot_id", limits));

@@ -1,5 +1,7 @@
 // cdc-descriptor: a robot's keyframes in, their Scan Context descriptors out. Only descriptors
-// (about 1.4 KB each) leave the robot by default; clouds stay home until a peer asks for one.
+// (about 0.6 KB each, packed) leave the robot by default; clouds stay home until a peer asks for
+// one. Descriptors are sent once, live; a robot that missed some (out of range, or not matched
+// yet) asks for the missing range on cdc/place/descriptor_sync and gets just those again.
 #include "cdc/config/reader.hpp"
 #include "cdc/dds/convert.hpp"
 #include "cdc/dds/descriptor_convert.hpp"
@@ -19,6 +21,8 @@
 
 #include <fstream>
 #include <iostream>
+#include <map>
+#include <memory>
 #include <set>
 
 namespace {
@@ -29,6 +33,14 @@ struct Options {
   uint32_t robot = 0, robots = 3, domain = 0;
   std::string dds_config, stats_out, log_level = "info";
   lidar::ScanContextParams sc;
+  uint32_t max_per_sync = 256;  // descriptors sent for one sync request (the requester asks again for more)
+};
+
+// A published descriptor, kept to answer sync requests.
+struct Stored {
+  cdc_msg_Descriptor msg{};  // fixed fields; sequences point into the vectors below when written
+  std::vector<float> ring_key;
+  std::vector<uint8_t> packed_cells;
 };
 
 void load(const std::string& path, Options& o) {
@@ -40,6 +52,9 @@ void load(const std::string& path, Options& o) {
   r.get<int>("scan_context.sectors", o.sc.sectors, [](const int& v) { return v >= 4 && v <= 255; }, "4..255");
   r.get<double>("scan_context.max_range_m", o.sc.max_range_m, [](const double& v) { return v > 0; }, "> 0");
   r.get<double>("scan_context.sensor_height_m", o.sc.sensor_height_m, [](const double& v) { return v >= 0; }, ">= 0");
+  int per_sync = static_cast<int>(o.max_per_sync);
+  r.get<int>("max_per_sync", per_sync, [](const int& v) { return v >= 1 && v <= 100000; }, "1..100000");
+  o.max_per_sync = static_cast<uint32_t>(per_sync);
   r.get<std::string>("log_level", o.log_level);
   r.finish();
 }
@@ -51,21 +66,33 @@ int run(const Options& o) {
   dds::Participant participant(po);
   dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
   dds::Topic<cdc_msg_Descriptor> t_desc(participant, dds::topics::kDescriptor);
+  dds::Topic<cdc_msg_DescriptorSync> t_sync(participant, dds::topics::kDescriptorSync);
   dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(o.robot)));
-  // Transient-local, one sample per keyframe: robots that come in range later get them all.
-  dds::Writer<cdc_msg_Descriptor> w_desc(participant, t_desc, dds::qos::keyed_state());
+  // Live descriptors are volatile: whoever missed some asks for them (cdc/place/descriptor_sync),
+  // and gets them from a writer in its own partition. A transient-local history would instead
+  // replay every descriptor ever made to each peer on every reconnection.
+  dds::Writer<cdc_msg_Descriptor> w_desc(participant, t_desc, dds::qos::event_stream(256));
+  dds::Reader<cdc_msg_DescriptorSync> r_sync(participant, t_sync, dds::qos::event_stream(256));
+  std::vector<std::unique_ptr<dds::Writer<cdc_msg_Descriptor>>> w_resend(o.robots);
+  for (uint32_t r = 0; r < o.robots; ++r) {
+    w_resend[r] = std::make_unique<dds::Writer<cdc_msg_Descriptor>>(
+        participant, t_desc, dds::qos::event_stream(static_cast<int32_t>(o.max_per_sync)).partitions({dds::partitions::robot(r)}));
+  }
   dds::GuardCondition stop(participant);
   dds::ShutdownSignal::add_guard(&stop);
-  dds::ReadCondition rc_kf(r_kf.handle());
+  dds::ReadCondition rc_kf(r_kf.handle()), rc_sync(r_sync.handle());
   dds::WaitSet ws(participant);
   ws.attach(stop.handle(), 0);
   ws.attach(rc_kf.handle(), 1);
+  ws.attach(rc_sync.handle(), 2);
   dds::ValidationLimits limits;
   limits.robot_count = o.robots;
   dds::RejectionCounter rejected;
-  uint64_t published = 0, bytes = 0, repeated = 0;
+  uint64_t published = 0, bytes = 0, repeated = 0, syncs = 0, resent = 0, resent_bytes = 0;
+  std::map<uint32_t, Stored> store;  // this incarnation's descriptors by keyframe id
+  uint32_t incarnation = 0;
   // Keyframes the peer optimiser re-sends to a central that lacks them come here too: each
-  // (incarnation, keyframe) is described once (its descriptor is transient-local state already).
+  // (incarnation, keyframe) is described once (peers that missed it ask for it).
   std::set<std::pair<uint32_t, uint32_t>> described;
   std::vector<Eigen::Vector3f> points;
   std::vector<float> ring_key;
@@ -74,6 +101,28 @@ int run(const Options& o) {
                o.sc.sectors, o.sc.max_range_m, o.domain);
   while (!dds::ShutdownSignal::requested()) {
     ws.wait(std::chrono::milliseconds(200));
+    r_sync.take(64).for_each_valid([&](const cdc_msg_DescriptorSync& m, const dds_sample_info_t&) {
+      if (m.owner_robot_id != o.robot) {
+        return;
+      }
+      if (rejected.record(dds::topics::kDescriptorSync, dds::validate(m, limits))) {
+        spdlog::warn("rejected descriptor sync: {}", rejected.last_reason());
+        return;
+      }
+      ++syncs;
+      uint32_t n = 0;
+      for (auto it = store.lower_bound(m.first_keyframe_id);
+           it != store.end() && it->first <= m.last_keyframe_id && n < o.max_per_sync; ++it, ++n) {
+        Stored& st = it->second;
+        dds::borrow(st.msg.ring_key, st.ring_key);
+        dds::borrow(st.msg.packed_cells, st.packed_cells);
+        w_resend[m.requester_robot_id]->write(st.msg);
+        ++resent;
+        resent_bytes += dds::wire_size(st.msg);
+      }
+      spdlog::debug("robot {} asked for descriptors {}..{}: {} sent", m.requester_robot_id, m.first_keyframe_id,
+                    m.last_keyframe_id, n);
+    });
     r_kf.take(64).for_each_valid([&](const cdc_msg_Keyframe& m, const dds_sample_info_t&) {
       if (m.robot_id != o.robot) {
         return;
@@ -101,6 +150,14 @@ int run(const Options& o) {
       w_desc.write(d);
       ++published;
       bytes += dds::wire_size(d);
+      if (m.incarnation != incarnation) {  // a restarted front-end numbers its keyframes afresh
+        store.clear();
+        incarnation = m.incarnation;
+      }
+      Stored& st = store[m.keyframe_id];
+      st.msg = d;
+      st.ring_key = ring_key;
+      st.packed_cells = cells;
     });
   }
   dds::ShutdownSignal::remove_guard(&stop);
@@ -109,6 +166,9 @@ int run(const Options& o) {
                      {"descriptors", published},
                      {"repeated_keyframes", repeated},
                      {"bytes", {{dds::topics::kDescriptor, bytes}}},
+                     {"sync_requests", syncs},
+                     {"resent", resent},
+                     {"resent_bytes", resent_bytes},
                      {"bytes_per_descriptor", published > 0 ? static_cast<double>(bytes) / static_cast<double>(published) : 0.0},
                      {"rejected", rejected.by_topic()},
                      {"rejected_samples", rejected.total()}};

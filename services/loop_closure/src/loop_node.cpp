@@ -72,6 +72,10 @@ LoopNodeOptions load_loop_options(const std::string& path) {
   r.get<int>("cloud_cache", cache, positive_i, "> 0");
   r.get<int>("peer_timeout_ms", o.peer_timeout_ms, positive_i, "> 0");
   r.get<int>("tick_ms", o.tick_ms, positive_i, "> 0");
+  int resend = static_cast<int>(std::chrono::duration_cast<std::chrono::milliseconds>(o.sequencer.resend).count());
+  r.get<int>("descriptor_sync.resend_ms", resend, positive_i, "> 0");
+  o.sequencer.resend = std::chrono::milliseconds(resend);
+  r.get<int>("descriptor_sync.max_attempts", o.sequencer.max_attempts, positive_i, "> 0");
   r.get<float>("verification.reply_resolution_m", o.reply_resolution_m,
                [](const float& v) { return v > 0.0f && v <= 0.1f; }, "(0, 0.1]");
   r.get<std::string>("log_level", o.log_level);
@@ -97,9 +101,16 @@ int run_loop_closure(const LoopNodeOptions& o) {
   dds::Topic<cdc_msg_CloudRequest> t_req(participant, topics::kCloudRequest);
   dds::Topic<cdc_msg_CloudReply> t_rep(participant, topics::kCloudReply);
   dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(me)));
-  // Descriptors are state per keyframe, transient-local: a peer that comes back in range (a new
-  // match after its lease lapsed) receives every descriptor it missed.
-  dds::Reader<cdc_msg_Descriptor> r_desc(participant, t_desc, dds::qos::keyed_state());
+  // Descriptors arrive live (volatile), and those missed on request: a gap in a robot's keyframe
+  // ids is asked for on cdc/place/descriptor_sync and the owner's descriptor service sends just that
+  // range again, in this robot's partition. The sequencer holds back what came after a gap until
+  // it is filled, so that every robot's descriptors are searched in keyframe order.
+  dds::Topic<cdc_msg_DescriptorSync> t_sync(participant, topics::kDescriptorSync);
+  dds::Reader<cdc_msg_Descriptor> r_desc(participant, t_desc, dds::qos::event_stream(1024));
+  dds::Reader<cdc_msg_Descriptor> r_desc_resent(participant, t_desc,
+                                                dds::qos::event_stream(1024).partitions({dds::partitions::robot(me)}));
+  dds::Writer<cdc_msg_DescriptorSync> w_sync(participant, t_sync, dds::qos::event_stream(256));
+  DescriptorSequencer sequencer(o.sequencer);
   dds::Reader<cdc_msg_CloudRequest> r_req(participant, t_req, dds::qos::event_stream(256));
   dds::Reader<cdc_msg_CloudReply> r_rep(participant, t_rep, dds::qos::event_stream(256).partitions(dds::partitions::own_reader(me)));
   dds::Writer<cdc_msg_LoopClosure> w_loop(participant, t_loop, dds::qos::event_stream(4096));
@@ -114,13 +125,15 @@ int run_loop_closure(const LoopNodeOptions& o) {
   }
   dds::GuardCondition stop(participant);
   dds::ShutdownSignal::add_guard(&stop);
-  dds::ReadCondition rc_kf(r_kf.handle()), rc_desc(r_desc.handle()), rc_req(r_req.handle()), rc_rep(r_rep.handle());
+  dds::ReadCondition rc_kf(r_kf.handle()), rc_desc(r_desc.handle()), rc_desc_resent(r_desc_resent.handle()),
+      rc_req(r_req.handle()), rc_rep(r_rep.handle());
   dds::WaitSet ws(participant);
   ws.attach(stop.handle(), 0);
   ws.attach(rc_kf.handle(), 1);
   ws.attach(rc_desc.handle(), 2);
   ws.attach(rc_req.handle(), 3);
   ws.attach(rc_rep.handle(), 4);
+  ws.attach(rc_desc_resent.handle(), 5);
 
   dds::ValidationLimits limits;
   limits.robot_count = o.robots;
@@ -129,10 +142,13 @@ int run_loop_closure(const LoopNodeOptions& o) {
   auto now_ns = [&] { return std::chrono::duration_cast<Nanos>(Clock::now() - t0); };
   LoopCore core(o.core, me);
   std::map<uint32_t, Clock::time_point> last_heard;
-  core.set_reachable([&](uint32_t robot) {
+  // A peer is in reach while heard from within peer_timeout_ms; the robot's own services always are.
+  const auto in_reach = [&](uint32_t robot) {
+    if (robot == me) return true;
     const auto it = last_heard.find(robot);
     return it != last_heard.end() && Clock::now() - it->second <= std::chrono::milliseconds(o.peer_timeout_ms);
-  });
+  };
+  core.set_reachable(in_reach);
   std::map<uint64_t, std::pair<uint32_t, uint32_t>> requests;  // request id -> (owner, keyframe)
   uint64_t next_request = 1, requests_served = 0, requests_unknown = 0, loops_sent = 0, points_served = 0;
   uint32_t incarnation = 0, loop_seq = 0;
@@ -151,6 +167,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
       q.stamp_ns = dds::now_ns();
       requests[q.request_id] = {c.robot, c.id};
       w_req.write(q);
+      spdlog::debug("requested cloud {}/{} (request {})", c.robot, c.id, q.request_id);
       traffic.out(topics::kCloudRequest, dds::wire_size(q), c.robot);
     }
     for (const LoopOut& l : ev.loops) {
@@ -213,6 +230,8 @@ int run_loop_closure(const LoopNodeOptions& o) {
       if (m.requester_robot_id >= w_rep_to.size() || !w_rep_to[m.requester_robot_id]) return;  // validated above
       w_rep_to[m.requester_robot_id]->write(rep);
       traffic.out(topics::kCloudReply, dds::wire_size(rep), m.requester_robot_id);
+      spdlog::debug("served cloud {}/{} to robot {}: {} points in {} B, request {} ms old", me, m.keyframe_id,
+                    m.requester_robot_id, packed.count, packed.bytes.size(), (dds::now_ns() - m.stamp_ns) / 1'000'000);
     });
     r_kf.take(64).for_each_valid([&](const cdc_msg_Keyframe& m, const dds_sample_info_t&) {
       if (m.robot_id != me) {
@@ -234,7 +253,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
       }
       handle(core.add_keyframe_data(std::move(kf), now));
     });
-    r_desc.take(16).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
+    auto on_descriptor = [&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
       const size_t bytes = dds::wire_size(m);
       dds::Validation v = dds::validate(m, limits);
       if (v && (m.rings != o.core.scan_context.rings || m.sectors != o.core.scan_context.sectors ||
@@ -253,10 +272,30 @@ int run_loop_closure(const LoopNodeOptions& o) {
         traffic.in(topics::kDescriptor, bytes, m.robot_id);
         last_heard[m.robot_id] = Clock::now();
       }
-      handle(core.add_descriptor(DescriptorIn{m.robot_id, m.keyframe_id, dds::descriptor_from_msg(m),
-                                              dds::to_eigen(m.pose_hint)},
-                                 now));
-    });
+      for (DescriptorIn& d : sequencer.add(DescriptorIn{m.robot_id, m.keyframe_id, dds::descriptor_from_msg(m),
+                                                        dds::to_eigen(m.pose_hint)})) {
+        handle(core.add_descriptor(std::move(d), now));
+      }
+    };
+    r_desc_resent.take(16).for_each_valid(on_descriptor);
+    r_desc.take(16).for_each_valid(on_descriptor);
+    {
+      std::vector<DescriptorIn> released;
+      for (const SyncWanted& w : sequencer.wanted(now, in_reach, released)) {
+        cdc_msg_DescriptorSync q{};
+        q.requester_robot_id = me;
+        q.owner_robot_id = w.robot;
+        q.first_keyframe_id = w.first;
+        q.last_keyframe_id = w.last;
+        q.stamp_ns = dds::now_ns();
+        w_sync.write(q);
+        traffic.out(topics::kDescriptorSync, dds::wire_size(q), w.robot);
+        spdlog::debug("asked robot {} for its descriptors {}..{}", w.robot, w.first, w.last);
+      }
+      for (DescriptorIn& d : released) {
+        handle(core.add_descriptor(std::move(d), now));
+      }
+    }
     r_rep.take(16).for_each_valid([&](const cdc_msg_CloudReply& m, const dds_sample_info_t&) {
       if (m.requester_robot_id != me) {
         return;
@@ -312,6 +351,10 @@ int run_loop_closure(const LoopNodeOptions& o) {
                      {"cloud_timed_out", s.timed_out},
                      {"cloud_unreachable", s.unreachable},
                      {"requests_served", requests_served},
+                     {"descriptor_sync_requests", sequencer.stats().sync_requests},
+                     {"descriptor_duplicates", sequencer.stats().duplicates},
+                     {"descriptor_gaps_skipped", sequencer.stats().gaps_skipped},
+                     {"descriptor_ids_skipped", sequencer.stats().ids_skipped},
                      {"points_served", points_served},
                      {"requests_unknown_keyframe", requests_unknown},
                      {"bytes_sent", traffic.sent},

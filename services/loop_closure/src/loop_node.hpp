@@ -3,6 +3,7 @@
 // per peer.
 #pragma once
 
+#include "cdc/loop_closure/descriptor_sequencer.hpp"
 #include "cdc/loop_closure/loop_core.hpp"
 
 #include <string>
@@ -16,6 +17,7 @@ struct LoopNodeOptions {
   int peer_timeout_ms = 3000;   // a peer unheard of this long is out of range: no cloud requests to it
   int tick_ms = 100;
   float reply_resolution_m = 0.01f;  // quantisation of the clouds sent in cloud replies
+  SequencerParams sequencer;         // asking for missed descriptors
 };
 
 LoopNodeOptions load_loop_options(const std::string& path);

@@ -8,6 +8,7 @@ inline constexpr const char* kImu = "cdc/sensor/imu";
 inline constexpr const char* kOdometry = "cdc/frontend/odometry";
 inline constexpr const char* kKeyframe = "cdc/frontend/keyframe";
 inline constexpr const char* kDescriptor = "cdc/place/descriptor";
+inline constexpr const char* kDescriptorSync = "cdc/place/descriptor_sync";
 inline constexpr const char* kLoopClosure = "cdc/loop/closure";
 inline constexpr const char* kCloudRequest = "cdc/loop/cloud_request";
 inline constexpr const char* kCloudReply = "cdc/loop/cloud_reply";

@@ -25,6 +25,7 @@ CDC_DDS_TYPE(cdc_msg_ImuBatch);
 CDC_DDS_TYPE(cdc_msg_Odometry);
 CDC_DDS_TYPE(cdc_msg_Keyframe);
 CDC_DDS_TYPE(cdc_msg_Descriptor);
+CDC_DDS_TYPE(cdc_msg_DescriptorSync);
 CDC_DDS_TYPE(cdc_msg_LoopClosure);
 CDC_DDS_TYPE(cdc_msg_CloudRequest);
 CDC_DDS_TYPE(cdc_msg_CloudReply);

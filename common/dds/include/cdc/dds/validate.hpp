@@ -54,6 +54,7 @@ Validation validate(const cdc_msg_Keyframe& m, const ValidationLimits& limits);
 Validation validate(const cdc_msg_Descriptor& m, const ValidationLimits& limits);
 Validation validate(const cdc_msg_LoopClosure& m, const ValidationLimits& limits);
 Validation validate(const cdc_msg_CloudRequest& m, const ValidationLimits& limits);
+Validation validate(const cdc_msg_DescriptorSync& m, const ValidationLimits& limits);
 Validation validate(const cdc_msg_CloudReply& m, const ValidationLimits& limits);
 Validation validate(const cdc_msg_OptimizedPoses& m, const ValidationLimits& limits);
 Validation validate(const cdc_msg_SeparatorPoses& m, const ValidationLimits& limits);

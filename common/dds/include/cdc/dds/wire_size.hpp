@@ -30,6 +30,11 @@ inline size_t wire_size(const cdc_msg_CloudRequest& m) {
   return wire::kEncapsulation + 4 + 4 + 8 + 4 + 4 + 4 + 8;  // with padding before the 64-bit fields
 }
 
+inline size_t wire_size(const cdc_msg_DescriptorSync& m) {
+  (void)m;
+  return wire::kEncapsulation + 4 * 4 + 8;  // ids and range, stamp
+}
+
 inline size_t wire_size(const cdc_msg_CloudReply& m) {
   // ids (4 + 4, pad, 8), owner, incarnation, keyframe (12), found (1, pad 3), point_count, resolution (8)
   return wire::kEncapsulation + 4 + 4 + 8 + 4 + 4 + 4 + 1 + 3 + 4 + 4 + 4 + m.packed_points._length;

@@ -45,7 +45,7 @@ struct LoopParams {
   double min_overlap = 0.55;
   graph::PcmOptions pcm;
   size_t min_inter_support = 2;    // inter-robot loops are published from a consistent set at least this large
-  Nanos request_timeout = std::chrono::seconds(5);  // an unanswered cloud request is dropped after this
+  Nanos request_timeout = std::chrono::seconds(10);  // an unanswered cloud request is dropped after this
   size_t cloud_cache = 256;        // peers' clouds kept after verification (least recently received dropped)
   // A peer's cloud is not requested when one within this many of that peer's keyframes was requested
   // already: neighbouring keyframes (1 m apart) close the same loop, and each request is a whole cloud
