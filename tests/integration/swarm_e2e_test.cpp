@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <iostream>
+
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -143,6 +145,16 @@ TEST_F(SwarmEndToEnd, ThreeRobotsSwitchOnLivelinessLapsesAndStayAccurate) {
   }
   // Robot 0 carries the central: never cut off. Robots 1 and 2 lose it when the emulated radio
   // cuts their link, through the lapse of its liveliness; robot 1 rejoins at about 42 s.
+  // Robot-to-robot radio traffic: descriptors (packed) once each, packed clouds on request. The
+  // target is 2 KB of user data per keyframe: sent per own keyframe in DISTRIBUTED mode, and over
+  // the whole run both directions per keyframe made by either end.
+  std::cout << "robot links: " << r["traffic"]["max_distributed_sent_bytes_per_own_keyframe_per_link"]
+            << " B sent per own keyframe in DISTRIBUTED (largest), " << r["traffic"]["max_robot_link_bytes_per_keyframe_whole_run"]
+            << " B per keyframe over the run (largest)\n";
+  EXPECT_LE(r["traffic"]["max_distributed_sent_bytes_per_own_keyframe_per_link"].get<double>(), 2048.0)
+      << r["traffic"].dump();
+  EXPECT_LE(r["traffic"]["max_robot_link_bytes_per_keyframe_whole_run"].get<double>(), 2048.0) << r["traffic"].dump();
+  EXPECT_GT(r["traffic"]["max_robot_link_bytes_per_keyframe_whole_run"].get<double>(), 100.0) << "nothing measured?";
   EXPECT_EQ(r["robots"]["0"]["switches_to_distributed"], 0);
   for (const char* robot : {"1", "2"}) {
     const json& jr = r["robots"][robot];

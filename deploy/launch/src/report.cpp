@@ -312,7 +312,37 @@ json write_report(const RunInfo& info) {
         }
       }
     }
+    // Whole run, per robot-to-robot link (every mode): what is sent in one mode can be charged to
+    // the next (a backlog of descriptors made while out of range crosses when the link returns), so
+    // the run's user data on each link is also divided by the keyframes both ends made.
+    json whole = json::object();
+    double worst_whole = 0;
+    for (const auto& [r, t] : info.traffic) {
+      uint64_t kf_r = 0;
+      for (const auto& [mode, n] : t.keyframes) kf_r += n;
+      std::map<uint32_t, uint64_t> bytes;
+      for (const auto& [mode, peers] : t.bytes) {
+        for (const auto& [peer, b] : peers) bytes[peer] += b.sent + b.received;
+      }
+      for (const auto& [peer, total] : bytes) {
+        if (peer == kCentralNode || peer <= r) continue;  // each robot pair once, as counted at the lower id
+        const auto pt = info.traffic.find(peer);
+        uint64_t kf_p = 0;
+        if (pt != info.traffic.end()) {
+          for (const auto& [mode, n] : pt->second.keyframes) kf_p += n;
+        }
+        json l{{"user_bytes", total}, {"keyframes_both_ends", kf_r + kf_p}};
+        if (kf_r + kf_p > 0) {
+          const double per = static_cast<double>(total) / static_cast<double>(kf_r + kf_p);
+          l["bytes_per_keyframe"] = per;
+          worst_whole = std::max(worst_whole, per);
+        }
+        whole[node_name(r) + "-" + node_name(peer)] = l;
+      }
+    }
     j["traffic"] = {{"per_link", per_link},
+                    {"robot_links_whole_run", whole},
+                    {"max_robot_link_bytes_per_keyframe_whole_run", worst_whole},
                     {"max_distributed_bytes_per_keyframe_per_link", worst_dist_per_kf},
                     {"max_distributed_sent_bytes_per_own_keyframe_per_link", worst_dist_sent_per_kf}};
   }
@@ -387,7 +417,14 @@ json write_report(const RunInfo& info) {
     md << "\nLargest distributed-mode user data per own keyframe on a robot-to-robot link: "
        << fixed(j["traffic"]["max_distributed_sent_bytes_per_own_keyframe_per_link"].get<double>(), 0) << " B sent ("
        << fixed(j["traffic"]["max_distributed_bytes_per_keyframe_per_link"].get<double>(), 0)
-       << " B sent and received)\n";
+       << " B sent and received)\n"
+       << "\nWhole run, user data on each robot-to-robot link (both directions, every mode) per keyframe made by\n"
+       << "either end (a backlog made while out of range crosses when the link returns, in the next mode):\n\n"
+       << "| link | user data | keyframes (both ends) | bytes per keyframe |\n|---|---|---|---|\n";
+    for (const auto& [link, l] : j["traffic"]["robot_links_whole_run"].items()) {
+      md << "| " << link << " | " << l["user_bytes"] << " | " << l["keyframes_both_ends"] << " | "
+         << (l.contains("bytes_per_keyframe") ? fixed(l["bytes_per_keyframe"].get<double>(), 0) : std::string("-")) << " |\n";
+    }
   }
   md << "\n## Files\n\n- `robot_K/odometry.{tum,kitti}`: the front-end's real-time odometry (fused pose)\n"
      << "- `robot_K/keyframes.{tum,kitti}`: the robot's keyframes in the world frame as its peer optimiser last had them;\n"
