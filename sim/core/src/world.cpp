@@ -312,6 +312,10 @@ namespace {
 // Terrain under the paths: every vertex takes the mean height (minus the sensor height) of the
 // path points nearest to it; vertices with none take their nearest seeded neighbour's value
 // (breadth-first), then are smoothed so that the ground away from the roads has no terraces.
+// Where passes over the same place disagree in height by more than kMaxPassSpread (an underpass,
+// or a ground truth that does not close in elevation: KITTI 09 ends 3.1 m below its start), the
+// vertex takes the lowest: a mean would lift the ground into the lower pass's sensor, while the
+// higher pass merely drives above a lower ground, as over a bridge.
 Terrain make_terrain(const std::vector<std::vector<Eigen::Vector3d>>& paths, const WorldOptions& opt) {
   Terrain t;
   t.cell = opt.cell_m;
@@ -330,14 +334,18 @@ Terrain make_terrain(const std::vector<std::vector<Eigen::Vector3d>>& paths, con
   t.ny = std::max(1, static_cast<int>(std::ceil((hi.y() - lo.y() + 2 * opt.terrain_margin_m) / t.cell)));
   const int w = t.nx + 1, h = t.ny + 1;
   const size_t n = static_cast<size_t>(w) * static_cast<size_t>(h);
-  std::vector<double> sum(n, 0.0);
+  constexpr double kMaxPassSpread = 1.0;  // [m]
+  std::vector<double> sum(n, 0.0), lowest(n, kInf), highest(n, -kInf);
   std::vector<int> count(n, 0);
   for (const auto& path : paths) {
     for (const auto& p : path) {
       const int i = std::clamp(static_cast<int>(std::lround((p.x() - t.origin.x()) / t.cell)), 0, t.nx);
       const int j = std::clamp(static_cast<int>(std::lround((p.y() - t.origin.y()) / t.cell)), 0, t.ny);
       const size_t k = static_cast<size_t>(j) * static_cast<size_t>(w) + static_cast<size_t>(i);
-      sum[k] += p.z() - opt.sensor_height_m;
+      const double g = p.z() - opt.sensor_height_m;
+      sum[k] += g;
+      lowest[k] = std::min(lowest[k], g);
+      highest[k] = std::max(highest[k], g);
       ++count[k];
     }
   }
@@ -346,7 +354,7 @@ Terrain make_terrain(const std::vector<std::vector<Eigen::Vector3d>>& paths, con
   std::vector<size_t> frontier;
   for (size_t k = 0; k < n; ++k) {
     if (count[k] > 0) {
-      t.z[k] = sum[k] / count[k];
+      t.z[k] = highest[k] - lowest[k] > kMaxPassSpread ? lowest[k] : sum[k] / count[k];
       seeded[k] = known[k] = 1;
       frontier.push_back(k);
     }

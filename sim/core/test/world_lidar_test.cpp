@@ -205,5 +205,27 @@ TEST(World, TerrainFollowsTheElevationOfHillyPaths) {
   }
 }
 
+TEST(World, PassesAtDifferentHeightsOverOnePlaceNeverBuryASensor) {
+  // A road, and a second pass along the same line 3.1 m lower (KITTI 09's ground truth ends 3.1 m
+  // below its start at the same place). A mean of the two would put the ground 0.2 m under the
+  // lower pass's sensor; it must instead keep its mounting height, and the higher pass drives above.
+  std::vector<Eigen::Vector3d> upper, lower;
+  for (int i = 0; i < 100; ++i) {
+    upper.emplace_back(1.0 * i, 0.0, 1.73);
+    lower.emplace_back(1.0 * i + 0.3, 0.4, 1.73 - 3.1);
+  }
+  WorldOptions o;
+  o.seed = 11;
+  const World w = World::generate({upper, lower}, o);
+  for (size_t k = 10; k < 90; k += 5) {
+    const auto below_lower = w.cast(lower[k], Eigen::Vector3d(0, 0, -1), 50.0);
+    ASSERT_TRUE(below_lower) << "no ground under " << lower[k].transpose();
+    EXPECT_NEAR(below_lower->range, 1.73, 0.15) << "lower pass at " << lower[k].transpose();
+    const auto below_upper = w.cast(upper[k], Eigen::Vector3d(0, 0, -1), 50.0);
+    ASSERT_TRUE(below_upper) << "no ground under " << upper[k].transpose();
+    EXPECT_GT(below_upper->range, 1.73 - 0.15) << "upper pass at " << upper[k].transpose();
+  }
+}
+
 }  // namespace
 }  // namespace cdc::sim
