@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <sstream>
 
 namespace cdc::dds {
@@ -82,8 +83,12 @@ Validation check_node_id(uint32_t id, std::string_view field, const ValidationLi
 }
 
 template <class E>
-Validation check_enum(E v, int count, std::string_view field) {
-  const int i = static_cast<int>(v);
+Validation check_enum(const E& field_ref, int count, std::string_view field) {
+  // Read the raw 32-bit value (as deserialised off the wire): loading an out-of-range value as the
+  // enum type itself would be undefined behaviour.
+  static_assert(sizeof(E) == sizeof(int32_t), "IDL enums are 32-bit");
+  int32_t i = 0;
+  std::memcpy(&i, &field_ref, sizeof i);
   if (i < 0 || i >= count) {
     return Validation::fail(cat(field, ": unknown enumerator " + std::to_string(i)));
   }

@@ -77,6 +77,44 @@ TEST(Compact, PointsOutsideTheInt16RangeAreDroppedAndCounted) {
   EXPECT_NEAR(back[1].z(), 1.0f, 0.006f);
 }
 
+TEST(Compact, RandomAndMutatedInputNeverCrashes) {
+  // Network input: random bytes, and valid packed data with bytes flipped, truncated or extended,
+  // must come back as a reason or as exactly the size asked for (run under the asan preset too).
+  std::mt19937 rng(99);
+  std::vector<Eigen::Vector3f> pts;
+  for (int i = 0; i < 500; ++i) pts.emplace_back(0.1f * static_cast<float>(i % 37), 0.2f * static_cast<float>(i % 11), 1.0f);
+  const PackedCloud good = pack_points(pts, 0.01f);
+  std::vector<Eigen::Vector3f> out;
+  std::vector<uint8_t> bytes;
+  for (int trial = 0; trial < 3000; ++trial) {
+    std::vector<uint8_t> data = good.bytes;
+    switch (trial % 4) {
+      case 0:
+        data.resize(rng() % 200);
+        for (auto& b : data) b = static_cast<uint8_t>(rng());
+        break;
+      case 1:
+        data[rng() % data.size()] ^= static_cast<uint8_t>(1u << (rng() % 8));
+        break;
+      case 2:
+        data.resize(rng() % data.size());
+        break;
+      default:
+        data.push_back(static_cast<uint8_t>(rng()));
+        break;
+    }
+    const uint32_t count = trial % 5 == 0 ? static_cast<uint32_t>(rng() % 1000) : good.count;
+    const std::string err = unpack_points(data.data(), data.size(), count, 0.01f, out);
+    if (err.empty()) {
+      EXPECT_EQ(out.size(), count);
+    }
+    const std::string err2 = inflate_bytes(data.data(), data.size(), 6 * size_t{count}, bytes);
+    if (err2.empty()) {
+      EXPECT_EQ(bytes.size(), 6 * size_t{count});
+    }
+  }
+}
+
 TEST(Compact, EmptyCloudAndBadArguments) {
   const PackedCloud empty = pack_points({}, 0.01f);
   std::vector<Eigen::Vector3f> back{{1, 2, 3}};
