@@ -23,6 +23,7 @@ struct Scenario {
   double time_shift_s = 0;
   MissionOptions mission;                // procedural
   std::string lidar = "vlp16";           // vlp16 | hdl64
+  double lidar_elevation_error_deg = 0;  // sigma of each beam's (fixed, seeded) elevation calibration error
   double imu_rate_hz = 200;
   double duration_s = 0;                 // 0: the whole trajectories
   int central_robot = 0;                 // the central rides on this robot; -1: fixed position

@@ -1,5 +1,8 @@
 #include "cdc/sim/lidar.hpp"
 
+#include <stdexcept>
+#include <string>
+
 #include <cmath>
 
 namespace cdc::sim {
@@ -35,11 +38,18 @@ std::vector<LidarReturn> sweep(const World& world, const LidarModel& model,
   std::normal_distribution<double> noise(0.0, model.range_sigma_m);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   const size_t beams = model.elevations_deg.size();
-  std::vector<double> ce(beams), se(beams);
+  if (!model.elevation_error_deg.empty() && model.elevation_error_deg.size() != beams) {
+    throw std::invalid_argument("LidarModel: elevation_error_deg has " + std::to_string(model.elevation_error_deg.size()) +
+                                " entries for " + std::to_string(beams) + " beams");
+  }
+  std::vector<double> ce(beams), se(beams), ce_true(beams), se_true(beams);
   for (size_t b = 0; b < beams; ++b) {
     const double e = model.elevations_deg[b] * M_PI / 180.0;
     ce[b] = std::cos(e);
     se[b] = std::sin(e);
+    const double et = e + (model.elevation_error_deg.empty() ? 0.0 : model.elevation_error_deg[b] * M_PI / 180.0);
+    ce_true[b] = std::cos(et);
+    se_true[b] = std::sin(et);
   }
   std::vector<LidarReturn> out;
   out.reserve(model.rays());
@@ -52,8 +62,8 @@ std::vector<LidarReturn> sweep(const World& world, const LidarModel& model,
     const Eigen::Matrix3d R = T.rotation();
     const Eigen::Vector3d o = T.translation();
     for (size_t b = 0; b < beams; ++b) {
-      const Eigen::Vector3d d_sensor(ce[b] * ca, ce[b] * sa, se[b]);
-      const Eigen::Vector3d d = R * d_sensor;
+      const Eigen::Vector3d d_sensor(ce[b] * ca, ce[b] * sa, se[b]);  // as reported
+      const Eigen::Vector3d d = R * Eigen::Vector3d(ce_true[b] * ca, ce_true[b] * sa, se_true[b]);  // as fired
       const auto hit = world.cast(o, d, model.max_range_m);
       if (!hit) {
         continue;

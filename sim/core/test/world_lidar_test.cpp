@@ -111,6 +111,35 @@ TEST(Lidar, RangeNoiseAndDropoutsHaveTheConfiguredSize) {
   EXPECT_NEAR(std::sqrt(sq / n), 0.05, 0.005);
 }
 
+TEST(Lidar, ElevationCalibrationErrorPutsPointsAlongTheNominalBeam) {
+  // Flat ground 2 m below the sensor. Beam 0 of the VLP-16 (nominal -15 deg) really fires at
+  // -15.5 deg: it meets the ground at 2 / sin(15.5 deg), and that range is reported along -15 deg.
+  Ground g;
+  g.z0 = -2.0;
+  const World w(g, {}, {});
+  LidarModel m = exact(LidarModel::vlp16());
+  m.elevation_error_deg.assign(m.elevations_deg.size(), 0.0);
+  m.elevation_error_deg[0] = -0.5;
+  std::mt19937_64 rng(1);
+  const auto pts = sweep(w, m, [](double) { return at(0, 0, 0); }, rng);
+  const double range = 2.0 / std::sin(15.5 * M_PI / 180), z = -range * std::sin(15.0 * M_PI / 180);
+  int n0 = 0, n1 = 0;
+  for (const auto& p : pts) {
+    if (p.ring == 0) {
+      EXPECT_NEAR(std::sqrt(p.x * p.x + p.y * p.y + p.z * p.z), range, 1e-3);
+      EXPECT_NEAR(p.z, z, 1e-3);  // 1.93 m: the ground looks like a cone, not a plane
+      ++n0;
+    } else if (p.ring == 1) {
+      EXPECT_NEAR(p.z, -2.0, 1e-3);  // an exact beam still sees the plane
+      ++n1;
+    }
+  }
+  EXPECT_EQ(n0, m.columns);
+  EXPECT_EQ(n1, m.columns);
+  m.elevation_error_deg.resize(3);
+  EXPECT_THROW(sweep(w, m, [](double) { return at(0, 0, 0); }, rng), std::invalid_argument);
+}
+
 TEST(Lidar, AMovingSensorsSweepIsDistortedByExactlyTheMotion) {
   const World w = room();
   const LidarModel m = exact(LidarModel::vlp16());

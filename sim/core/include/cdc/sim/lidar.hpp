@@ -24,6 +24,10 @@ struct LidarModel {
   double max_range_m = 100.0;
   double range_sigma_m = 0.02;         // Gaussian range noise
   double dropout = 0.0;                // probability that a return is lost
+  // Intrinsic calibration error: beam b really fires at elevations_deg[b] + elevation_error_deg[b],
+  // while its points are reported along the nominal elevation (what a driver with a slightly wrong
+  // calibration table does). Empty: a perfectly calibrated sensor.
+  std::vector<double> elevation_error_deg;
 
   static LidarModel vlp16();   // 16 beams, -15..+15 deg, 0.2 deg at 10 Hz, 100 m
   static LidarModel hdl64();   // 64 beams, -24.9..+2 deg, ~0.17 deg at 10 Hz, 120 m
