@@ -61,7 +61,7 @@ int main(int argc, char** argv) {
   app.add_option("--datasets", datasets, "where the generated datasets are kept")->capture_default_str();
   app.add_option("--lidar-elevation-error", elevation_error,
                  "degrade the simulated LiDAR with a fixed per-beam elevation calibration error of this sigma [deg]\n"
-                 "(datasets kittiNN_3robots_elevX; 0.5 gives our odometry about the 0.3-0.5 % drift real LiDAR\n"
+                 "(datasets kittiNN_3robots_elevX; 0.2 gives our odometry about the 0.4-1.4 % drift real LiDAR\n"
                  "odometry shows on KITTI; 0: the scenarios as they are)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 2.0));

@@ -126,7 +126,8 @@ int main(int argc, char** argv) {
                           {"keyframes", keyframes.size()},
                           {"imu", use_imu},
                           {"scans_per_s", static_cast<double>(odometry.size()) / std::max(busy, 1e-9)},
-                          {"registration_failures", core.stats().registration_failures}};
+                          {"registration_failures", core.stats().registration_failures},
+                          {"registration_rejected", core.stats().registration_rejected}};
     // Ground truth, expressed from the first scan's pose like the odometry.
     const auto gt_index = [&](int64_t stamp) { return geometry::interpolate_at(in.groundtruth, stamp); };
     geometry::Poses est, gt;

@@ -183,6 +183,12 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
       select(stamp_ns, points, motion);
       out.registration = odometry::register_to_map(pts, normals, map_, out.registration.T_map_sensor, rp);
     }
+    // A registration that lands further from the prediction than the widest gate (or turns more
+    // than max_jump_rad) has slid into a wrong minimum, not followed the robot: keep the prediction.
+    if (out.registration.converged && !plausible_registration(guess, out.registration.T_map_sensor, p_)) {
+      out.registration.converged = false;
+      ++stats_.registration_rejected;
+    }
     if (!out.registration.converged) {
       ++stats_.registration_failures;
       T = guess;
@@ -265,6 +271,12 @@ bool FrontendCore::set_correction(uint32_t keyframe_id, const Eigen::Isometry3d&
   T_world_robot_ = T_world_robot;
   ++stats_.corrections;
   return true;
+}
+
+bool plausible_registration(const Eigen::Isometry3d& prediction, const Eigen::Isometry3d& registered,
+                            const FrontendParams& p) {
+  const Eigen::Isometry3d jump = prediction.inverse() * registered;
+  return jump.translation().norm() <= p.max_gate_m && angle_of(jump) <= p.max_jump_rad;
 }
 
 }  // namespace cdc::frontend

@@ -242,6 +242,7 @@ int run_frontend(const FrontendNodeOptions& o) {
                      {"odometry", odometry_sent},
                      {"keyframes", keyframes_sent},
                      {"registration_failures", s.registration_failures},
+                     {"registration_rejected", s.registration_rejected},
                      {"corrections", s.corrections},
                      {"corrections_for_unknown_keyframes", corrections_unknown},
                      {"imu_samples", s.imu_samples},

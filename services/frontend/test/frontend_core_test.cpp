@@ -147,5 +147,20 @@ TEST(Frontend, ACorrectionIsTakenInSmoothlyAndReached) {
   EXPECT_FALSE(core.set_correction(9999, Eigen::Isometry3d::Identity(), Eigen::Isometry3d::Identity()));
 }
 
+TEST(FrontendCore, RegistrationsFarFromThePredictionAreImplausible) {
+  FrontendParams p;  // max_gate_m 2 m, max_jump_rad 0.35
+  Eigen::Isometry3d prediction = Eigen::Isometry3d::Identity();
+  prediction.translation() = Eigen::Vector3d(10, 0, 1.7);
+  Eigen::Isometry3d reg = prediction;
+  reg.translation() += Eigen::Vector3d(0.5, 0.2, -0.1);
+  EXPECT_TRUE(plausible_registration(prediction, reg, p));
+  reg.translation() = prediction.translation() + Eigen::Vector3d(0.4, 0, -4.8);  // slid 4.8 m down
+  EXPECT_FALSE(plausible_registration(prediction, reg, p));
+  reg = prediction * Eigen::Isometry3d(Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ()));
+  EXPECT_FALSE(plausible_registration(prediction, reg, p));
+  reg = prediction * Eigen::Isometry3d(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitZ()));
+  EXPECT_TRUE(plausible_registration(prediction, reg, p));
+}
+
 }  // namespace
 }  // namespace cdc::frontend

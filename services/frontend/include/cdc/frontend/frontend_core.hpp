@@ -32,6 +32,7 @@ struct FrontendParams {
   odometry::RegistrationParams registration;
   double initial_gate_m = 2.0;                    // correspondence gate until the motion model has history
   double min_gate_m = 0.3, max_gate_m = 2.0;
+  double max_jump_rad = 0.35;                      // a registration this far (or max_gate_m) from the prediction is rejected
   double kernel_divisor = 9.0;                    // Geman-McClure scale = gate / this (KISS-ICP: 9)
   bool deskew = true;
   bool redeskew = true;                           // deskew again with the registered motion, and refine
@@ -83,6 +84,7 @@ struct ScanOut {
 
 struct FrontendStats {
   uint64_t scans = 0, keyframes = 0, registration_failures = 0, corrections = 0, imu_samples = 0;
+  uint64_t registration_rejected = 0;  // converged too far from the prediction (counted in failures too)
 };
 
 class FrontendCore {
@@ -133,5 +135,11 @@ class FrontendCore {
   std::optional<Eigen::Isometry3d> correction_;  // maps raw odometry to the corrected odometry frame
   std::optional<Eigen::Isometry3d> T_world_robot_;
 };
+
+// Whether a converged registration is a step the robot can have made: within max_gate_m and
+// max_jump_rad of the prediction. Beyond, it has slid into a wrong minimum (seen with miscalibrated
+// LiDARs: 4.8 m down in one sweep) and the prediction is kept instead.
+bool plausible_registration(const Eigen::Isometry3d& prediction, const Eigen::Isometry3d& registered,
+                            const FrontendParams& p);
 
 }  // namespace cdc::frontend
