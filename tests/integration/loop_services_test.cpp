@@ -46,15 +46,43 @@ void stop(test::ChildProcess& p) {
   }
 }
 
-TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
+// Both services under test: their binaries come from the environment (set by CMake).
+void require_service_binaries() {
   for (const char* v : {"CDC_DESCRIPTOR_BIN", "CDC_LOOP_CLOSURE_BIN"}) {
     ASSERT_NE(std::getenv(v), nullptr) << v << " must name the binary";
   }
-  const fs::path dir = fs::temp_directory_path() / ("cdc_loop_services_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  const std::string config = (dir / "loops.yaml").string(), dconfig = (dir / "descriptor.yaml").string();
-  std::ofstream(config) << "robots: 2\nretrieval:\n  exclude_recent: 1000\n";
-  std::ofstream(dconfig) << "robots: 2\n";
+}
+
+// A scratch folder with the two services' configurations.
+struct Workspace {
+  fs::path dir;
+  std::string loops_config, descriptor_config;
+};
+Workspace make_workspace(const std::string& name, const std::string& loops_yaml, const std::string& descriptor_yaml) {
+  Workspace w;
+  w.dir = fs::temp_directory_path() / (name + "_" + std::to_string(::getpid()));
+  fs::create_directories(w.dir);
+  w.loops_config = (w.dir / "loops.yaml").string();
+  w.descriptor_config = (w.dir / "descriptor.yaml").string();
+  std::ofstream(w.loops_config) << loops_yaml;
+  std::ofstream(w.descriptor_config) << descriptor_yaml;
+  return w;
+}
+
+// One service of one robot, its stats in DIR/<stem><robot>.json and its log beside them.
+test::ChildProcess spawn_service(const char* binary_env, const std::string& stem, uint32_t robot, const std::string& config,
+                                 const fs::path& dir, std::vector<std::string> extra = {}) {
+  const std::string r = std::to_string(robot);
+  std::vector<std::string> argv = {std::getenv(binary_env), "--robot", r, "--config", config, "--stats-out",
+                                   (dir / (stem + r + ".json")).string()};
+  argv.insert(argv.end(), extra.begin(), extra.end());
+  return test::ChildProcess::spawn(argv, (dir / (stem + r + ".log")).string());
+}
+
+TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
+  ASSERT_NO_FATAL_FAILURE(require_service_binaries());
+  const Workspace ws = make_workspace("cdc_loop_services", "robots: 2\nretrieval:\n  exclude_recent: 1000\n", "robots: 2\n");
+  const fs::path& dir = ws.dir;
 
   // Scenario: one 40 m circle, robot 1 eight metres behind robot 0, keyframes every 2 m.
   sim::MissionOptions mo;
@@ -85,14 +113,9 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop, dds::qos::event_stream(4096));
 
   std::vector<test::ChildProcess> procs;
-  for (int r = 0; r < 2; ++r) {
-    const std::string s = std::to_string(r);
-    procs.push_back(test::ChildProcess::spawn({std::getenv("CDC_DESCRIPTOR_BIN"), "--robot", s, "--config", dconfig,
-                                               "--stats-out", (dir / ("descriptor" + s + ".json")).string()},
-                                              (dir / ("descriptor" + s + ".log")).string()));
-    procs.push_back(test::ChildProcess::spawn({std::getenv("CDC_LOOP_CLOSURE_BIN"), "--robot", s, "--config", config,
-                                               "--stats-out", (dir / ("loops" + s + ".json")).string()},
-                                              (dir / ("loops" + s + ".log")).string()));
+  for (uint32_t r = 0; r < 2; ++r) {
+    procs.push_back(spawn_service("CDC_DESCRIPTOR_BIN", "descriptor", r, ws.descriptor_config, dir));
+    procs.push_back(spawn_service("CDC_LOOP_CLOSURE_BIN", "loops", r, ws.loops_config, dir));
   }
   ASSERT_TRUE(w_kf.wait_for_readers(4, 15s)) << "services did not subscribe to keyframes";
   ASSERT_TRUE(r_loop.wait_for_writers(2, 15s));
@@ -216,14 +239,9 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
 // the asker only. Here the test plays robot 2 towards a real loop-closure service (robot 1), and
 // robot 1 towards a real descriptor service (robot 0).
 TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
-  for (const char* v : {"CDC_DESCRIPTOR_BIN", "CDC_LOOP_CLOSURE_BIN"}) {
-    ASSERT_NE(std::getenv(v), nullptr) << v << " must name the binary";
-  }
-  const fs::path dir = fs::temp_directory_path() / ("cdc_descriptor_sync_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  const std::string config = (dir / "loops.yaml").string(), dconfig = (dir / "descriptor.yaml").string();
-  std::ofstream(config) << "robots: 3\ndescriptor_sync:\n  resend_ms: 1000\n";
-  std::ofstream(dconfig) << "robots: 3\n";
+  ASSERT_NO_FATAL_FAILURE(require_service_binaries());
+  const Workspace ws = make_workspace("cdc_descriptor_sync", "robots: 3\ndescriptor_sync:\n  resend_ms: 1000\n", "robots: 3\n");
+  const fs::path& dir = ws.dir;
 
   dds::ParticipantOptions po;
   po.domain_id = dds::domain_from_env(0);
@@ -242,12 +260,8 @@ TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
   dds::Reader<cdc_msg_Descriptor> r_to2(participant, t_desc, dds::qos::event_stream(256).partitions({dds::partitions::robot(2)}));
 
   std::vector<test::ChildProcess> procs;
-  procs.push_back(test::ChildProcess::spawn({std::getenv("CDC_DESCRIPTOR_BIN"), "--robot", "0", "--config", dconfig,
-                                             "--stats-out", (dir / "descriptor0.json").string()},
-                                            (dir / "descriptor0.log").string()));
-  procs.push_back(test::ChildProcess::spawn({std::getenv("CDC_LOOP_CLOSURE_BIN"), "--robot", "1", "--config", config,
-                                             "--stats-out", (dir / "loops1.json").string(), "--log-level", "debug"},
-                                            (dir / "loops1.log").string()));
+  procs.push_back(spawn_service("CDC_DESCRIPTOR_BIN", "descriptor", 0, ws.descriptor_config, dir));
+  procs.push_back(spawn_service("CDC_LOOP_CLOSURE_BIN", "loops", 1, ws.loops_config, dir, {"--log-level", "debug"}));
   ASSERT_TRUE(w_kf.wait_for_readers(2, 15s));  // descriptor 0 and loop closure 1 (its own partition and "")
   ASSERT_TRUE(w_desc.wait_for_readers(1, 15s));
   ASSERT_TRUE(w_desc_to1.wait_for_readers(1, 15s));

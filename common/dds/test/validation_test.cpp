@@ -172,6 +172,20 @@ TEST(Validation, DescriptorShape) {
   EXPECT_THAT(validate(d, ValidationLimits{}).reason(), HasSubstr("packed_cells: corrupt packed data"));
 }
 
+TEST(Validation, DescriptorSyncRange) {
+  cdc_msg_DescriptorSync q{};
+  q.requester_robot_id = 1;
+  q.owner_robot_id = 2;
+  q.first_keyframe_id = 4;
+  q.last_keyframe_id = 4;
+  EXPECT_TRUE(validate(q, ValidationLimits{}));
+  q.last_keyframe_id = 3;
+  EXPECT_THAT(validate(q, ValidationLimits{}).reason(), HasSubstr("last_keyframe_id: 3 is before first_keyframe_id 4"));
+  q.last_keyframe_id = 9;
+  q.owner_robot_id = 40;
+  EXPECT_THAT(validate(q, ValidationLimits{}).reason(), HasSubstr("owner_robot_id"));
+}
+
 TEST(Validation, CloudReplyPackedPoints) {
   std::vector<Eigen::Vector3f> pts = {{1, 2, 3}, {-4.5f, 0.25f, 7}, {30, -20, 1}};
   compact::PackedCloud pc = compact::pack_points(pts, 0.01f);
