@@ -87,8 +87,8 @@ NetnsNetwork::NetnsNetwork(const std::string& tag, const std::vector<uint32_t>& 
              // fragments, as on a real radio, and every byte passes the per-port radio and accounting rules.
              "      <MaxMessageSize>1456B</MaxMessageSize>\n      <FragmentSize>1344B</FragmentSize>\n"
              "    </General>\n    <Discovery>\n"
-             // At most 5 participants per node and domain (a robot's four services and its front-end's
-             // sensor participant); unicast discovery probes every index up to this on every peer.
+             // At most 4 participants per node and domain (a robot's four services in the SLAM domain);
+             // unicast discovery probes every index up to this on every peer, so keep it small.
              "      <ParticipantIndex>auto</ParticipantIndex>\n      <MaxAutoParticipantIndex>9</MaxAutoParticipantIndex>\n"
              "      <SPDPInterval>1s</SPDPInterval>\n"
              "      <Peers>\n" << peers << "      </Peers>\n    </Discovery>\n  </Domain>\n</CycloneDDS>\n";

@@ -36,9 +36,10 @@ struct Options {
   uint32_t max_per_sync = 256;  // descriptors sent for one sync request (the requester asks again for more)
 };
 
-// A published descriptor, kept to answer sync requests.
+// A published descriptor, kept to answer sync requests: msg's sequences borrow the vectors below
+// (a map node never moves, so they stay valid).
 struct Stored {
-  cdc_msg_Descriptor msg{};  // fixed fields; sequences point into the vectors below when written
+  cdc_msg_Descriptor msg{};
   std::vector<float> ring_key;
   std::vector<uint8_t> packed_cells;
 };
@@ -113,12 +114,9 @@ int run(const Options& o) {
       uint32_t n = 0;
       for (auto it = store.lower_bound(m.first_keyframe_id);
            it != store.end() && it->first <= m.last_keyframe_id && n < o.max_per_sync; ++it, ++n) {
-        Stored& st = it->second;
-        dds::borrow(st.msg.ring_key, st.ring_key);
-        dds::borrow(st.msg.packed_cells, st.packed_cells);
-        w_resend[m.requester_robot_id]->write(st.msg);
+        w_resend[m.requester_robot_id]->write(it->second.msg);
         ++resent;
-        resent_bytes += dds::wire_size(st.msg);
+        resent_bytes += dds::wire_size(it->second.msg);
       }
       spdlog::debug("robot {} asked for descriptors {}..{}: {} sent", m.requester_robot_id, m.first_keyframe_id,
                     m.last_keyframe_id, n);
@@ -158,6 +156,8 @@ int run(const Options& o) {
       st.msg = d;
       st.ring_key = ring_key;
       st.packed_cells = cells;
+      dds::borrow(st.msg.ring_key, st.ring_key);
+      dds::borrow(st.msg.packed_cells, st.packed_cells);
     });
   }
   dds::ShutdownSignal::remove_guard(&stop);
