@@ -309,8 +309,11 @@ std::vector<RobotEstimate> CentralCore::estimates() const {
       for (uint32_t id : s.in_graph) {
         e.poses.emplace_back(id, graph_.poses.at(key(s, id)));
       }
-      const uint32_t last = *s.in_graph.rbegin();
-      e.T_world_robot = e.poses.back().second * s.keyframes.at(last).T_odom_keyframe.inverse();
+      // The first-frames global transform (paper eq. 1-2): W from the robot's odometry frame, where
+      // the robot's first keyframe in the graph now is. Drift corrected later along the trajectory
+      // is not folded into it; the front-end's pose fusion takes it up towards the corrected poses.
+      const uint32_t first = *s.in_graph.begin();
+      e.T_world_robot = e.poses.front().second * s.keyframes.at(first).T_odom_keyframe.inverse();
     } else if (s.hint) {
       e.T_world_robot = *s.hint;
       for (const auto& [id, kf] : s.keyframes) {

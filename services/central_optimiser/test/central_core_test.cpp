@@ -57,10 +57,13 @@ TEST(CentralCore, PlacesEveryRobotThroughInterRobotLoopsAndTracksTheTruth) {
   ASSERT_EQ(est.size(), 3u);
   for (const auto& e : est) {
     EXPECT_EQ(e.poses.size(), 250u) << "robot " << e.robot;
-    // T_world_robot maps the robot's current odometry into W: it takes the latest odometry pose
-    // onto the robot's true current pose (up to the estimation error).
-    const auto& last = s.keyframes[e.robot].back();
-    EXPECT_LT(((e.T_world_robot * last.T_odom_keyframe).translation() - last.T_world_truth.translation()).norm(), 1.0)
+    // T_world_robot is the first-frames global transform: it maps the robot's first keyframe onto
+    // its estimated pose in W, and so onto its true pose up to the estimation error.
+    const auto& first = s.keyframes[e.robot].front();
+    ASSERT_EQ(e.poses.front().first, first.id);
+    EXPECT_LT(((e.T_world_robot * first.T_odom_keyframe).matrix() - e.poses.front().second.matrix()).norm(), 1e-9)
+        << "robot " << e.robot;
+    EXPECT_LT(((e.T_world_robot * first.T_odom_keyframe).translation() - first.T_world_truth.translation()).norm(), 1.0)
         << "robot " << e.robot;
   }
   EXPECT_LT(max_position_error(core, s), 1.0);

@@ -60,6 +60,9 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
     ++stats_.duplicate_descriptors;
     return out;
   }
+  if (query_robot_ && d.robot != *query_robot_) {
+    hints_[me] = d.pose_hint;
+  }
   // Robots without local odometry are chained through their pose hints.
   if (data_robots_.count(d.robot) == 0) {
     auto it = last_hint_.find(d.robot);
@@ -103,9 +106,21 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
     ++stats_.candidates;
     // The job's query is always one of this robot's keyframes and its candidate the other one: for
     // a reverse search the roles swap, and so does the sign of the yaw between them.
-    const Job job = reverse ? Job{owner_[c.id], me, -c.match.yaw_rad} : Job{me, owner_[c.id], c.match.yaw_rad};
+    const double yaw = reverse ? -c.match.yaw_rad : c.match.yaw_rad;
+    // The query is rotated by yaw relative to the candidate: T_candidate_query starts at Rz(-yaw).
+    const Job job{reverse ? owner_[c.id] : me, reverse ? me : owner_[c.id],
+                  Eigen::Isometry3d(Eigen::AngleAxisd(-yaw, Eigen::Vector3d::UnitZ()))};
     if (clouds_.count(job.candidate) != 0) {
       out.append(verify(job));
+      continue;
+    }
+    if (const std::optional<Job> n = neighbour_job(job)) {
+      ++stats_.verified_with_neighbour;
+      if (clouds_.count(n->candidate) != 0) {
+        out.append(verify(*n));
+      } else {
+        pending_.at(n->candidate).jobs.push_back(*n);
+      }
       continue;
     }
     if (!reachable_(job.candidate.first)) {
@@ -131,6 +146,32 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
     }
   }
   return out;
+}
+
+std::optional<LoopCore::Job> LoopCore::neighbour_job(const Job& job) const {
+  const auto [robot, id] = job.candidate;
+  const auto asked = requested_.find(robot);
+  const auto hint = hints_.find(job.candidate);
+  if (p_.peer_request_spacing == 0 || asked == requested_.end() || hint == hints_.end()) {
+    return std::nullopt;
+  }
+  std::optional<uint32_t> best;
+  const auto consider = [&](std::set<uint32_t>::const_iterator it) {
+    if (it == asked->second.end()) return;
+    const uint32_t gap = *it > id ? *it - id : id - *it;
+    const Id n{robot, *it};
+    if (gap == 0 || gap > p_.peer_request_spacing || hints_.count(n) == 0) return;
+    if (clouds_.count(n) == 0 && pending_.count(n) == 0) return;  // evicted, missing or timed out
+    if (!best || gap < (*best > id ? *best - id : id - *best)) best = *it;
+  };
+  const auto above = asked->second.lower_bound(id);
+  consider(above);
+  if (above != asked->second.begin()) consider(std::prev(above));
+  if (!best) {
+    return std::nullopt;
+  }
+  const Id n{robot, *best};
+  return Job{job.query, n, hints_.at(n).inverse() * hint->second * job.guess};
 }
 
 LoopEvents LoopCore::on_cloud(uint32_t robot, uint32_t id, std::vector<Eigen::Vector3f> cloud, Nanos) {
@@ -199,12 +240,9 @@ LoopEvents LoopCore::verify(const Job& job) {
   }
   const auto [robot_a, kf_a] = job.candidate;
   const auto [robot_b, kf_b] = job.query;
-  // The query is rotated by yaw relative to the candidate: T_candidate_query starts at Rz(-yaw).
-  Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();
-  guess.linear() = Eigen::AngleAxisd(-job.yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   lidar::RegistrationParams rp = p_.registration;
   rp.voxel_m = 0;  // already downsampled
-  const lidar::RegistrationResult r = lidar::register_clouds(src->second, tgt->second, guess, rp);
+  const lidar::RegistrationResult r = lidar::register_clouds(src->second, tgt->second, job.guess, rp);
   ++stats_.verified;
   if (!r.converged || r.fitness > p_.max_fitness || r.overlap < p_.min_overlap) {
     ++stats_.verification_failed;

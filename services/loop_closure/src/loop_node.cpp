@@ -340,6 +340,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
                      {"queries", s.queries},
                      {"reverse_queries", s.reverse_queries},
                      {"skipped_near_requested", s.skipped_near_requested},
+                     {"verified_with_neighbour", s.verified_with_neighbour},
                      {"verified", s.verified},
                      {"verification_failed", s.verification_failed},
                      {"intra_accepted", s.intra_accepted},

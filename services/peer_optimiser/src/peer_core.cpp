@@ -227,8 +227,9 @@ std::optional<Eigen::Isometry3d> PeerCore::distributed_round() {
     T = g.poses.at(graph::make_key(me, id));
   }
   ++rounds_;
-  const auto& last = *keyframes_.rbegin();
-  return estimate_.at(last.first) * last.second.T_odom.inverse();
+  // T_world_robot as the central defines it: from the first keyframe (paper eq. 1-2).
+  const auto& first = *keyframes_.begin();
+  return estimate_.at(first.first) * first.second.T_odom.inverse();
 }
 
 bool PeerCore::lowest_in_group() const {

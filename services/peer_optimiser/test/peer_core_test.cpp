@@ -52,7 +52,7 @@ CentralResult central_for(const test::SwarmStream& s, uint32_t robot, uint32_t u
   for (uint32_t id = 0; id <= upto; ++id) {
     r.poses.emplace_back(id, offset * s.keyframes[robot][id].T_world_truth);
   }
-  r.T_world_robot = r.poses.back().second * s.keyframes[robot][upto].T_odom_keyframe.inverse();
+  r.T_world_robot = r.poses.front().second * s.keyframes[robot][0].T_odom_keyframe.inverse();  // first-frames transform
   return r;
 }
 

@@ -49,7 +49,8 @@ struct LoopParams {
   size_t cloud_cache = 256;        // peers' clouds kept after verification (least recently received dropped)
   // A peer's cloud is not requested when one within this many of that peer's keyframes was requested
   // already: neighbouring keyframes (1 m apart) close the same loop, and each request is a whole cloud
-  // on the radio. 0: request every candidate.
+  // on the radio. The candidate is verified against that neighbour's cloud instead (held or on its
+  // way), started from the offset between the two in the peer's pose hints. 0: request every candidate.
   uint32_t peer_request_spacing = 10;
   // Nominal odometry noise for robots chained through pose hints: per step, sigma = a + b * length.
   double hint_sigma_m = 0.02, hint_sigma_m_per_m = 0.01;
@@ -94,6 +95,7 @@ struct LoopStats {
   uint64_t duplicate_descriptors = 0, deferred_dropped = 0;
   uint64_t reverse_queries = 0;  // peers' descriptors searched among this robot's own keyframes
   uint64_t skipped_near_requested = 0;  // candidates next to a peer keyframe whose cloud was requested
+  uint64_t verified_with_neighbour = 0; // candidates verified against a neighbouring keyframe's cloud
 };
 
 class LoopCore {
@@ -133,13 +135,16 @@ class LoopCore {
   using Id = std::pair<uint32_t, uint32_t>;  // (robot, keyframe)
   struct Job {
     Id query, candidate;
-    double yaw = 0;
+    Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();  // T_candidate_query to start from
   };
   struct Pending {
     Nanos deadline{0};
     std::vector<Job> jobs;
   };
   LoopEvents verify(const Job& job);
+  // A keyframe of the candidate's robot within peer_request_spacing of it whose cloud is held or
+  // requested, with the job re-aimed at it (the offset from the robot's pose hints), if any.
+  std::optional<Job> neighbour_job(const Job& job) const;
   LoopEvents update_pcm(uint32_t robot_a, uint32_t robot_b);
   void add_odometry(uint32_t robot, uint32_t from, uint32_t to, const Eigen::Isometry3d& T, const graph::Matrix6d& info);
 
@@ -155,6 +160,7 @@ class LoopCore {
   std::deque<Id> cache_order_;                             // cached peer clouds, oldest first
   std::set<uint32_t> data_robots_;                         // robots with odometry from keyframe data
   std::map<uint32_t, std::pair<uint32_t, Eigen::Isometry3d>> last_hint_;  // robot -> (id, pose hint)
+  std::map<Id, Eigen::Isometry3d> hints_;                  // peers' keyframes: T_odom_keyframe
   std::map<Id, Pending> pending_;                          // requested clouds
   std::map<Id, DescriptorIn> deferred_;                    // query descriptors waiting for their keyframe
   graph::PoseGraph odometry_;                              // every robot's odometry + inter loops
