@@ -166,6 +166,11 @@ void Launcher::start_services() {
                                    "--stats-out", (rd / "frontend.stats.json").string()};
     if (c_.lidar_only) fe.push_back("--lidar-only");
     if (!c_.frontend_correction) fe.push_back("--no-corrections");
+    if (c_.lockstep) {
+      // The player sends each sweep's IMU with it and waits for the front-ends: waiting for the IMU
+      // as long as it takes keeps a loaded machine from changing the odometry (runs are repeatable).
+      fe.insert(fe.end(), {"--imu-wait-ms", "5000"});
+    }
     spawn("robot" + id + "/frontend", r, fe);
     spawn("robot" + id + "/descriptor", r,
           {bin("services/descriptor/cdc-descriptor"), "--robot", id, "--config", c_.descriptor_config, "--domain", slam,

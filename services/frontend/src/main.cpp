@@ -33,6 +33,11 @@ int main(int argc, char** argv) {
   bool no_corrections = false;
   app.add_flag("--no-corrections", no_corrections,
                "ignore the back-end's corrections: publish raw odometry (the paper's 'without correction' ablation)");
+  int imu_wait_ms = -1;
+  app.add_option("--imu-wait-ms", imu_wait_ms,
+                 "a sweep waits at most this long for the IMU to reach its end (default 100; lock-step playback,\n"
+                 "where the IMU always comes, can wait longer so that a busy machine never changes the result)")
+      ->check(CLI::Range(0, 60000));
   app.add_option("--trajectory-out", trajectory_out, "write the published odometry (TUM) here at shutdown");
   app.add_option("--stats-out", stats_out, "write counters (JSON) here at shutdown");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error");
@@ -51,6 +56,7 @@ int main(int argc, char** argv) {
     o.trajectory_out = trajectory_out;
     if (lidar_only) o.use_imu = false;
     if (no_corrections) o.take_corrections = false;
+    if (imu_wait_ms >= 0) o.imu_wait = std::chrono::milliseconds(imu_wait_ms);
     if (!log_level.empty()) o.log_level = log_level;
     cdc::runtime::init_logging("cdc-frontend-" + std::to_string(robot), o.log_level);
     return cdc::frontend::run_frontend(o);

@@ -111,10 +111,12 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
     const Job job{reverse ? owner_[c.id] : me, reverse ? me : owner_[c.id],
                   Eigen::Isometry3d(Eigen::AngleAxisd(-yaw, Eigen::Vector3d::UnitZ()))};
     if (clouds_.count(job.candidate) != 0) {
-      out.append(verify(job));
+      if (tried_.insert({job.query, job.candidate}).second) out.append(verify(job));
       continue;
     }
     if (const std::optional<Job> n = neighbour_job(job)) {
+      // Several candidates of one query can share a neighbour: that pair is verified once.
+      if (!tried_.insert({n->query, n->candidate}).second) continue;
       ++stats_.verified_with_neighbour;
       if (clouds_.count(n->candidate) != 0) {
         out.append(verify(*n));
@@ -137,6 +139,7 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
       }
       asked.insert(id);
     }
+    if (!tried_.insert({job.query, job.candidate}).second) continue;
     auto [it, fresh] = pending_.try_emplace(job.candidate);
     it->second.jobs.push_back(job);
     if (fresh) {

@@ -161,6 +161,7 @@ class LoopCore {
   std::set<uint32_t> data_robots_;                         // robots with odometry from keyframe data
   std::map<uint32_t, std::pair<uint32_t, Eigen::Isometry3d>> last_hint_;  // robot -> (id, pose hint)
   std::map<Id, Eigen::Isometry3d> hints_;                  // peers' keyframes: T_odom_keyframe
+  std::set<std::pair<Id, Id>> tried_;                     // (query, candidate) verified or waiting for a cloud
   std::map<Id, Pending> pending_;                          // requested clouds
   std::map<Id, DescriptorIn> deferred_;                    // query descriptors waiting for their keyframe
   graph::PoseGraph odometry_;                              // every robot's odometry + inter loops
