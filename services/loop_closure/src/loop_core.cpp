@@ -129,6 +129,9 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
       ++stats_.unreachable;
       continue;
     }
+    if (tried_.count({job.query, job.candidate}) != 0) {
+      continue;  // already waiting for this cloud
+    }
     if (p_.peer_request_spacing > 0 && pending_.count(job.candidate) == 0) {
       std::set<uint32_t>& asked = requested_[job.candidate.first];
       const uint32_t id = job.candidate.second;
@@ -139,7 +142,7 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
       }
       asked.insert(id);
     }
-    if (!tried_.insert({job.query, job.candidate}).second) continue;
+    tried_.insert({job.query, job.candidate});
     auto [it, fresh] = pending_.try_emplace(job.candidate);
     it->second.jobs.push_back(job);
     if (fresh) {

@@ -95,7 +95,7 @@ struct LoopStats {
   uint64_t duplicate_descriptors = 0, deferred_dropped = 0;
   uint64_t reverse_queries = 0;  // peers' descriptors searched among this robot's own keyframes
   uint64_t skipped_near_requested = 0;  // candidates next to a peer keyframe whose cloud was requested
-  uint64_t verified_with_neighbour = 0; // candidates verified against a neighbouring keyframe's cloud
+  uint64_t verified_with_neighbour = 0; // candidates sent to a neighbouring keyframe's cloud (held or requested)
 };
 
 class LoopCore {
