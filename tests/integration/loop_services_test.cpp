@@ -46,6 +46,15 @@ void stop(test::ChildProcess& p) {
   }
 }
 
+// Takes `reader`'s samples every 50 ms, for at most 5 s, until `done()`; each valid one goes to `on_sample`.
+template <typename T, typename OnSample, typename Done>
+void take_until(dds::Reader<T>& reader, OnSample on_sample, Done done) {
+  for (int i = 0; i < 100 && !done(); ++i) {
+    std::this_thread::sleep_for(50ms);
+    reader.take(64).for_each_valid(on_sample);
+  }
+}
+
 // Both services under test: their binaries come from the environment (set by CMake).
 void require_service_binaries() {
   for (const char* v : {"CDC_DESCRIPTOR_BIN", "CDC_LOOP_CLOSURE_BIN"}) {
@@ -296,12 +305,9 @@ TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
     w_kf.write(m);
   }
   std::set<uint32_t> live;
-  for (int i = 0; i < 100 && live.size() < 5; ++i) {
-    std::this_thread::sleep_for(50ms);
-    r_live.take(64).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
-      if (m.robot_id == 0) live.insert(m.keyframe_id);
-    });
-  }
+  take_until(
+      r_live, [&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) { if (m.robot_id == 0) live.insert(m.keyframe_id); },
+      [&] { return live.size() >= 5; });
   ASSERT_EQ(live.size(), 5u) << "robot 0's live descriptors";
   {
     cdc_msg_DescriptorSync q{};
@@ -312,12 +318,9 @@ TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
     w_sync.write(q);
   }
   std::vector<uint32_t> resent2;
-  for (int i = 0; i < 100 && resent2.size() < 3; ++i) {
-    std::this_thread::sleep_for(50ms);
-    r_to2.take(64).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
-      if (m.robot_id == 0) resent2.push_back(m.keyframe_id);
-    });
-  }
+  take_until(
+      r_to2, [&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) { if (m.robot_id == 0) resent2.push_back(m.keyframe_id); },
+      [&] { return resent2.size() >= 3; });
   EXPECT_EQ(resent2, (std::vector<uint32_t>{1, 2, 3})) << "just the range asked for, in order";
   std::this_thread::sleep_for(300ms);
   size_t to1 = 0;
@@ -343,12 +346,9 @@ TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
     w_desc.write(d);
   }
   std::vector<cdc_msg_DescriptorSync> asked;
-  for (int i = 0; i < 100 && asked.empty(); ++i) {
-    std::this_thread::sleep_for(50ms);
-    r_sync.take(16).for_each_valid([&](const cdc_msg_DescriptorSync& m, const dds_sample_info_t&) {
-      if (m.owner_robot_id == 2) asked.push_back(m);
-    });
-  }
+  take_until(
+      r_sync, [&](const cdc_msg_DescriptorSync& m, const dds_sample_info_t&) { if (m.owner_robot_id == 2) asked.push_back(m); },
+      [&] { return !asked.empty(); });
   ASSERT_FALSE(asked.empty()) << "robot 1 did not ask for the gap";
   EXPECT_EQ(asked[0].requester_robot_id, 1u);
   EXPECT_EQ(asked[0].first_keyframe_id, 2u);
