@@ -274,14 +274,21 @@ Validation validate(const cdc_msg_LoopClosure& m, const ValidationLimits& limits
   return Validation::ok();
 }
 
-Validation validate(const cdc_msg_CloudRequest& m, const ValidationLimits& limits) {
+namespace {
+// A request between two robots, or its answer, names both ends.
+template <typename M>
+Validation validate_ends(const M& m, const ValidationLimits& limits) {
   CDC_CHECK(validate_robot_id(m.requester_robot_id, "requester_robot_id", limits));
   return validate_robot_id(m.owner_robot_id, "owner_robot_id", limits);
 }
+}  // namespace
+
+Validation validate(const cdc_msg_CloudRequest& m, const ValidationLimits& limits) {
+  return validate_ends(m, limits);
+}
 
 Validation validate(const cdc_msg_DescriptorSync& m, const ValidationLimits& limits) {
-  CDC_CHECK(validate_robot_id(m.requester_robot_id, "requester_robot_id", limits));
-  CDC_CHECK(validate_robot_id(m.owner_robot_id, "owner_robot_id", limits));
+  CDC_CHECK(validate_ends(m, limits));
   if (m.first_keyframe_id > m.last_keyframe_id) {
     return Validation::fail("last_keyframe_id: " + std::to_string(m.last_keyframe_id) + " is before first_keyframe_id " +
                             std::to_string(m.first_keyframe_id));
@@ -290,8 +297,7 @@ Validation validate(const cdc_msg_DescriptorSync& m, const ValidationLimits& lim
 }
 
 Validation validate(const cdc_msg_CloudReply& m, const ValidationLimits& limits) {
-  CDC_CHECK(validate_robot_id(m.requester_robot_id, "requester_robot_id", limits));
-  CDC_CHECK(validate_robot_id(m.owner_robot_id, "owner_robot_id", limits));
+  CDC_CHECK(validate_ends(m, limits));
   if (m.point_count > limits.max_cloud_points) {
     return Validation::fail("point_count: " + std::to_string(m.point_count) + " points exceed the limit of " +
                             std::to_string(limits.max_cloud_points));
