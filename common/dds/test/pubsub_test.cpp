@@ -193,6 +193,45 @@ TEST(PubSub, TransientLocalStateReachesALateJoiner) {
   EXPECT_EQ(seen, std::vector<uint32_t>{4});
 }
 
+// Cyclone lends each reader one buffer, sized by its largest take so far, and points into all of
+// it on every take: a small take after a large one must still get every sample once, in order, and
+// stay within the wrapper's arrays (the asan preset checks the latter).
+TEST(PubSub, TakesOfDifferentSizesOnOneReaderGetEverySampleOnce) {
+  Participant p(test_options());
+  Topic<cdc_msg_ModeState> topic(p, unique_topic("take_sizes"));
+  Writer<cdc_msg_ModeState> writer(p, topic, qos::event_stream(256));
+  Reader<cdc_msg_ModeState> reader(p, topic, qos::event_stream(256));
+  ASSERT_TRUE(writer.wait_for_readers(1, 5000ms));
+  cdc_msg_ModeState m{};
+  m.robot_id = 1;
+  m.mode = cdc_msg_MODE_CENTRALIZED;
+  m.reason = cdc_msg_REASON_STARTUP;
+  std::vector<uint32_t> seen;
+  auto collect = [&](size_t max, size_t want) {
+    return wait_until(
+        [&] {
+          const Samples<cdc_msg_ModeState> s = reader.take(max);
+          EXPECT_LE(s.size(), max);
+          s.for_each_valid([&](const cdc_msg_ModeState& x, const dds_sample_info_t&) { seen.push_back(x.transition_count); });
+          return seen.size() >= want;
+        },
+        5000ms);
+  };
+  for (uint32_t i = 0; i < 40; ++i) {
+    m.transition_count = i;
+    writer.write(m);
+  }
+  ASSERT_TRUE(collect(64, 40));
+  for (uint32_t i = 40; i < 80; ++i) {
+    m.transition_count = i;
+    writer.write(m);
+  }
+  ASSERT_TRUE(collect(3, 80));  // many small takes on the large loan
+  std::vector<uint32_t> want(80);
+  for (uint32_t i = 0; i < 80; ++i) want[i] = i;
+  EXPECT_EQ(seen, want);
+}
+
 // A robot's partition keeps its data from other robots' readers; the central's wildcard reader and
 // tools on the default partition still see it.
 TEST(PubSub, PartitionsKeepRobotDataFromOtherRobots) {

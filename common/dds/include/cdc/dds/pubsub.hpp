@@ -7,6 +7,7 @@
 #include "cdc/dds/qos.hpp"
 #include "cdc/dds/types.hpp"
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstddef>
@@ -155,8 +156,11 @@ class Reader {
 
   // Takes up to max samples (removing them from the reader's cache).
   Samples<T> take(size_t max = 64) {
-    Samples<T> s(reader_.handle(), max);
-    const dds_return_t n = check(dds_take(reader_.handle(), s.ptrs_.data(), s.infos_.data(), max,
+    // Cyclone lends each reader one buffer, as large as its largest take so far, and fills in a
+    // pointer for every sample of that buffer whatever `max` is: the pointer array must be as long.
+    loan_capacity_ = std::max(loan_capacity_, max);
+    Samples<T> s(reader_.handle(), loan_capacity_);
+    const dds_return_t n = check(dds_take(reader_.handle(), s.ptrs_.data(), s.infos_.data(), loan_capacity_,
                                           static_cast<uint32_t>(max)),
                                  "take on '" + topic_name_ + "'");
     s.count_ = static_cast<size_t>(n);
@@ -182,6 +186,7 @@ class Reader {
   std::string topic_name_;
   Entity subscriber_;  // own subscriber when the QoS names partitions (deleted after the reader)
   Entity reader_;
+  size_t loan_capacity_ = 0;  // the largest take so far: the size of Cyclone's loan on this reader
   std::atomic<uint64_t> samples_taken_{0};
 };
 
