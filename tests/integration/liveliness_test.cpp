@@ -1,14 +1,20 @@
 // The mode-switch signal, end to end across processes: a writer process with a 1 s lease is
 // SIGKILLed and the monitor in this process reports "lost" within lease + 200 ms; a restarted
-// writer makes it report "alive" again; SIGTERM stops a writer cleanly.
+// writer makes it report "alive" again; SIGTERM stops a writer cleanly. The loopback launcher's
+// emulated radio: SIGUSR1 makes a robot's SLAM domain deaf and mute (its peers' liveliness lapses)
+// while its local domain keeps working, and SIGUSR2 brings the SLAM domain back.
 #include "cdc/dds/liveliness.hpp"
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
+#include "cdc/dds/robot_domains.hpp"
+#include "cdc/dds/shutdown.hpp"
 #include "child_process.hpp"
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <csignal>
+#include <thread>
 #include <cstdlib>
 #include <string>
 #include <sys/wait.h>
@@ -24,6 +30,9 @@ constexpr auto kSlack = 200ms;
 
 class LivelinessAcrossProcesses : public ::testing::Test {
  protected:
+  // Before any DDS thread exists, as a service's main() does: every later thread blocks the
+  // signals, so that the signal thread alone takes SIGUSR1/SIGUSR2.
+  static void SetUpTestSuite() { ShutdownSignal::install(); }
   void SetUp() override {
     const char* exe = std::getenv("CDC_LIVELINESS_WRITER");
     ASSERT_NE(exe, nullptr) << "CDC_LIVELINESS_WRITER must name the helper binary";
@@ -32,10 +41,11 @@ class LivelinessAcrossProcesses : public ::testing::Test {
     topic_ = "cdc/test/liveliness_" + std::to_string(::getpid());
   }
 
-  test::ChildProcess start_writer() {
+  test::ChildProcess start_writer() { return start_writer_on(domain_); }
+  test::ChildProcess start_writer_on(uint32_t domain) {
     return test::ChildProcess::spawn({writer_exe_, "--topic", topic_, "--lease-ms",
                                       std::to_string(kLease.count()), "--period-ms", "100", "--domain",
-                                      std::to_string(domain_)});
+                                      std::to_string(domain)});
   }
 
   std::string writer_exe_;
@@ -81,6 +91,49 @@ TEST_F(LivelinessAcrossProcesses, SigtermStopsTheWriterCleanly) {
   ASSERT_TRUE(status) << "writer did not exit after SIGTERM";
   ASSERT_TRUE(WIFEXITED(*status));
   EXPECT_EQ(WEXITSTATUS(*status), 0);
+}
+
+TEST_F(LivelinessAcrossProcesses, RadioSignalsCutTheSlamDomainAndNotTheLocalOne) {
+  ParticipantOptions radio;
+  radio.domain_id = domain_;
+  const uint32_t local_domain = domain_ + 150;  // test domains are 1..~30: 151..~180 is free
+  const auto local = local_domain_options(static_cast<int>(local_domain), "", radio);
+  ASSERT_TRUE(local.has_value());
+  EXPECT_FALSE(local_domain_options(-1, "", radio).has_value());
+  EXPECT_FALSE(local_domain_options(static_cast<int>(domain_), "", radio).has_value());
+  std::atomic<int> notified{0};
+  RobotDomains domains(radio, local, [&](bool) { ++notified; });
+  ASSERT_TRUE(domains.split());
+  Topic<cdc_msg_RobotStatus> t_radio(domains.radio(), topic_);
+  Topic<cdc_msg_RobotStatus> t_local(domains.local(), topic_);
+  LivelinessMonitor on_radio(domains.radio(), t_radio.handle(), "peer on the radio");
+  LivelinessMonitor on_local(domains.local(), t_local.handle(), "own service");
+  test::ChildProcess peer = start_writer_on(domain_);
+  test::ChildProcess own = start_writer_on(local_domain);
+  ASSERT_TRUE(on_radio.wait_for(Liveliness::kAlive, 10s));
+  ASSERT_TRUE(on_local.wait_for(Liveliness::kAlive, 10s));
+
+  ::kill(::getpid(), SIGUSR1);  // out of range
+  const auto lost = on_radio.wait_for(Liveliness::kLost, kLease + 3s);
+  ASSERT_TRUE(lost) << "the radio cut did not stop the peer's liveliness";
+  EXPECT_FALSE(domains.in_range());
+  EXPECT_EQ(domains.radio_cuts(), 1u);
+  std::this_thread::sleep_for(kLease + 500ms);  // the local writer's lease would have lapsed by now
+  EXPECT_EQ(on_local.state(), Liveliness::kAlive) << "the cut reached the robot's own domain";
+  EXPECT_EQ(on_radio.state(), Liveliness::kLost);
+
+  ::kill(::getpid(), SIGUSR2);  // back in range
+  ASSERT_TRUE(on_radio.wait_for(Liveliness::kAlive, 10s)) << "the radio did not come back";
+  EXPECT_TRUE(domains.in_range());
+  EXPECT_EQ(notified.load(), 2);
+  ::kill(::getpid(), SIGUSR2);  // already in range: no change
+  std::this_thread::sleep_for(100ms);
+  EXPECT_EQ(notified.load(), 2);
+  EXPECT_EQ(domains.radio_cuts(), 1u);
+  peer.signal(SIGTERM);
+  own.signal(SIGTERM);
+  EXPECT_TRUE(peer.wait(5s));
+  EXPECT_TRUE(own.wait(5s));
 }
 
 }  // namespace

@@ -48,6 +48,11 @@ Participant::Participant(const ParticipantOptions& options)
                               "create participant on domain " + std::to_string(domain_id_)));
 }
 
+void Participant::set_deafmute(bool deaf, bool mute) const {
+  check(dds_domain_set_deafmute(participant_.handle(), deaf, mute, DDS_INFINITY),
+        "set deaf/mute on domain " + std::to_string(domain_id_));
+}
+
 Participant::~Participant() {
   participant_.reset();
   domain_.reset();

@@ -16,6 +16,8 @@ std::atomic<int> g_signal{0};
 std::mutex g_mutex;
 std::vector<GuardCondition*> g_guards;
 std::once_flag g_once;
+std::mutex g_user_mutex;
+std::function<void(int)> g_user;
 
 void trigger_all() {
   std::lock_guard<std::mutex> lock(g_mutex);
@@ -36,12 +38,27 @@ void ShutdownSignal::install() {
     sigemptyset(&set);
     sigaddset(&set, SIGINT);
     sigaddset(&set, SIGTERM);
+    sigaddset(&set, SIGUSR1);
+    sigaddset(&set, SIGUSR2);
     pthread_sigmask(SIG_BLOCK, &set, nullptr);
     std::thread([set] {
-      int sig = 0;
-      if (sigwait(&set, &sig) == 0) {
+      while (true) {
+        int sig = 0;
+        if (sigwait(&set, &sig) != 0) continue;
+        if (sig == SIGUSR1 || sig == SIGUSR2) {
+          std::lock_guard<std::mutex> lock(g_user_mutex);
+          if (g_user) {
+            try {
+              g_user(sig);
+            } catch (...) {
+              // A failing handler must not end the signal thread (shutdown still works).
+            }
+          }
+          continue;
+        }
         g_signal.store(sig);
         request();
+        return;
       }
     }).detach();
   });
@@ -70,5 +87,10 @@ void ShutdownSignal::remove_guard(GuardCondition* guard) {
 }
 
 int ShutdownSignal::signal_number() noexcept { return g_signal.load(); }
+
+void ShutdownSignal::on_user_signal(std::function<void(int signal)> handler) {
+  std::lock_guard<std::mutex> lock(g_user_mutex);
+  g_user = std::move(handler);
+}
 
 }  // namespace cdc::dds

@@ -7,6 +7,9 @@ namespace cdc::dds {
 GuardCondition::GuardCondition(const Participant& participant)
     : cond_(check(dds_create_guardcondition(participant.handle()), "create guard condition")) {}
 
+GuardCondition::GuardCondition()
+    : cond_(check(dds_create_guardcondition(DDS_CYCLONEDDS_HANDLE), "create guard condition")) {}
+
 void GuardCondition::trigger() { check(dds_set_guardcondition(cond_.handle(), true), "trigger guard condition"); }
 void GuardCondition::reset() { check(dds_set_guardcondition(cond_.handle(), false), "reset guard condition"); }
 bool GuardCondition::triggered() const {
@@ -20,6 +23,8 @@ ReadCondition::ReadCondition(dds_entity_t reader)
 
 WaitSet::WaitSet(const Participant& participant)
     : ws_(check(dds_create_waitset(participant.handle()), "create waitset")) {}
+
+WaitSet::WaitSet() : ws_(check(dds_create_waitset(DDS_CYCLONEDDS_HANDLE), "create waitset")) {}
 
 void WaitSet::attach(dds_entity_t entity, intptr_t tag) {
   check(dds_waitset_attach(ws_.handle(), entity, tag), "attach to waitset");

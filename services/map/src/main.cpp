@@ -25,8 +25,7 @@
 namespace {
 
 using namespace cdc;
-std::atomic<bool> g_write_requested{false};
-extern "C" void on_usr1(int) { g_write_requested = true; }
+std::atomic<bool> g_write_requested{false};  // SIGUSR1, taken by ShutdownSignal's thread
 
 struct Options {
   uint32_t robots = 3, central_id = 200, domain = 0;
@@ -130,7 +129,9 @@ int run(const Options& o) {
 
 int main(int argc, char** argv) {
   dds::ShutdownSignal::install();
-  std::signal(SIGUSR1, on_usr1);
+  dds::ShutdownSignal::on_user_signal([](int signal) {
+    if (signal == SIGUSR1) g_write_requested = true;
+  });
   CLI::App app{
       "cdc-map: the map service. Places every robot's keyframe clouds (cdc/frontend/keyframe) with the central\n"
       "optimiser's latest poses (cdc/central/optimized) into a global point cloud and an OctoMap; writes\n"

@@ -35,6 +35,11 @@ class Participant {
   uint32_t domain_id() const noexcept { return domain_id_; }
   const std::string& config() const noexcept { return config_; }
 
+  // Makes this participant's domain (in this process) ignore incoming packets (deaf) and drop
+  // outgoing ones (mute), or hear and speak again: Cyclone's fault-injection switch, which the
+  // loopback launcher uses as the emulated radio. Other domains of the process are unaffected.
+  void set_deafmute(bool deaf, bool mute) const;
+
  private:
   Entity domain_;        // owned only when this participant created the domain
   Entity participant_;

@@ -14,6 +14,8 @@ namespace cdc::dds {
 class GuardCondition {
  public:
   explicit GuardCondition(const Participant& participant);
+  // Not tied to one participant: usable in a WaitSet() that spans domains.
+  GuardCondition();
   void trigger();
   void reset();
   bool triggered() const;
@@ -36,6 +38,8 @@ class ReadCondition {
 class WaitSet {
  public:
   explicit WaitSet(const Participant& participant);
+  // A waitset for conditions of any participant in any domain (a service on two domains).
+  WaitSet();
   // Attaches a condition or entity; wait() reports `tag` when it triggers.
   void attach(dds_entity_t entity, intptr_t tag);
   void detach(dds_entity_t entity);
