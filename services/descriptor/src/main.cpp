@@ -7,6 +7,7 @@
 #include "cdc/dds/descriptor_convert.hpp"
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
+#include "cdc/dds/robot_domains.hpp"
 #include "cdc/dds/shutdown.hpp"
 #include "cdc/dds/topics.hpp"
 #include "cdc/dds/validate.hpp"
@@ -23,6 +24,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 
 namespace {
@@ -31,7 +33,8 @@ using namespace cdc;
 
 struct Options {
   uint32_t robot = 0, robots = 3, domain = 0;
-  std::string dds_config, stats_out, log_level = "info";
+  int local_domain = -1;  // the robot's own domain (keyframes in, its own descriptors out); -1: none
+  std::string dds_config, local_dds_config, stats_out, log_level = "info";
   lidar::ScanContextParams sc;
   uint32_t max_per_sync = 256;  // descriptors sent for one sync request (the requester asks again for more)
 };
@@ -64,11 +67,23 @@ int run(const Options& o) {
   dds::ParticipantOptions po;
   po.domain_id = o.domain;
   po.config = o.dds_config;
-  dds::Participant participant(po);
-  dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
+  dds::RobotDomains domains(po, dds::local_domain_options(o.local_domain, o.local_dds_config, po), [](bool in_range) {
+    spdlog::info("emulated radio: {}", in_range ? "back in range" : "out of range (deaf and mute on the SLAM domain)");
+  });
+  const dds::Participant& participant = domains.radio();
+  const dds::Participant& local = domains.local();
+  dds::Topic<cdc_msg_Keyframe> t_kf(local, dds::topics::kKeyframe);
   dds::Topic<cdc_msg_Descriptor> t_desc(participant, dds::topics::kDescriptor);
   dds::Topic<cdc_msg_DescriptorSync> t_sync(participant, dds::topics::kDescriptorSync);
-  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(o.robot)));
+  dds::Reader<cdc_msg_Keyframe> r_kf(local, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(o.robot)));
+  // On a local domain of its own the robot's loop closure gets its descriptors there too, also
+  // while the radio is cut.
+  std::optional<dds::Topic<cdc_msg_Descriptor>> t_desc_local;
+  std::optional<dds::Writer<cdc_msg_Descriptor>> w_desc_local;
+  if (domains.split()) {
+    t_desc_local.emplace(local, dds::topics::kDescriptor);
+    w_desc_local.emplace(local, *t_desc_local, dds::qos::event_stream(256));
+  }
   // Live descriptors are volatile: whoever missed some asks for them (cdc/place/descriptor_sync),
   // and gets them from a writer in its own partition. A transient-local history would instead
   // replay every descriptor ever made to each peer on every reconnection.
@@ -79,10 +94,10 @@ int run(const Options& o) {
     w_resend[r] = std::make_unique<dds::Writer<cdc_msg_Descriptor>>(
         participant, t_desc, dds::qos::event_stream(static_cast<int32_t>(o.max_per_sync)).partitions({dds::partitions::robot(r)}));
   }
-  dds::GuardCondition stop(participant);
+  dds::GuardCondition stop;
   dds::ShutdownSignal::add_guard(&stop);
   dds::ReadCondition rc_kf(r_kf.handle()), rc_sync(r_sync.handle());
-  dds::WaitSet ws(participant);
+  dds::WaitSet ws;  // conditions of both domains
   ws.attach(stop.handle(), 0);
   ws.attach(rc_kf.handle(), 1);
   ws.attach(rc_sync.handle(), 2);
@@ -98,8 +113,9 @@ int run(const Options& o) {
   std::vector<Eigen::Vector3f> points;
   std::vector<float> ring_key;
   std::vector<uint8_t> cells;
-  spdlog::info("descriptor service of robot {} up: Scan Context {}x{} to {} m, domain {}", o.robot, o.sc.rings,
-               o.sc.sectors, o.sc.max_range_m, o.domain);
+  spdlog::info("descriptor service of robot {} up: Scan Context {}x{} to {} m, domain {}{}", o.robot, o.sc.rings,
+               o.sc.sectors, o.sc.max_range_m, o.domain,
+               domains.split() ? ", own keyframes on local domain " + std::to_string(o.local_domain) : std::string());
   while (!dds::ShutdownSignal::requested()) {
     ws.wait(std::chrono::milliseconds(200));
     r_sync.take(64).for_each_valid([&](const cdc_msg_DescriptorSync& m, const dds_sample_info_t&) {
@@ -146,6 +162,7 @@ int run(const Options& o) {
       d.pose_hint = m.T_odom_keyframe;
       dds::descriptor_to_msg(q, static_cast<float>(o.sc.max_range_m), d, ring_key, cells);
       w_desc.write(d);
+      if (w_desc_local) w_desc_local->write(d);
       ++published;
       bytes += dds::wire_size(d);
       if (m.incarnation != incarnation) {  // a restarted front-end numbers its keyframes afresh
@@ -170,6 +187,7 @@ int run(const Options& o) {
                      {"resent", resent},
                      {"resent_bytes", resent_bytes},
                      {"bytes_per_descriptor", published > 0 ? static_cast<double>(bytes) / static_cast<double>(published) : 0.0},
+                     {"radio_cuts", domains.radio_cuts()},
                      {"rejected", rejected.by_topic()},
                      {"rejected_samples", rejected.total()}};
     std::ofstream(o.stats_out) << j.dump(2) << '\n';
@@ -184,7 +202,8 @@ int main(int argc, char** argv) {
   dds::ShutdownSignal::install();
   CLI::App app{
       "cdc-descriptor: computes a Scan Context descriptor (quantised to one byte per cell) for every keyframe of\n"
-      "this robot and publishes it with the keyframe's pose hint. Stops cleanly on SIGINT/SIGTERM."};
+      "this robot and publishes it with the keyframe's pose hint. Stops cleanly on SIGINT/SIGTERM. SIGUSR1/SIGUSR2\n"
+      "cut and restore its SLAM domain (deaf and mute), the loopback launcher's emulated radio."};
   Options o;
   std::string config_path, log_level;
   int domain = -1;
@@ -192,6 +211,10 @@ int main(int argc, char** argv) {
   app.add_option("--config", config_path, "YAML configuration (see services/descriptor/config)")->check(CLI::ExistingFile);
   app.add_option("--dds-config", o.dds_config, "Cyclone DDS configuration (file://...); default: CYCLONEDDS_URI");
   app.add_option("--domain", domain, "DDS domain id (default: CDC_DDS_DOMAIN or 0)")->check(CLI::Range(0, 232));
+  app.add_option("--local-domain", o.local_domain,
+                 "the robot's own DDS domain (keyframes in; its descriptors also out there); default: none, all on --domain")
+      ->check(CLI::Range(0, 232));
+  app.add_option("--local-dds-config", o.local_dds_config, "Cyclone DDS configuration of the local domain (default: as --dds-config)");
   app.add_option("--stats-out", o.stats_out, "write counters (JSON) here at shutdown");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error");
   CLI11_PARSE(app, argc, argv);

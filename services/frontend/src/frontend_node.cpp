@@ -75,6 +75,7 @@ int run_frontend(const FrontendNodeOptions& o) {
   if (o.sensor_domain >= 0 && static_cast<uint32_t>(o.sensor_domain) != o.domain) {
     dds::ParticipantOptions so = po;
     so.domain_id = static_cast<uint32_t>(o.sensor_domain);
+    if (!o.sensor_dds_config.empty()) so.config = o.sensor_dds_config;
     sensor_participant.emplace(so);
   }
   const dds::Participant& sensors = sensor_participant ? *sensor_participant : participant;

@@ -13,6 +13,7 @@ struct FrontendNodeOptions {
   uint32_t robot = 0, robots = 3, domain = 0;
   int sensor_domain = -1;           // >= 0: sweeps, IMU and progress on this domain (the simulator's)
   std::string dds_config, stats_out, trajectory_out, log_level = "info";
+  std::string sensor_dds_config;    // configuration of the sensor domain; empty: as dds_config
   FrontendParams core;
   bool use_imu = true;
   bool take_corrections = true;     // false: the back-end's corrections are ignored (an ablation)

@@ -29,6 +29,9 @@ int main(int argc, char** argv) {
   app.add_option("--sensor-domain", sensor_domain,
                  "DDS domain of the sweeps, IMU and lock-step progress (default: the SLAM domain)")
       ->check(CLI::Range(0, 232));
+  std::string sensor_dds_config;
+  app.add_option("--sensor-dds-config", sensor_dds_config,
+                 "Cyclone DDS configuration of the sensor domain (default: as --dds-config)");
   app.add_flag("--lidar-only", lidar_only, "ignore the IMU");
   bool no_corrections = false;
   app.add_flag("--no-corrections", no_corrections,
@@ -52,6 +55,7 @@ int main(int argc, char** argv) {
     o.domain = domain >= 0 ? static_cast<uint32_t>(domain) : cdc::dds::domain_from_env(0);
     o.dds_config = dds_config;
     o.sensor_domain = sensor_domain;
+    o.sensor_dds_config = sensor_dds_config;
     o.stats_out = stats_out;
     o.trajectory_out = trajectory_out;
     if (lidar_only) o.use_imu = false;

@@ -6,6 +6,7 @@
 #include "cdc/dds/descriptor_convert.hpp"
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
+#include "cdc/dds/robot_domains.hpp"
 #include "cdc/dds/shutdown.hpp"
 #include "cdc/dds/topics.hpp"
 #include "cdc/dds/validate.hpp"
@@ -18,6 +19,7 @@
 #include <fstream>
 #include <map>
 #include <memory>
+#include <optional>
 
 namespace cdc::loops {
 namespace {
@@ -94,13 +96,30 @@ int run_loop_closure(const LoopNodeOptions& o) {
   dds::ParticipantOptions po;
   po.domain_id = o.domain;
   po.config = o.dds_config;
-  dds::Participant participant(po);
-  dds::Topic<cdc_msg_Keyframe> t_kf(participant, topics::kKeyframe);
+  dds::RobotDomains domains(po, dds::local_domain_options(o.local_domain, o.local_dds_config, po), [](bool in_range) {
+    spdlog::info("emulated radio: {}", in_range ? "back in range" : "out of range (deaf and mute on the SLAM domain)");
+  });
+  const dds::Participant& participant = domains.radio();
+  const dds::Participant& local = domains.local();
+  dds::Topic<cdc_msg_Keyframe> t_kf(local, topics::kKeyframe);
   dds::Topic<cdc_msg_Descriptor> t_desc(participant, topics::kDescriptor);
   dds::Topic<cdc_msg_LoopClosure> t_loop(participant, topics::kLoopClosure);
   dds::Topic<cdc_msg_CloudRequest> t_req(participant, topics::kCloudRequest);
   dds::Topic<cdc_msg_CloudReply> t_rep(participant, topics::kCloudReply);
-  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(me)));
+  dds::Reader<cdc_msg_Keyframe> r_kf(local, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(me)));
+  // With a local domain of its own, the robot's own descriptors come in there and its loop closures
+  // go out there too (to its peer optimiser), also while the radio is cut; the radio then brings
+  // only the peers' descriptors.
+  std::optional<dds::Topic<cdc_msg_Descriptor>> t_desc_local;
+  std::optional<dds::Topic<cdc_msg_LoopClosure>> t_loop_local;
+  std::optional<dds::Reader<cdc_msg_Descriptor>> r_desc_local;
+  std::optional<dds::Writer<cdc_msg_LoopClosure>> w_loop_local;
+  if (domains.split()) {
+    t_desc_local.emplace(local, topics::kDescriptor);
+    t_loop_local.emplace(local, topics::kLoopClosure);
+    r_desc_local.emplace(local, *t_desc_local, dds::qos::event_stream(1024));
+    w_loop_local.emplace(local, *t_loop_local, dds::qos::event_stream(4096));
+  }
   // Descriptors arrive live (volatile), and those missed on request: a gap in a robot's keyframe
   // ids is asked for on cdc/place/descriptor_sync and the owner's descriptor service sends just that
   // range again, in this robot's partition. The sequencer holds back what came after a gap until
@@ -123,17 +142,22 @@ int run_loop_closure(const LoopNodeOptions& o) {
     w_rep_to[r] = std::make_unique<dds::Writer<cdc_msg_CloudReply>>(
         participant, t_rep, dds::qos::event_stream(256).partitions({dds::partitions::robot(r)}));
   }
-  dds::GuardCondition stop(participant);
+  dds::GuardCondition stop;
   dds::ShutdownSignal::add_guard(&stop);
   dds::ReadCondition rc_kf(r_kf.handle()), rc_desc(r_desc.handle()), rc_desc_resent(r_desc_resent.handle()),
       rc_req(r_req.handle()), rc_rep(r_rep.handle());
-  dds::WaitSet ws(participant);
+  dds::WaitSet ws;  // conditions of both domains
   ws.attach(stop.handle(), 0);
   ws.attach(rc_kf.handle(), 1);
   ws.attach(rc_desc.handle(), 2);
   ws.attach(rc_req.handle(), 3);
   ws.attach(rc_rep.handle(), 4);
   ws.attach(rc_desc_resent.handle(), 5);
+  std::optional<dds::ReadCondition> rc_desc_local;
+  if (r_desc_local) {
+    rc_desc_local.emplace(r_desc_local->handle());
+    ws.attach(rc_desc_local->handle(), 6);
+  }
 
   dds::ValidationLimits limits;
   limits.robot_count = o.robots;
@@ -153,8 +177,10 @@ int run_loop_closure(const LoopNodeOptions& o) {
   uint64_t next_request = 1, requests_served = 0, requests_unknown = 0, loops_sent = 0, points_served = 0;
   uint32_t incarnation = 0, loop_seq = 0;
   Traffic traffic;
-  spdlog::info("loop-closure service of robot {} up: {} robots, PCM chi2 {}, domain {}", me, o.robots,
-               o.core.pcm.chi2_threshold, o.domain);
+  spdlog::info("loop-closure service of robot {} up: {} robots, PCM chi2 {}, domain {}{}", me, o.robots,
+               o.core.pcm.chi2_threshold, o.domain,
+               domains.split() ? ", own keyframes, descriptors and loops on local domain " + std::to_string(o.local_domain)
+                               : std::string());
 
   auto handle = [&](LoopEvents ev) {
     for (const CloudWanted& c : ev.requests) {
@@ -185,6 +211,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
       dds::information_to_msg(l.information, m.information);
       m.fitness = static_cast<float>(l.fitness);
       w_loop.write(m);
+      if (w_loop_local) w_loop_local->write(m);
       traffic.out(topics::kLoopClosure, dds::wire_size(m));
       ++loops_sent;
       spdlog::info("{} loop {}/{} - {}/{} (fitness {:.3f})", l.withdrawn ? "withdrew" : "published", l.robot_a,
@@ -253,6 +280,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
       }
       handle(core.add_keyframe_data(std::move(kf), now));
     });
+    bool from_local = false;
     auto on_descriptor = [&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
       const size_t bytes = dds::wire_size(m);
       dds::Validation v = dds::validate(m, limits);
@@ -268,6 +296,9 @@ int run_loop_closure(const LoopNodeOptions& o) {
         spdlog::warn("rejected descriptor: {}", rejected.last_reason());
         return;
       }
+      if (m.robot_id == me && r_desc_local && !from_local) {
+        return;  // the robot's own, which come on the local domain
+      }
       if (m.robot_id != me) {
         traffic.in(topics::kDescriptor, bytes, m.robot_id);
         last_heard[m.robot_id] = Clock::now();
@@ -279,6 +310,13 @@ int run_loop_closure(const LoopNodeOptions& o) {
     };
     r_desc_resent.take(16).for_each_valid(on_descriptor);
     r_desc.take(16).for_each_valid(on_descriptor);
+    if (r_desc_local) {
+      from_local = true;
+      r_desc_local->take(16).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t& i) {
+        if (m.robot_id == me) on_descriptor(m, i);
+      });
+      from_local = false;
+    }
     {
       std::vector<DescriptorIn> released;
       for (const SyncWanted& w : sequencer.wanted(now, in_reach, released)) {
@@ -361,6 +399,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
                      {"bytes_sent", traffic.sent},
                      {"bytes_received", traffic.received},
                      {"bytes_per_peer", peers},
+                     {"radio_cuts", domains.radio_cuts()},
                      {"rejected", rejected.by_topic()},
                      {"rejected_samples", rejected.total()}};
     std::ofstream(o.stats_out) << j.dump(2) << '\n';

@@ -12,7 +12,8 @@ namespace cdc::loops {
 
 struct LoopNodeOptions {
   uint32_t robot = 0, robots = 3, domain = 0;
-  std::string dds_config, stats_out, log_level = "info";
+  int local_domain = -1;  // the robot's own domain (see cdc/dds/robot_domains.hpp); -1: none
+  std::string dds_config, local_dds_config, stats_out, log_level = "info";
   LoopParams core;
   int peer_timeout_ms = 3000;   // a peer unheard of this long is out of range: no cloud requests to it
   int tick_ms = 100;

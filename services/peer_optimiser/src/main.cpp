@@ -17,15 +17,22 @@ int main(int argc, char** argv) {
       "cdc-peer-optimiser: the robot's back-end agent. Decides CENTRALIZED/DISTRIBUTED from the central's DDS\n"
       "liveliness and the estimated distance to it (RTDOS), relays or computes the robot's optimised poses,\n"
       "publishes fusion-limited corrections for the front-end, exchanges separator poses with peers, and\n"
-      "re-sends to the central what it has not acknowledged. Stops cleanly on SIGINT/SIGTERM."};
+      "re-sends to the central what it has not acknowledged. Stops cleanly on SIGINT/SIGTERM. SIGUSR1/SIGUSR2\n"
+      "cut and restore its SLAM domain (deaf and mute), the loopback launcher's emulated radio."};
   std::string config_path, dds_config, stats_out, log_level;
-  int domain = -1;
+  std::string local_dds_config;
+  int domain = -1, local_domain = -1;
   uint32_t robot = 0;
   app.add_option("--robot", robot, "this robot's id")->required()->check(CLI::Range(0, 254));
   app.add_option("--config", config_path, "YAML configuration (see services/peer_optimiser/config)")
       ->check(CLI::ExistingFile);
   app.add_option("--dds-config", dds_config, "Cyclone DDS configuration (file://...); default: CYCLONEDDS_URI");
   app.add_option("--domain", domain, "DDS domain id (default: CDC_DDS_DOMAIN or 0)")->check(CLI::Range(0, 232));
+  app.add_option("--local-domain", local_domain,
+                 "the robot's own DDS domain: its keyframes (forwarded to the central over --domain), loop closures "
+                 "and corrections; default: none, all on --domain")
+      ->check(CLI::Range(0, 232));
+  app.add_option("--local-dds-config", local_dds_config, "Cyclone DDS configuration of the local domain (default: as --dds-config)");
   app.add_option("--stats-out", stats_out, "write counters (JSON) here at shutdown");
   std::string mode_out, trajectory_out;
   app.add_option("--mode-out", mode_out, "write every mode transition (CSV) here as it happens");
@@ -43,6 +50,8 @@ int main(int argc, char** argv) {
     o.core.robot = robot;
     o.domain = domain >= 0 ? static_cast<uint32_t>(domain) : cdc::dds::domain_from_env(0);
     o.dds_config = dds_config;
+    o.local_domain = local_domain;
+    o.local_dds_config = local_dds_config;
     o.stats_out = stats_out;
     o.mode_out = mode_out;
     o.trajectory_out = trajectory_out;

@@ -5,6 +5,7 @@
 #include "cdc/dds/liveliness.hpp"
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
+#include "cdc/dds/robot_domains.hpp"
 #include "cdc/dds/shutdown.hpp"
 #include "cdc/dds/topics.hpp"
 #include "cdc/dds/validate.hpp"
@@ -17,6 +18,7 @@
 #include <cstdio>
 #include <fstream>
 #include <map>
+#include <optional>
 
 namespace cdc::peer {
 namespace {
@@ -86,7 +88,11 @@ int run_peer(const PeerNodeOptions& o) {
   dds::ParticipantOptions po;
   po.domain_id = o.domain;
   po.config = o.dds_config;
-  dds::Participant participant(po);
+  dds::RobotDomains domains(po, dds::local_domain_options(o.local_domain, o.local_dds_config, po), [](bool in_range) {
+    spdlog::info("emulated radio: {}", in_range ? "back in range" : "out of range (deaf and mute on the SLAM domain)");
+  });
+  const dds::Participant& participant = domains.radio();
+  const dds::Participant& local = domains.local();
 
   dds::Topic<cdc_msg_Keyframe> t_kf(participant, topics::kKeyframe);
   dds::Topic<cdc_msg_LoopClosure> t_loop(participant, topics::kLoopClosure);
@@ -98,14 +104,29 @@ int run_peer(const PeerNodeOptions& o) {
   dds::Topic<cdc_msg_OptimizedPoses> t_corr(participant, topics::kCorrection);
   dds::Topic<cdc_msg_WorldTransform> t_world(participant, topics::kWorldTransform);
 
-  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(me)));
+  // The robot's own keyframes and loop closures, and its corrections, travel on its local domain
+  // when it has one (see cdc/dds/robot_domains.hpp); the peer optimiser then forwards every keyframe
+  // to the central over the radio, and takes loop closures from both domains (each counted once).
+  std::optional<dds::Topic<cdc_msg_Keyframe>> t_kf_local;
+  std::optional<dds::Topic<cdc_msg_LoopClosure>> t_loop_local;
+  std::optional<dds::Topic<cdc_msg_OptimizedPoses>> t_corr_local;
+  std::optional<dds::Reader<cdc_msg_LoopClosure>> r_loop_local;
+  if (domains.split()) {
+    t_kf_local.emplace(local, topics::kKeyframe);
+    t_loop_local.emplace(local, topics::kLoopClosure);
+    t_corr_local.emplace(local, topics::kCorrection);
+    r_loop_local.emplace(local, *t_loop_local, dds::qos::event_stream(4096));
+  }
+  const dds::Topic<cdc_msg_Keyframe>& t_kf_own = t_kf_local ? *t_kf_local : t_kf;
+  const dds::Topic<cdc_msg_OptimizedPoses>& t_corr_own = t_corr_local ? *t_corr_local : t_corr;
+  dds::Reader<cdc_msg_Keyframe> r_kf(local, t_kf_own, dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(me)));
   dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop, dds::qos::event_stream(4096));
   dds::Reader<cdc_msg_OptimizedPoses> r_central(participant, t_central, dds::qos::monitored_reader());
   dds::Reader<cdc_msg_Acknowledgement> r_ack(participant, t_ack, dds::qos::keyed_state());
   dds::Reader<cdc_msg_SeparatorPoses> r_sep(participant, t_sep, dds::qos::event_stream(256));
   dds::Reader<cdc_msg_RobotStatus> r_status(participant, t_status, dds::qos::keyed_state());
   dds::Writer<cdc_msg_ModeState> w_mode(participant, t_mode, dds::qos::keyed_state(8));
-  dds::Writer<cdc_msg_OptimizedPoses> w_corr(participant, t_corr, dds::qos::event_stream(64).partitions({dds::partitions::robot(me)}));
+  dds::Writer<cdc_msg_OptimizedPoses> w_corr(local, t_corr_own, dds::qos::event_stream(64).partitions({dds::partitions::robot(me)}));
   dds::Writer<cdc_msg_SeparatorPoses> w_sep(participant, t_sep, dds::qos::event_stream(256));
   dds::Writer<cdc_msg_WorldTransform> w_world(participant, t_world, dds::qos::keyed_state());
   dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096).partitions({dds::partitions::robot(me)}));
@@ -113,18 +134,23 @@ int run_peer(const PeerNodeOptions& o) {
   dds::Writer<cdc_msg_RobotStatus> w_status(participant, t_status, dds::qos::keyed_state());
   dds::LivelinessMonitor central_liveliness(participant, t_central.handle(), "central optimiser");
 
-  dds::GuardCondition stop(participant), liveliness_changed(participant);
+  dds::GuardCondition stop, liveliness_changed;  // in a waitset spanning both domains
   dds::ShutdownSignal::add_guard(&stop);
   central_liveliness.set_notify(&liveliness_changed);
   dds::ReadCondition rc_kf(r_kf.handle()), rc_loop(r_loop.handle()), rc_central(r_central.handle()),
       rc_sep(r_sep.handle());
-  dds::WaitSet ws(participant);
+  dds::WaitSet ws;
   ws.attach(stop.handle(), 0);
   ws.attach(liveliness_changed.handle(), 1);
   ws.attach(rc_kf.handle(), 2);
   ws.attach(rc_loop.handle(), 3);
   ws.attach(rc_central.handle(), 4);
   ws.attach(rc_sep.handle(), 5);
+  std::optional<dds::ReadCondition> rc_loop_local;
+  if (r_loop_local) {
+    rc_loop_local.emplace(r_loop_local->handle());
+    ws.attach(rc_loop_local->handle(), 6);
+  }
 
   dds::ValidationLimits limits;
   limits.robot_count = o.core.robot_count;
@@ -136,7 +162,7 @@ int run_peer(const PeerNodeOptions& o) {
   std::map<uint32_t, StoredKeyframe> own_keyframes;
   std::map<uint32_t, cdc_msg_LoopClosure> own_loops;
   uint32_t incarnation = 0;
-  uint64_t resent_keyframes = 0, resent_loops = 0, corrections = 0, separators_sent = 0;
+  uint64_t resent_keyframes = 0, resent_loops = 0, corrections = 0, separators_sent = 0, forwarded_keyframes = 0;
   auto last_status = Clock::now() - std::chrono::hours(1);
   auto last_mode = last_status;
   std::vector<cdc_msg_KeyframePose> pose_storage;
@@ -148,9 +174,11 @@ int run_peer(const PeerNodeOptions& o) {
     if (!mode_log) throw std::runtime_error(o.mode_out + ": cannot write the mode timeline");
     mode_log << "wall_ns,sim_ns,robot,from,to,reason,distance_m,keyframes\n" << std::flush;
   }
-  spdlog::info("peer optimiser of robot {} up: CR_0 {} m, dwell {} ms, mask {} ms, domain {}", me,
+  spdlog::info("peer optimiser of robot {} up: CR_0 {} m, dwell {} ms, mask {} ms, domain {}{}", me,
                o.core.rtdos.range_m, o.core.rtdos.dwell.count() / 1'000'000, o.core.rtdos.mask.count() / 1'000'000,
-               o.domain);
+               o.domain,
+               domains.split() ? ", own keyframes, loops and corrections on local domain " + std::to_string(o.local_domain)
+                               : std::string());
 
   auto publish_mode = [&](SwitchReason reason) {
     cdc_msg_ModeState m{};
@@ -185,8 +213,12 @@ int run_peer(const PeerNodeOptions& o) {
       core.add_keyframe(OwnKeyframe{m.keyframe_id, m.incarnation, dds::to_eigen(m.T_odom_keyframe),
                                     dds::to_eigen(m.T_prev_keyframe), dds::information_to_eigen(m.information)},
                         now);
+      if (domains.split()) {  // the central (and its map) read keyframes on the SLAM domain
+        w_kf.write(m);
+        ++forwarded_keyframes;
+      }
     });
-    r_loop.take(1024).for_each_valid([&](const cdc_msg_LoopClosure& m, const dds_sample_info_t&) {
+    auto on_loop = [&](const cdc_msg_LoopClosure& m, const dds_sample_info_t&) {
       if (m.robot_a != me && m.robot_b != me) {
         return;
       }
@@ -201,7 +233,9 @@ int run_peer(const PeerNodeOptions& o) {
                                m.keyframe_b, m.status == cdc_msg_LOOP_WITHDRAWN, dds::to_eigen(m.T_a_b),
                                dds::information_to_eigen(m.information)},
                     now);
-    });
+    };
+    r_loop.take(1024).for_each_valid(on_loop);
+    if (r_loop_local) r_loop_local->take(1024).for_each_valid(on_loop);
     r_central.take(64).for_each_valid([&](const cdc_msg_OptimizedPoses& m, const dds_sample_info_t&) {
       if (m.robot_id != me) {
         return;
@@ -373,6 +407,8 @@ int run_peer(const PeerNodeOptions& o) {
                      {"keyframes", own_keyframes.size()},
                      {"resent_keyframes", resent_keyframes},
                      {"resent_loops", resent_loops},
+                     {"forwarded_keyframes", forwarded_keyframes},
+                     {"radio_cuts", domains.radio_cuts()},
                      {"corrections", corrections},
                      {"separator_messages", separators_sent},
                      {"distributed_rounds", core.distributed_rounds()},

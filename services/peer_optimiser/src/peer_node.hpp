@@ -11,7 +11,8 @@ namespace cdc::peer {
 
 struct PeerNodeOptions {
   uint32_t domain = 0;
-  std::string dds_config;
+  int local_domain = -1;  // the robot's own domain (see cdc/dds/robot_domains.hpp); -1: none
+  std::string dds_config, local_dds_config;
   PeerConfig core;
   uint32_t central_id = 200;   // the central's node id in status messages
   int tick_ms = 50;
