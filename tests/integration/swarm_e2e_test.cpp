@@ -1,6 +1,7 @@
-// End to end: cdc-launch runs three simulated robots and the central node in network namespaces
-// with the emulated radio (KITTI 05 split, the first 60 s), and Ctrl-C at any point leaves no
-// process and no namespace behind.
+// End to end: cdc-launch runs three simulated robots and the central node with the emulated radio
+// (KITTI 05 split, the first 60 s) in both network modes: network namespaces with iptables per pair,
+// and loopback with DDS deaf/mute per robot. Ctrl-C at any point leaves no process and no namespace
+// behind.
 #include "child_process.hpp"
 
 #include <gtest/gtest.h>
@@ -88,19 +89,19 @@ class SwarmEndToEnd : public ::testing::Test {
       skip_ = "no KITTI ground truth in CDC_DATA_DIR (" + env("CDC_DATA_DIR") + ")";
       return;
     }
-    if (!can_use_netns()) {
-      skip_ = "network namespaces are not available here (needs root)";
-      return;
-    }
+    if (!can_use_netns()) netns_skip_ = "network namespaces are not available here (needs root)";
     work_ = fs::path(env("CDC_BUILD_DIR")) / ("e2e-" + std::to_string(getpid()));
     fs::create_directories(work_);
     // The first 60 s of the paper's KITTI-05 split: robots 1 and 2 leave the central's range at
     // once; robot 1 comes back at 39 s and leaves again at 55 s.
-    std::ofstream(work_ / "swarm.yaml") << "name: e2e\n"
-                                        << "scenario: sim/scenarios/kitti05_3robots.yaml\n"
-                                        << "dataset: " << (work_ / "dataset").string() << "\n"
-                                        << "max_scans: 600\nnetwork: netns\nlockstep: true\nsettle_s: 3\n"
-                                        << "configs:\n  peer_optimiser: deploy/swarms/config/peer_liveliness_only.yaml\n";
+    for (const char* network : {"netns", "loopback"}) {
+      std::ofstream(work_ / (std::string("swarm_") + network + ".yaml"))
+          << "name: e2e\n"
+          << "scenario: sim/scenarios/kitti05_3robots.yaml\n"
+          << "dataset: " << (work_ / "dataset").string() << "\n"
+          << "max_scans: 600\nnetwork: " << network << "\nlockstep: true\nsettle_s: 3\n"
+          << "configs:\n  peer_optimiser: deploy/swarms/config/peer_liveliness_only.yaml\n";
+    }
   }
   static void TearDownTestSuite() {
     if (!work_.empty()) fs::remove_all(work_);
@@ -109,17 +110,22 @@ class SwarmEndToEnd : public ::testing::Test {
     if (!skip_.empty()) GTEST_SKIP() << skip_;
   }
 
-  static ChildProcess launch(const fs::path& out, const std::string& log) {
-    return ChildProcess::spawn({env("CDC_LAUNCH_BIN"), (work_ / "swarm.yaml").string(), "--root", env("CDC_SOURCE_DIR"),
+  void require_netns() {
+    if (!netns_skip_.empty()) GTEST_SKIP() << netns_skip_;
+  }
+
+  static ChildProcess launch(const fs::path& out, const std::string& log, const std::string& network = "netns") {
+    return ChildProcess::spawn({env("CDC_LAUNCH_BIN"), (work_ / ("swarm_" + network + ".yaml")).string(), "--root", env("CDC_SOURCE_DIR"),
                                 "--bin-dir", env("CDC_BUILD_DIR"), "--out", out.string(), "--no-progress"},
                                log);
   }
 
-  static inline std::string skip_;
+  static inline std::string skip_, netns_skip_;
   static inline fs::path work_;
 };
 
 TEST_F(SwarmEndToEnd, ThreeRobotsSwitchOnLivelinessLapsesAndStayAccurate) {
+  require_netns();
   const fs::path run = work_ / "run";
   ChildProcess p = launch(run, (work_ / "launch.log").string());
   const auto status = p.wait(std::chrono::minutes(12));
@@ -170,9 +176,60 @@ TEST_F(SwarmEndToEnd, ThreeRobotsSwitchOnLivelinessLapsesAndStayAccurate) {
   expect_nothing_left(run);
 }
 
+// Loopback: every process on lo, the radio timeline applied per robot by making its SLAM domain deaf
+// and mute. The switches still come from the central's liveliness lapsing, and a robot cut off keeps
+// its own services talking on its local domain.
+TEST_F(SwarmEndToEnd, LoopbackCutsRobotsWithDeafMuteAndTheySwitchOnLivelinessLapses) {
+  const fs::path run = work_ / "run-loopback";
+  ChildProcess p = launch(run, (work_ / "launch-loopback.log").string(), "loopback");
+  const auto status = p.wait(std::chrono::minutes(12));
+  ASSERT_TRUE(status.has_value()) << "cdc-launch did not finish; see " << (work_ / "launch-loopback.log");
+  ASSERT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << read_file(work_ / "launch-loopback.log");
+  const json r = json::parse(read_file(run / "report.json"));
+  EXPECT_EQ(r["network"], "loopback");
+  EXPECT_GE(r["sim_s"].get<double>(), 59.0);
+  EXPECT_EQ(r["robots"]["0"]["switches_to_distributed"], 0);
+  for (const char* robot : {"1", "2"}) {
+    const json& jr = r["robots"][robot];
+    EXPECT_GE(jr["switches_to_distributed"].get<int>(), 1) << robot;
+    EXPECT_EQ(jr["switches_on_liveliness_lost"], jr["switches_to_distributed"]) << robot;
+  }
+  EXPECT_GE(r["robots"]["1"]["switches_to_distributed"].get<int>(), 2);
+  EXPECT_GE(r["robots"]["1"]["switches_to_centralized"].get<int>(), 2);
+  for (const char* robot : {"0", "1", "2"}) {
+    const fs::path rd = run / ("robot_" + std::string(robot));
+    const json& jr = r["robots"][robot];
+    for (const char* kind : {"odometry", "keyframes"}) {
+      ASSERT_TRUE(jr[kind].contains("ate_m")) << "robot " << robot << " " << kind << ": " << jr[kind].dump();
+      EXPECT_LT(jr[kind]["ate_m"]["rmse"].get<double>(), 0.005 * jr[kind]["gt_length_m"].get<double>())
+          << "robot " << robot << " " << kind;
+    }
+    // The cuts were deaf/mute on the robot's SLAM domain (robot 0 carries the central: never cut),
+    // and its peer optimiser still got every keyframe of its front-end on the local domain.
+    const json peer = json::parse(read_file(rd / "peer_optimiser.stats.json"));
+    const json fe = json::parse(read_file(rd / "frontend.stats.json"));
+    if (std::string(robot) == "0") {
+      EXPECT_EQ(peer["radio_cuts"].get<int>(), 0);
+    } else {  // every switch followed a cut
+      EXPECT_GE(peer["radio_cuts"].get<int>(), std::max(1, jr["switches_to_distributed"].get<int>())) << robot;
+    }
+    EXPECT_GT(fe["keyframes"].get<int>(), 100) << robot;
+    EXPECT_EQ(peer["keyframes"], fe["keyframes"]) << robot;
+    EXPECT_EQ(peer["forwarded_keyframes"], fe["keyframes"]) << robot;
+  }
+  const std::string links = read_file(run / "links.csv");
+  EXPECT_NE(links.find(",1,200,down"), std::string::npos) << links;
+  EXPECT_NE(links.find(",1,200,up"), std::string::npos) << links;
+  std::istringstream procs(read_file(run / "processes.txt"));
+  std::string name;
+  pid_t pid = 0;
+  while (procs >> name >> pid) EXPECT_NE(kill(pid, 0), 0) << name << " (pid " << pid << ") still runs";
+}
+
 // Ctrl-C during start-up and in the middle of the run: the launcher stops every process it
 // started and deletes every namespace (with its links and rules).
 TEST_F(SwarmEndToEnd, CtrlCAtAnyPointLeavesNoProcessAndNoNamespace) {
+  require_netns();
   const fs::path run_a = work_ / "interrupt-startup";
   {
     ChildProcess p = launch(run_a, (work_ / "interrupt-startup.log").string());

@@ -81,10 +81,15 @@ class Launcher {
   void ensure_dataset();
   void start_services();
   Process& spawn(const std::string& name, uint32_t node, std::vector<std::string> argv, std::vector<std::string> env = {});
-  std::string dds_config(uint32_t node) const {
-    return net_ ? net_->dds_config(node) : "file://" + fs::absolute(fs::path(o_.root) / "deploy/cyclonedds/loopback.xml").string();
+  std::string loopback_config() const {
+    return "file://" + fs::absolute(fs::path(o_.root) / "deploy/cyclonedds/loopback.xml").string();
   }
+  std::string dds_config(uint32_t node) const { return net_ ? net_->dds_config(node) : loopback_config(); }
+  // Robot r's own domain: on lo in its namespace (netns) or on lo with everyone (loopback), where
+  // the domain id keeps robots apart.
+  uint32_t local_domain(uint32_t robot) const { return c_.local_domain_base + robot; }
   void apply_radio(double t_s);
+  void apply_loopback_radio(double t_s);
   void sample_traffic();
   void progress(double t_s, bool final_line);
   void stop_all();
@@ -106,10 +111,12 @@ class Launcher {
   RunInfo info_;
   Clock::time_point t0_ = Clock::now();
   std::map<std::pair<uint32_t, uint32_t>, LinkBytes> last_counters_;
+  std::map<uint32_t, bool> loopback_in_range_;  // loopback radio: robot -> in range of the central
   std::map<uint32_t, uint64_t> last_keyframes_;
   double sim_total_s_ = 0;
   bool startup_ = false;  // traffic counted now belongs to start-up (discovery), not to a mode
   bool rendezvous_ = false;  // the mission is over: every link is up
+  bool radio_armed_ = false;  // loopback: services are up (their signal handlers installed)
 };
 
 void Launcher::ensure_dataset() {
@@ -161,8 +168,13 @@ void Launcher::start_services() {
     const std::string id = std::to_string(r);
     const fs::path rd = run_ / ("robot_" + id);
     fs::create_directories(rd);
+    // The robot's services talk among themselves on its own domain (on lo); descriptor, loop closure
+    // and peer optimiser also join the SLAM domain, the one the radio carries.
+    const std::string own = std::to_string(local_domain(r));
+    const std::vector<std::string> local = {"--local-domain", own, "--local-dds-config", loopback_config()};
     std::vector<std::string> fe = {bin("services/frontend/cdc-frontend"), "--robot", id, "--config", c_.frontend_config,
-                                   "--domain", slam, "--sensor-domain", sim, "--trajectory-out", (rd / "odometry.tum").string(),
+                                   "--domain", own, "--dds-config", loopback_config(), "--sensor-domain", sim,
+                                   "--sensor-dds-config", dds_config(r), "--trajectory-out", (rd / "odometry.tum").string(),
                                    "--stats-out", (rd / "frontend.stats.json").string()};
     if (c_.lidar_only) fe.push_back("--lidar-only");
     if (!c_.frontend_correction) fe.push_back("--no-corrections");
@@ -172,21 +184,28 @@ void Launcher::start_services() {
       fe.insert(fe.end(), {"--imu-wait-ms", "5000"});
     }
     spawn("robot" + id + "/frontend", r, fe);
+    auto with_local = [&](std::vector<std::string> argv) {
+      argv.insert(argv.end(), local.begin(), local.end());
+      return argv;
+    };
     spawn("robot" + id + "/descriptor", r,
-          {bin("services/descriptor/cdc-descriptor"), "--robot", id, "--config", c_.descriptor_config, "--domain", slam,
-           "--stats-out", (rd / "descriptor.stats.json").string()});
+          with_local({bin("services/descriptor/cdc-descriptor"), "--robot", id, "--config", c_.descriptor_config, "--domain",
+                      slam, "--stats-out", (rd / "descriptor.stats.json").string()}));
     spawn("robot" + id + "/loop-closure", r,
-          {bin("services/loop_closure/cdc-loop-closure"), "--robot", id, "--config", c_.loop_closure_config, "--domain", slam,
-           "--stats-out", (rd / "loop_closure.stats.json").string()});
+          with_local({bin("services/loop_closure/cdc-loop-closure"), "--robot", id, "--config", c_.loop_closure_config,
+                      "--domain", slam, "--stats-out", (rd / "loop_closure.stats.json").string()}));
     spawn("robot" + id + "/peer-optimiser", r,
-          {bin("services/peer_optimiser/cdc-peer-optimiser"), "--robot", id, "--config", c_.peer_config, "--domain", slam,
-           "--mode-out", (rd / "modes.csv").string(), "--trajectory-out", (rd / "keyframes.tum").string(), "--stats-out",
-           (rd / "peer_optimiser.stats.json").string()});
+          with_local({bin("services/peer_optimiser/cdc-peer-optimiser"), "--robot", id, "--config", c_.peer_config,
+                      "--domain", slam, "--mode-out", (rd / "modes.csv").string(), "--trajectory-out",
+                      (rd / "keyframes.tum").string(), "--stats-out", (rd / "peer_optimiser.stats.json").string()}));
   }
 }
 
 void Launcher::apply_radio(double t_s) {
-  if (!net_) return;
+  if (!net_) {
+    apply_loopback_radio(t_s);
+    return;
+  }
   std::vector<uint32_t> nodes = robots_;
   if (info_.central) nodes.push_back(kCentralNode);
   for (size_t i = 0; i < nodes.size(); ++i) {
@@ -198,6 +217,26 @@ void Launcher::apply_radio(double t_s) {
         info_.links.push_back({std::chrono::duration<double>(Clock::now() - t0_).count(), t_s, a, b, up});
       }
     }
+  }
+}
+
+// Loopback: one robot at a time. A robot out of the central's range has its SLAM domain made deaf
+// and mute (SIGUSR1 to its radio-facing services; SIGUSR2 restores it), so it loses every node, not
+// only the central; its own services keep talking on its local domain. Robot-to-robot periods
+// cannot be applied alone.
+void Launcher::apply_loopback_radio(double t_s) {
+  if (!info_.central || !radio_armed_) return;
+  for (uint32_t r : robots_) {
+    const bool up = rendezvous_ || in_range(periods_, r, kCentralNode, t_s);
+    const auto it = loopback_in_range_.try_emplace(r, true).first;
+    if (it->second == up) continue;
+    it->second = up;
+    const std::string prefix = "robot" + std::to_string(r) + "/";
+    for (auto& p : services_) {
+      if (p->name().rfind(prefix, 0) != 0 || p->name() == prefix + "frontend" || !p->running()) continue;
+      p->signal(up ? SIGUSR2 : SIGUSR1);
+    }
+    info_.links.push_back({std::chrono::duration<double>(Clock::now() - t0_).count(), t_s, r, kCentralNode, up});
   }
 }
 
@@ -321,6 +360,18 @@ int Launcher::run() {
                              " needs the netns network mode (loopback cannot cut links between robots)");
   }
   info_.network = netns_ ? "netns" : "loopback";
+  const uint32_t last_local = local_domain(robots_.back());
+  if (last_local > 232) {
+    throw std::runtime_error("local_domain_base " + std::to_string(c_.local_domain_base) + " + robot id " +
+                             std::to_string(robots_.back()) + " is past the last DDS domain id (232)");
+  }
+  for (uint32_t d : {c_.slam_domain, c_.sim_domain}) {
+    if (d >= c_.local_domain_base && d <= last_local) {
+      throw std::runtime_error("the robots' own domains " + std::to_string(c_.local_domain_base) + ".." +
+                               std::to_string(last_local) + " (local_domain_base + robot id) include domain " +
+                               std::to_string(d) + " (slam_domain or sim_domain)");
+    }
+  }
   if (netns_) {
     std::vector<uint32_t> nodes = robots_;
     if (info_.central) nodes.push_back(kCentralNode);
@@ -333,12 +384,14 @@ int Launcher::run() {
     std::cout << "cdc-launch: network netns: " << nodes.size() << " namespaces on a private bridge (198.18.0.0/24); "
               << "the radio timeline cuts SLAM-domain traffic per pair with iptables" << std::endl;
   } else {
-    info_.notes.push_back(
-        "loopback network: every process on lo; the radio timeline is not applied (loopback cannot cut single pairs; "
-        "use netns, as root or in a user+network namespace, for the emulated radio)");
-    std::cout << "cdc-launch: network loopback (" << (why.empty() ? "requested" : why)
-              << "): all processes on lo. Loopback cannot cut single pairs: the radio timeline is NOT applied, so robots "
-                 "stay in range" << std::endl;
+    const std::string how =
+        "the radio timeline is applied per robot with DDS deaf/mute: a robot out of the central's range has its SLAM "
+        "domain made deaf and mute, which cuts it from every node (robot-to-robot periods cannot be applied alone: "
+        "loopback cannot cut single pairs; use netns, as root, for that); its own services keep talking on its local "
+        "domain; bytes on the wire are not measured";
+    info_.notes.push_back("loopback network: every process on lo; " + how);
+    std::cout << "cdc-launch: network loopback (" << (why.empty() ? "requested" : why) << "): all processes on lo; "
+              << how << std::endl;
   }
   info_.traffic_measured = netns_;
 
@@ -365,7 +418,10 @@ int Launcher::run() {
       if (!p->running()) throw std::runtime_error(p->name() + " ended at start-up (exit " + std::to_string(p->exit_status().value_or(-1)) +
                                                   "): see " + p->spec().log_path);
     }
-    if (ready) break;
+    if (ready) {
+      radio_armed_ = true;
+      break;
+    }
     if (interrupted()) break;
     if (Clock::now() > ready_deadline) {
       throw std::runtime_error("the robots' peer optimisers did not come up (or did not reach CENTRALIZED with the central) "
@@ -466,7 +522,8 @@ int main(int argc, char** argv) {
       "cdc-launch: runs a simulated swarm from a swarm file (deploy/swarms/*.yaml): the simulator's player, every\n"
       "robot's front-end, descriptor, loop-closure and peer-optimiser services and the central node's optimiser and\n"
       "map. Network modes: netns (default where possible: every node in its own network namespace, the radio\n"
-      "timeline applied per pair with iptables on the SLAM domain) or loopback (all on lo, no radio). Ctrl-C stops\n"
+      "timeline applied per pair with iptables on the SLAM domain) or loopback (all on lo, the timeline applied per\n"
+      "robot by making its SLAM domain deaf and mute). Ctrl-C stops\n"
       "every process and removes every namespace. Results: results/<name>-<time>/ (report.md, report.json, plots)."};
   Options o;
   app.add_option("swarm", o.swarm, "swarm file")->required()->check(CLI::ExistingFile);

@@ -47,6 +47,9 @@ SwarmConfig load_swarm(const std::string& path, const std::string& root) {
   auto domain = [](const int& v) { return v >= 0 && v <= 232; };
   r.get<int>("slam_domain", slam, domain, "0..232");
   r.get<int>("sim_domain", sim, domain, "0..232");
+  int local_base = static_cast<int>(c.local_domain_base);
+  r.get<int>("local_domain_base", local_base, domain, "0..232");
+  c.local_domain_base = static_cast<uint32_t>(local_base);
   c.slam_domain = static_cast<uint32_t>(slam);
   c.sim_domain = static_cast<uint32_t>(sim);
   r.get<bool>("lockstep", c.lockstep);

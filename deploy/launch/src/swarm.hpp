@@ -25,6 +25,8 @@ struct SwarmConfig {
   NetworkMode network = NetworkMode::kAuto;
   uint32_t slam_domain = 1;  // every SLAM topic (crosses the emulated radio)
   uint32_t sim_domain = 2;   // sensors, lock-step progress and the radio state (never cut)
+  uint32_t local_domain_base = 100;  // robot K's own domain is this + K: its services talk there
+                                     // (keyframes, corrections, its own descriptors and loops), never on the radio
   bool lockstep = true;
   double rate = 1.0;         // without lock-step: sim seconds per wall second
   bool lidar_only = false;
