@@ -22,6 +22,15 @@ grep -q '<NetworkInterface name="wlan0"/>' "$xml" || fail "interface not rendere
 grep -q '<Peer Address="198.18.0.1"/>' "$xml" && grep -q '<Peer Address="198.18.0.3"/>' "$xml" || fail "peers not rendered"
 grep -q '<AllowMulticast>false</AllowMulticast>' "$xml" || fail "multicast not off"
 grep -q 'CDC_DDS_DOMAIN=7' "$tmp/root/etc/cdc-slam/robot.env" || fail "domain not written"
+grep -q 'CDC_LOCAL_DOMAIN=100' "$tmp/root/etc/cdc-slam/robot.env" || fail "local domain not written"
+grep -q '<NetworkInterface name="lo"/>' "$tmp/root/etc/cdc-slam/cyclonedds-local.xml" || fail "local domain not on lo"
+# The robot's own traffic stays on its local domain: the front-end lives there, the others join it.
+grep -q -- "--domain \${CDC_LOCAL_DOMAIN} --dds-config file://$tmp/root/etc/cdc-slam/cyclonedds-local.xml" \
+  "$tmp/root/etc/systemd/system/cdc-frontend@.service" || fail "front-end not on the local domain"
+for u in descriptor loop-closure peer-optimiser; do
+  grep -q -- "--local-domain \${CDC_LOCAL_DOMAIN} --local-dds-config" "$tmp/root/etc/systemd/system/cdc-$u@.service" \
+    || fail "$u does not join the local domain"
+done
 ! grep -q '@[A-Z]*@' "$tmp"/root/etc/systemd/system/* "$xml" || fail "placeholders left in rendered files"
 # The rendered units start the right binaries with the robot's instance.
 grep -q "ExecStart=$tmp/root/opt/cdc-slam/bin/cdc-loop-closure --robot %i" "$tmp/root/etc/systemd/system/cdc-loop-closure@.service" \
@@ -37,6 +46,9 @@ if "$repo/deploy/systemd/install.sh" --robot 300 --interface wlan0 --peer 1.2.3.
 grep -q "robot must be a number" "$tmp/err" || fail "no reason for a bad robot id"
 if "$repo/deploy/systemd/install.sh" --robot 1 --interface wlan0 --root "$tmp/x" 2> "$tmp/err"; then fail "no peers accepted"; fi
 grep -q "at least one --peer" "$tmp/err" || fail "no reason for missing peers"
+if "$repo/deploy/systemd/install.sh" --robot 1 --interface wlan0 --peer 1.2.3.4 --domain 5 --local-domain 5 --root "$tmp/x" \
+  2> "$tmp/err"; then fail "local domain equal to the radio domain accepted"; fi
+grep -q "local-domain must differ" "$tmp/err" || fail "no reason for a local domain equal to the radio domain"
 
 # 2. docker-compose file (no engine needed to validate).
 if command -v docker-compose > /dev/null; then

@@ -10,7 +10,9 @@ usage: deploy/systemd/install.sh --robot N --interface IF --peer ADDR [--peer AD
   --robot N          this robot's id (0..254)
   --interface IF     the radio interface DDS uses (e.g. wlan0)
   --peer ADDR        unicast address of the central node or another robot (repeat; at least one)
-  --domain D         DDS domain id (default 0)
+  --domain D         DDS domain id of the radio (default 0)
+  --local-domain L   the robot's own DDS domain, on lo: sensors, keyframes, corrections, its own
+                     descriptors and loops never cross the radio (default 100; must differ from D)
   --build DIR        build folder with the binaries (default: build/release)
   --prefix DIR       where binaries go (default /opt/cdc-slam)
   --etc DIR          where configurations go (default /etc/cdc-slam)
@@ -22,7 +24,7 @@ USAGE
 
 here=$(cd "$(dirname "$0")" && pwd)
 repo=$(cd "$here/../.." && pwd)
-robot="" iface="" domain=0 build="$repo/build/release" prefix=/opt/cdc-slam etc=/etc/cdc-slam root="" systemctl=1
+robot="" iface="" domain=0 local_domain=100 build="$repo/build/release" prefix=/opt/cdc-slam etc=/etc/cdc-slam root="" systemctl=1
 peers=()
 while [[ $# -gt 0 ]]; do
   case $1 in
@@ -30,6 +32,7 @@ while [[ $# -gt 0 ]]; do
     --interface) iface=${2:?--interface needs a value}; shift 2 ;;
     --peer) peers+=("${2:?--peer needs a value}"); shift 2 ;;
     --domain) domain=${2:?--domain needs a value}; shift 2 ;;
+    --local-domain) local_domain=${2:?--local-domain needs a value}; shift 2 ;;
     --build) build=${2:?--build needs a value}; shift 2 ;;
     --prefix) prefix=${2:?--prefix needs a value}; shift 2 ;;
     --etc) etc=${2:?--etc needs a value}; shift 2 ;;
@@ -47,6 +50,8 @@ for p in "${peers[@]}"; do
   [[ $p =~ ^[A-Za-z0-9.:-]+$ ]] || fail "--peer '$p' is not an address or host name"
 done
 [[ $domain =~ ^[0-9]+$ && $domain -le 232 ]] || fail "--domain must be 0..232 (got '$domain')"
+[[ $local_domain =~ ^[0-9]+$ && $local_domain -le 232 ]] || fail "--local-domain must be 0..232 (got '$local_domain')"
+[[ $local_domain -ne $domain ]] || fail "--local-domain must differ from --domain ($domain): the radio would carry the robot's own traffic"
 bins=(cdc-frontend cdc-descriptor cdc-loop-closure cdc-peer-optimiser)
 declare -A bin_path=(
   [cdc-frontend]=services/frontend/cdc-frontend [cdc-descriptor]=services/descriptor/cdc-descriptor
@@ -69,13 +74,14 @@ xml=${xml//@ROBOT@/$robot}
 xml=${xml//@INTERFACE@/$iface}
 xml=${xml//@PEERS@/$peer_lines}
 printf '%s\n' "$xml" > "$R$etc/cyclonedds-robot.xml"
-printf 'CDC_DDS_DOMAIN=%s\nCDC_ROBOT=%s\n' "$domain" "$robot" > "$R$etc/robot.env"
+install -m 0644 "$repo/deploy/cyclonedds/loopback.xml" "$R$etc/cyclonedds-local.xml"
+printf 'CDC_DDS_DOMAIN=%s\nCDC_LOCAL_DOMAIN=%s\nCDC_ROBOT=%s\n' "$domain" "$local_domain" "$robot" > "$R$etc/robot.env"
 for unit in "$here"/cdc-*@.service.in; do
   out="$R/etc/systemd/system/$(basename "${unit%.in}")"
   sed -e "s|@PREFIX@|$R$prefix|g" -e "s|@ETC@|$R$etc|g" -e "s|@STATE@|$R$state|g" "$unit" > "$out"
 done
 install -m 0644 "$here/cdc-robot@.target" "$R/etc/systemd/system/"
-echo "installed robot $robot's services below ${R:-/} (interface $iface, peers ${peers[*]}, domain $domain)"
+echo "installed robot $robot's services below ${R:-/} (interface $iface, peers ${peers[*]}, domain $domain, local domain $local_domain)"
 if [[ $systemctl -eq 1 ]]; then
   systemctl daemon-reload
   systemctl enable "cdc-robot@$robot.target"
