@@ -1,6 +1,7 @@
 // Scan-to-map registration on simulated clouds: a known transform is recovered from seeded
 // perturbations, forward and inverse; the voxel map stays bounded as the robot moves on.
 #include "cdc/geometry/se3.hpp"
+#include "cdc/odometry/pair_registration.hpp"
 #include "cdc/odometry/registration.hpp"
 #include "cdc/odometry/voxel_map.hpp"
 #include "cdc/sim/kitti.hpp"
@@ -13,6 +14,8 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+
+#include <unistd.h>
 
 namespace cdc::odometry {
 namespace {
@@ -121,33 +124,10 @@ std::string data_dir() {
   return env != nullptr ? env : "../shared/data";
 }
 
-// float32 x, y, z, intensity records after `skip` header bytes.
-std::vector<Eigen::Vector3d> read_xyzi(const std::string& path, size_t skip) {
-  std::ifstream in(path, std::ios::binary);
-  std::vector<char> bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  std::vector<Eigen::Vector3d> out;
-  for (size_t o = skip; o + 16 <= bytes.size(); o += 16) {
-    float v[4];
-    std::memcpy(v, bytes.data() + o, 16);
-    out.emplace_back(v[0], v[1], v[2]);
-  }
-  return out;
-}
 
 // Source registered onto a map of the target from the identity: coarse, then fine.
 Eigen::Isometry3d align(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target) {
-  VoxelMap map(VoxelMapParams{0.5, 200.0, 20});
-  map.add(voxel_filter(target, 0.1));
-  const std::vector<Eigen::Vector3d> src = voxel_filter(source, 0.5);
-  const std::vector<Eigen::Vector3d> normals = knn_normals(src, source, 10, 1.5);
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  for (const double gate : {2.0, 1.0, 0.5, 0.25, 0.1}) {
-    RegistrationParams p;
-    p.max_correspondence_m = gate;
-    p.kernel_m = gate / 3;
-    T = register_to_map(src, normals, map, T, p).T_map_sensor;
-  }
-  return T;
+  return register_pair(source, target, Eigen::Isometry3d::Identity(), PairRegistrationParams{}).T_map_sensor;
 }
 
 TEST(Registration, RealKittiPairsAgreeWithGroundTruth) {
@@ -166,7 +146,7 @@ TEST(Registration, RealKittiPairsAgreeWithGroundTruth) {
     char pa[64], pb[64];
     std::snprintf(pa, sizeof pa, "/kitti/scans/seq00/%06d.bin", a);
     std::snprintf(pb, sizeof pb, "/kitti/scans/seq00/%06d.bin", b);
-    pairs.push_back({"KITTI 00 " + std::to_string(a) + "-" + std::to_string(b), read_xyzi(d + pb, 0), read_xyzi(d + pa, 0),
+    pairs.push_back({"KITTI 00 " + std::to_string(a) + "-" + std::to_string(b), read_cloud_file(d + pb), read_cloud_file(d + pa),
                      seq[static_cast<size_t>(a)].pose.inverse() * seq[static_cast<size_t>(b)].pose});
   }
   for (const Pair& p : pairs) {
@@ -177,6 +157,80 @@ TEST(Registration, RealKittiPairsAgreeWithGroundTruth) {
     EXPECT_LT(e.translation().norm(), 0.03) << p.name;
     EXPECT_LT(deg, 0.2) << p.name;
   }
+}
+
+}  // namespace
+}  // namespace cdc::odometry
+
+namespace cdc::odometry {
+namespace {
+
+class CloudFiles : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() / ("cdc-cloud-files-" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir_);
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+  std::string write(const std::string& name, const std::string& header, const std::vector<float>& values) {
+    const std::string path = (dir_ / name).string();
+    std::ofstream out(path, std::ios::binary);
+    out << header;
+    out.write(reinterpret_cast<const char*>(values.data()), static_cast<std::streamsize>(values.size() * sizeof(float)));
+    return path;
+  }
+  std::string error_of(const std::string& path) {
+    try {
+      read_cloud_file(path);
+    } catch (const std::exception& e) {
+      return e.what();
+    }
+    return "";
+  }
+  std::filesystem::path dir_;
+};
+
+TEST_F(CloudFiles, ReadsKittiPcdAndPlyAndNamesWhatIsWrong) {
+  const std::vector<float> two = {1, 2, 3, 9, 4, 5, 6, 9};  // x y z i, twice
+  const auto bin = read_cloud_file(write("a.bin", "", two));
+  ASSERT_EQ(bin.size(), 2u);
+  EXPECT_EQ(bin[1], Eigen::Vector3d(4, 5, 6));
+  // PCD with intensity first: x, y, z found by name.
+  const auto pcd = read_cloud_file(write("a.pcd",
+      "VERSION 0.7\nFIELDS intensity x y z\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 2\nHEIGHT 1\n"
+      "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA binary\n", {9, 1, 2, 3, 9, 4, 5, 6}));
+  ASSERT_EQ(pcd.size(), 2u);
+  EXPECT_EQ(pcd[0], Eigen::Vector3d(1, 2, 3));
+  const auto ply = read_cloud_file(write("a.ply",
+      "ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
+      "property float scalar_intensity\nend_header\n", two));
+  ASSERT_EQ(ply.size(), 2u);
+  EXPECT_EQ(ply[1], Eigen::Vector3d(4, 5, 6));
+  EXPECT_NE(error_of(write("b.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 5\nDATA binary\n", {1, 2, 3})).find("truncated"),
+            std::string::npos);
+  EXPECT_NE(error_of(write("c.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nDATA ascii\n", {})).find("binary only"),
+            std::string::npos);
+  EXPECT_NE(error_of(write("d.pcd", "FIELDS x y\nSIZE 4 4\nTYPE F F\nPOINTS 1\nDATA binary\n", {1, 2})).find("no x, y and z"),
+            std::string::npos);
+  EXPECT_NE(error_of(write("b.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n", {})).find("ascii"),
+            std::string::npos);
+  EXPECT_NE(error_of(write("c.bin", "", {1, 2, 3})).find("multiple of 16"), std::string::npos);
+  EXPECT_NE(error_of(write("a.xyz", "", {})).find("unknown point cloud format"), std::string::npos);
+  EXPECT_NE(error_of((dir_ / "missing.pcd").string()).find("cannot be read"), std::string::npos);
+}
+
+TEST_F(CloudFiles, MatrixFilesMustHoldARigidTransform) {
+  const std::string good = (dir_ / "T.txt").string();
+  std::ofstream(good) << "0 -1 0 1\n1 0 0 2\n0 0 1 3\n0 0 0 1\n";
+  const Eigen::Isometry3d T = read_matrix_file(good);
+  EXPECT_NEAR((T.translation() - Eigen::Vector3d(1, 2, 3)).norm(), 0, 1e-12);
+  EXPECT_NEAR(geometry::rotation_angle(T.rotation()), M_PI / 2, 1e-9);
+  const std::string scaled = (dir_ / "S.txt").string();
+  std::ofstream(scaled) << "2 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
+  EXPECT_THROW(read_matrix_file(scaled), std::runtime_error);
+  const std::string short_file = (dir_ / "short.txt").string();
+  std::ofstream(short_file) << "1 0 0 0\n0 1 0 0\n";
+  EXPECT_THROW(read_matrix_file(short_file), std::runtime_error);
 }
 
 }  // namespace

@@ -1,0 +1,39 @@
+// Registration of one saved sweep onto another (no motion prediction): the target becomes a voxel
+// map, the source's normals come from its own neighbourhoods, and register_to_map runs from the
+// guess with a correspondence gate that shrinks coarse to fine. Used by cdc-register and by the
+// tests on real sweep pairs.
+#pragma once
+
+#include "cdc/odometry/registration.hpp"
+
+#include <Eigen/Geometry>
+
+#include <string>
+#include <vector>
+
+namespace cdc::odometry {
+
+struct PairRegistrationParams {
+  double source_voxel_m = 0.5;        // downsampling of the registered source points
+  double target_voxel_m = 0.1;        // downsampling of the target points put in the map
+  double map_voxel_m = 0.5;           // the map's voxel
+  int normal_neighbours = 10;         // source normals: k nearest points within normal_radius_m
+  double normal_radius_m = 1.5;
+  std::vector<double> gates_m = {2.0, 1.0, 0.5, 0.25, 0.1};  // coarse to fine; kernel = gate / 3
+};
+
+// T_target_source (as RegistrationOutput::T_map_sensor) of the last, finest stage.
+RegistrationOutput register_pair(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
+                                 const Eigen::Isometry3d& guess, const PairRegistrationParams& params);
+
+// x, y, z of a saved sweep: KITTI velodyne .bin (float32 x y z i), binary .pcd (float32 x y z
+// fields; other fields skipped) or binary little-endian .ply (float32 vertex properties). Throws
+// std::runtime_error naming the file and what is wrong (unknown extension, ascii or compressed
+// data, no x/y/z fields, truncated data).
+std::vector<Eigen::Vector3d> read_cloud_file(const std::string& path);
+
+// A 4x4 matrix written as 16 numbers, row by row (a reference transform). Throws when it is not
+// one, or its rotation part is not a rotation.
+Eigen::Isometry3d read_matrix_file(const std::string& path);
+
+}  // namespace cdc::odometry
