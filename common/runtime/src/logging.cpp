@@ -18,4 +18,8 @@ void init_logging(const std::string& process_name, const std::string& level) {
   spdlog::set_default_logger(logger);
 }
 
+void log_radio_switch(bool in_range) {
+  spdlog::info("emulated radio: {}", in_range ? "back in range" : "out of range (deaf and mute on the SLAM domain)");
+}
+
 }  // namespace cdc::runtime

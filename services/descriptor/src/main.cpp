@@ -67,9 +67,7 @@ int run(const Options& o) {
   dds::ParticipantOptions po;
   po.domain_id = o.domain;
   po.config = o.dds_config;
-  dds::RobotDomains domains(po, dds::local_domain_options(o.local_domain, o.local_dds_config, po), [](bool in_range) {
-    spdlog::info("emulated radio: {}", in_range ? "back in range" : "out of range (deaf and mute on the SLAM domain)");
-  });
+  dds::RobotDomains domains(po, dds::local_domain_options(o.local_domain, o.local_dds_config, po), runtime::log_radio_switch);
   const dds::Participant& participant = domains.radio();
   const dds::Participant& local = domains.local();
   dds::Topic<cdc_msg_Keyframe> t_kf(local, dds::topics::kKeyframe);

@@ -11,6 +11,7 @@
 #include "cdc/dds/topics.hpp"
 #include "cdc/dds/validate.hpp"
 #include "cdc/dds/waitset.hpp"
+#include "cdc/runtime/logging.hpp"
 #include "cdc/dds/wire_size.hpp"
 
 #include <nlohmann/json.hpp>
@@ -96,9 +97,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
   dds::ParticipantOptions po;
   po.domain_id = o.domain;
   po.config = o.dds_config;
-  dds::RobotDomains domains(po, dds::local_domain_options(o.local_domain, o.local_dds_config, po), [](bool in_range) {
-    spdlog::info("emulated radio: {}", in_range ? "back in range" : "out of range (deaf and mute on the SLAM domain)");
-  });
+  dds::RobotDomains domains(po, dds::local_domain_options(o.local_domain, o.local_dds_config, po), runtime::log_radio_switch);
   const dds::Participant& participant = domains.radio();
   const dds::Participant& local = domains.local();
   dds::Topic<cdc_msg_Keyframe> t_kf(local, topics::kKeyframe);
@@ -280,7 +279,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
       }
       handle(core.add_keyframe_data(std::move(kf), now));
     });
-    bool from_local = false;
+    bool live_from_radio = false;
     auto on_descriptor = [&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
       const size_t bytes = dds::wire_size(m);
       dds::Validation v = dds::validate(m, limits);
@@ -296,8 +295,8 @@ int run_loop_closure(const LoopNodeOptions& o) {
         spdlog::warn("rejected descriptor: {}", rejected.last_reason());
         return;
       }
-      if (m.robot_id == me && r_desc_local && !from_local) {
-        return;  // the robot's own, which come on the local domain
+      if (m.robot_id == me && live_from_radio) {
+        return;  // the robot's own live descriptors come on the local domain (a resend asked for comes here)
       }
       if (m.robot_id != me) {
         traffic.in(topics::kDescriptor, bytes, m.robot_id);
@@ -309,13 +308,13 @@ int run_loop_closure(const LoopNodeOptions& o) {
       }
     };
     r_desc_resent.take(16).for_each_valid(on_descriptor);
+    live_from_radio = r_desc_local.has_value();
     r_desc.take(16).for_each_valid(on_descriptor);
+    live_from_radio = false;
     if (r_desc_local) {
-      from_local = true;
       r_desc_local->take(16).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t& i) {
         if (m.robot_id == me) on_descriptor(m, i);
       });
-      from_local = false;
     }
     {
       std::vector<DescriptorIn> released;

@@ -10,6 +10,7 @@
 #include "cdc/dds/topics.hpp"
 #include "cdc/dds/validate.hpp"
 #include "cdc/dds/waitset.hpp"
+#include "cdc/runtime/logging.hpp"
 #include "cdc/geometry/trajectory.hpp"
 
 #include <nlohmann/json.hpp>
@@ -88,9 +89,7 @@ int run_peer(const PeerNodeOptions& o) {
   dds::ParticipantOptions po;
   po.domain_id = o.domain;
   po.config = o.dds_config;
-  dds::RobotDomains domains(po, dds::local_domain_options(o.local_domain, o.local_dds_config, po), [](bool in_range) {
-    spdlog::info("emulated radio: {}", in_range ? "back in range" : "out of range (deaf and mute on the SLAM domain)");
-  });
+  dds::RobotDomains domains(po, dds::local_domain_options(o.local_domain, o.local_dds_config, po), runtime::log_radio_switch);
   const dds::Participant& participant = domains.radio();
   const dds::Participant& local = domains.local();
 
