@@ -279,7 +279,6 @@ int run_loop_closure(const LoopNodeOptions& o) {
       }
       handle(core.add_keyframe_data(std::move(kf), now));
     });
-    bool live_from_radio = false;
     auto on_descriptor = [&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
       const size_t bytes = dds::wire_size(m);
       dds::Validation v = dds::validate(m, limits);
@@ -295,9 +294,6 @@ int run_loop_closure(const LoopNodeOptions& o) {
         spdlog::warn("rejected descriptor: {}", rejected.last_reason());
         return;
       }
-      if (m.robot_id == me && live_from_radio) {
-        return;  // the robot's own live descriptors come on the local domain (a resend asked for comes here)
-      }
       if (m.robot_id != me) {
         traffic.in(topics::kDescriptor, bytes, m.robot_id);
         last_heard[m.robot_id] = Clock::now();
@@ -307,10 +303,12 @@ int run_loop_closure(const LoopNodeOptions& o) {
         handle(core.add_descriptor(std::move(d), now));
       }
     };
-    r_desc_resent.take(16).for_each_valid(on_descriptor);
-    live_from_radio = r_desc_local.has_value();
-    r_desc.take(16).for_each_valid(on_descriptor);
-    live_from_radio = false;
+    r_desc_resent.take(16).for_each_valid(on_descriptor);  // a resend asked for comes here, also the robot's own
+    r_desc.take(16).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t& i) {
+      // With a local domain the robot's own live descriptors come there; their radio copies are
+      // dropped before any work.
+      if (!(r_desc_local && m.robot_id == me)) on_descriptor(m, i);
+    });
     if (r_desc_local) {
       r_desc_local->take(16).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t& i) {
         if (m.robot_id == me) on_descriptor(m, i);
