@@ -161,14 +161,14 @@ std::optional<LoopCore::Job> LoopCore::neighbour_job(const Job& job) const {
   if (p_.peer_request_spacing == 0 || asked == requested_.end() || hint == hints_.end()) {
     return std::nullopt;
   }
+  const auto gap = [id = id](uint32_t other) { return other > id ? other - id : id - other; };
   std::optional<uint32_t> best;
   const auto consider = [&](std::set<uint32_t>::const_iterator it) {
     if (it == asked->second.end()) return;
-    const uint32_t gap = *it > id ? *it - id : id - *it;
     const Id n{robot, *it};
-    if (gap == 0 || gap > p_.peer_request_spacing || hints_.count(n) == 0) return;
+    if (gap(*it) == 0 || gap(*it) > p_.peer_request_spacing || hints_.count(n) == 0) return;
     if (clouds_.count(n) == 0 && pending_.count(n) == 0) return;  // evicted, missing or timed out
-    if (!best || gap < (*best > id ? *best - id : id - *best)) best = *it;
+    if (!best || gap(*it) < gap(*best)) best = *it;
   };
   const auto above = asked->second.lower_bound(id);
   consider(above);
