@@ -135,10 +135,13 @@ nlohmann::json run(const Setup& s, const sim::LidarModel& lidar, bool use_imu, c
   const geometry::KittiDrift drift = geometry::compute_kitti_drift(est, gt);
   const geometry::AteResult ate = geometry::compute_ate(est, gt, geometry::AlignMode::kSE3);
   const double rate = static_cast<double>(s.stamps.size()) / busy_s;
+  const frontend::FrontendStats& st = core.stats();
   std::printf("%-18s %zu scans: drift %.3f %% / %.4f deg/100m, ATE %.3f m, %.1f scans/s, %llu registration failures, "
-              "%.1f iterations per scan (last pass)\n",
+              "%.1f iterations per scan (last pass); IMU window: %llu predictions, %llu rejected, %llu restarts\n",
               name.c_str(), s.stamps.size(), drift.translation_pct, drift.rotation_deg_per_100m, ate.translation.rmse, rate,
-              static_cast<unsigned long long>(core.stats().registration_failures), iterations / static_cast<double>(s.stamps.size()));
+              static_cast<unsigned long long>(st.registration_failures), iterations / static_cast<double>(s.stamps.size()),
+              static_cast<unsigned long long>(st.imu_predictions), static_cast<unsigned long long>(st.imu_predictions_rejected),
+              static_cast<unsigned long long>(st.imu_window_restarts));
   if (!out_dir.empty()) {
     std::ofstream f(std::filesystem::path(out_dir) / (name + ".txt"));
     for (size_t i = 0; i < est.size(); ++i) {
@@ -151,7 +154,8 @@ nlohmann::json run(const Setup& s, const sim::LidarModel& lidar, bool use_imu, c
           {"scans_per_s", rate},
           {"scans", s.stamps.size()},
           {"registration_failures", core.stats().registration_failures},
-          {"keyframes", core.stats().keyframes}};
+          {"keyframes", core.stats().keyframes},
+          {"imu_predictions", st.imu_predictions}};
 }
 
 }  // namespace
@@ -167,10 +171,12 @@ int main(int argc, char** argv) {
   app.add_option("--scans", max_scans, "at most this many scans (0: the whole sequence)")->capture_default_str();
   app.add_option("--configs", configs, "configurations to run")->capture_default_str();
   app.add_option("--out", out_dir, "write per-configuration trajectories here");
-  bool no_deskew = false;
+  bool no_deskew = false, no_imu_window = false;
   double memory_minutes = 0;
   app.add_option("--memory-minutes", memory_minutes, "instead: a drive this long, reporting resident memory every minute");
   app.add_flag("--no-deskew", no_deskew, "turn deskewing off (for comparison)");
+  app.add_flag("--no-imu-window", no_imu_window,
+               "predict from constant velocity and the raw gyro instead of the sliding-window IMU estimator (for comparison)");
   CLI11_PARSE(app, argc, argv);
   if (memory_minutes > 0) {
     nlohmann::json j{{"memory", memory_run(memory_minutes)}};
@@ -199,6 +205,7 @@ int main(int argc, char** argv) {
     frontend::FrontendParams p;
     if (hdl) p.image_columns = 2000;
     p.deskew = !no_deskew;
+    p.imu_window = !no_imu_window;
     if (const char* e = std::getenv("FE_KDIV")) p.kernel_divisor = std::atof(e);
     if (const char* e = std::getenv("FE_CONV")) p.registration.convergence = std::atof(e);
     out[c] = run(s, hdl ? sim::LidarModel::hdl64() : sim::LidarModel::vlp16(), imu, p, c, out_dir);

@@ -101,6 +101,9 @@ TEST(FrontendService, OdometryAndKeyframesFromAPlayedDrive) {
   EXPECT_EQ(st["keyframes"].get<size_t>(), keyframes);
   EXPECT_GT(st["imu_samples"].get<int>(), 1000);
   EXPECT_EQ(st["imu_late"].get<int>(), 0) << "a sweep went ahead without its IMU";
+  // The IMU window runs after its 3 s gravity alignment and predicts the sweeps from then on.
+  EXPECT_GT(st["imu_predictions"].get<size_t>(), gt.size() / 2);
+  EXPECT_EQ(st["imu_predictions_rejected"].get<int>(), 0);
   EXPECT_GT(keyframes, 60u);  // a keyframe per metre of ~90 m
   // The odometry against the ground truth (both from the first sweep's pose).
   geometry::Poses a, b;

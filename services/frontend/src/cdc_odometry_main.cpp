@@ -82,7 +82,7 @@ int main(int argc, char** argv) {
   std::string input, out_dir, poses, calib;
   uint32_t robot = 0;
   size_t max_scans = 0;
-  bool kitti = false, lidar_only = false, no_deskew = false, json = false;
+  bool kitti = false, lidar_only = false, no_deskew = false, no_imu_window = false, json = false;
   app.add_option("dataset", input, "dataset folder")->required()->check(CLI::ExistingDirectory);
   app.add_option("--robot", robot, "robot of a cdc-sim dataset")->capture_default_str();
   app.add_flag("--kitti", kitti, "DATASET is a KITTI velodyne folder");
@@ -90,6 +90,8 @@ int main(int argc, char** argv) {
   app.add_option("--calib", calib, "KITTI calib_Tr.txt (for --kitti --poses)")->check(CLI::ExistingFile);
   app.add_flag("--lidar-only", lidar_only, "ignore the IMU");
   app.add_flag("--no-deskew", no_deskew, "do not deskew sweeps");
+  app.add_flag("--no-imu-window", no_imu_window,
+               "predict sweeps from constant velocity and the raw gyro instead of the sliding-window IMU estimator");
   app.add_option("--max-scans", max_scans, "at most this many scans (0: all)")->capture_default_str();
   app.add_option("--out", out_dir, "write odometry.tum, odometry.kitti, keyframes.tum and report.json here");
   app.add_flag("--json", json, "print the report as one JSON object");
@@ -99,6 +101,7 @@ int main(int argc, char** argv) {
     const Input in = kitti ? read_kitti(input, poses, calib, max_scans) : read_sim(input, robot, max_scans);
     frontend::FrontendParams params;
     params.deskew = !no_deskew;
+    params.imu_window = !no_imu_window;
     params.T_lidar_imu = in.T_lidar_imu;
     frontend::FrontendCore core(params);
     const bool use_imu = !lidar_only && !in.imu.empty();
@@ -127,7 +130,9 @@ int main(int argc, char** argv) {
                           {"imu", use_imu},
                           {"scans_per_s", static_cast<double>(odometry.size()) / std::max(busy, 1e-9)},
                           {"registration_failures", core.stats().registration_failures},
-                          {"registration_rejected", core.stats().registration_rejected}};
+                          {"registration_rejected", core.stats().registration_rejected},
+                          {"imu_predictions", core.stats().imu_predictions},
+                          {"imu_window_restarts", core.stats().imu_window_restarts}};
     // Ground truth, expressed from the first scan's pose like the odometry.
     const auto gt_index = [&](int64_t stamp) { return geometry::interpolate_at(in.groundtruth, stamp); };
     geometry::Poses est, gt;

@@ -27,7 +27,7 @@ void FrontendCore::add_imu(const ImuIn& s) {
 }
 
 // Rotations of the IMU from `from` to each instant of `to` (ascending) by integrating the gyro
-// (sample-and-hold) once, expressed in the LiDAR frame; none where the samples do not cover.
+// (sample-and-hold, less the window's bias estimate) once, expressed in the LiDAR frame; none where the samples do not cover.
 std::vector<std::optional<Eigen::Matrix3d>> FrontendCore::imu_rotations(int64_t from, const std::vector<int64_t>& to) const {
   std::vector<std::optional<Eigen::Matrix3d>> out(to.size());
   if (imu_.size() < 2 || imu_.front().stamp_ns > from) return out;
@@ -40,7 +40,7 @@ std::vector<std::optional<Eigen::Matrix3d>> FrontendCore::imu_rotations(int64_t 
     while (reached < to[k]) {
       while (imu_[i + 1].stamp_ns <= reached) ++i;  // the sample held at `reached`
       const int64_t end = std::min(imu_[i + 1].stamp_ns, to[k]);
-      R = R * geometry::so3_exp(imu_[i].gyro * (static_cast<double>(end - reached) * 1e-9));
+      R = R * geometry::so3_exp((imu_[i].gyro - gyro_bias_) * (static_cast<double>(end - reached) * 1e-9));
       reached = end;
     }
     out[k] = R_li * R * R_li.transpose();
@@ -50,6 +50,46 @@ std::vector<std::optional<Eigen::Matrix3d>> FrontendCore::imu_rotations(int64_t 
 
 std::optional<Eigen::Matrix3d> FrontendCore::imu_rotation(int64_t from, int64_t to) const {
   return imu_rotations(from, {to}).front();
+}
+
+std::unique_ptr<odometry::ImuPreintegration> FrontendCore::preintegrate(int64_t from, int64_t to, const Eigen::Vector3d& bg,
+                                                                        const Eigen::Vector3d& ba) const {
+  if (imu_.size() < 2 || imu_.front().stamp_ns > from || imu_.back().stamp_ns < to || to <= from) return nullptr;
+  auto pre = std::make_unique<odometry::ImuPreintegration>(bg, ba, p_.window.noise);
+  for (size_t i = 0; i + 1 < imu_.size(); ++i) {
+    const int64_t a = std::max(imu_[i].stamp_ns, from), b = std::min(imu_[i + 1].stamp_ns, to);
+    if (b > a) pre->integrate(imu_[i].gyro, imu_[i].accel, static_cast<double>(b - a) * 1e-9);
+  }
+  return pre;
+}
+
+std::optional<ImuState> FrontendCore::imu_state() const {
+  if (!window_ || !window_->ready()) return std::nullopt;
+  return window_->latest();
+}
+
+std::optional<Eigen::Vector3d> FrontendCore::gravity() const {
+  if (!window_ || !window_->gravity_known()) return std::nullopt;
+  return window_->gravity();
+}
+
+// The window takes each sweep's pose with the registration's information (the same scaled Hessian
+// the keyframes' information comes from; a sweep whose registration failed gets a weak one, so the
+// IMU carries it), and the IMU since the previous sweep.
+void FrontendCore::update_window(int64_t stamp_ns, const Eigen::Isometry3d& T, const odometry::RegistrationOutput& reg) {
+  if (!p_.imu_window || imu_.empty()) return;
+  if (!window_) window_ = std::make_unique<ImuWindow>(p_.window, p_.T_lidar_imu);
+  const Matrix6d info = reg.converged && reg.correspondences > 0 ? Matrix6d(reg.hessian * p_.information_scale)
+                                                                 : Matrix6d(Matrix6d::Identity());
+  std::unique_ptr<odometry::ImuPreintegration> pre;
+  if (!first_) {
+    const ImuState s = window_->ready() ? window_->latest() : ImuState{};
+    pre = preintegrate(last_stamp_, stamp_ns, s.bg, s.ba);
+  }
+  const uint64_t restarts = window_->restarts();
+  window_->add(stamp_ns, T, info, std::move(pre));
+  stats_.imu_window_restarts += window_->restarts() - restarts;
+  gyro_bias_ = window_->ready() ? window_->latest().bg : Eigen::Vector3d::Zero();
 }
 
 std::vector<Eigen::Vector3d> FrontendCore::prepare(int64_t stamp_ns, const std::vector<ScanPoint>& points,
@@ -99,10 +139,31 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
   out.stamp_ns = stamp_ns;
   ++stats_.scans;
   const double dt = first_ ? 0.1 : std::max(1e-3, static_cast<double>(stamp_ns - last_stamp_) * 1e-9);
-  // Prediction: constant velocity, with the IMU's rotation when it covers the interval.
+  // Prediction: the IMU window's latest state propagated with the bias-corrected IMU; until the
+  // window runs, constant velocity with the IMU's rotation when it covers the interval.
   Eigen::Isometry3d delta = geometry::se3_exp(geometry::se3_log(delta_) * (dt / dt_last_));
   if (!first_) {
-    if (const auto R = imu_rotation(last_stamp_, stamp_ns)) delta.linear() = *R;
+    bool predicted = false;
+    if (window_ && window_->ready()) {
+      const ImuState& st = window_->latest();
+      if (const auto pre = preintegrate(last_stamp_, stamp_ns, st.bg, st.ba)) {
+        // The motion the IMU predicts from the window's latest pose, applied to the registered one.
+        const Eigen::Isometry3d T_window = geometry::make_pose(st.p, st.q) * p_.T_lidar_imu.inverse();
+        const Eigen::Isometry3d d = T_window.inverse() * window_->predict_lidar(*pre);
+        const Eigen::Isometry3d gap = delta.inverse() * d;
+        if (d.matrix().allFinite() && gap.translation().norm() <= p_.max_imu_prediction_gap_m &&
+            angle_of(gap) <= p_.max_imu_prediction_gap_rad) {
+          delta = d;
+          predicted = true;
+          ++stats_.imu_predictions;
+        } else {
+          ++stats_.imu_predictions_rejected;
+        }
+      }
+    }
+    if (!predicted) {
+      if (const auto R = imu_rotation(last_stamp_, stamp_ns)) delta.linear() = *R;
+    }
   }
   // Motion over this sweep for deskewing: the predicted motion scaled to the sweep's 0.1 s.
   float t_max = 0;
@@ -199,6 +260,7 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
       if (model_errors_.size() > 100) model_errors_.pop_front();
     }
   }
+  update_window(stamp_ns, T, out.registration);
   // Map update (points in the odometry frame) and sliding.
   {
     std::vector<Eigen::Vector3d> world = odometry::voxel_filter(deskewed, p_.map_voxel_m);

@@ -49,6 +49,16 @@ FrontendNodeOptions load_frontend_options(const std::string& path) {
   r.get<double>("fusion.rot_max_deg", rot_deg, positive, "> 0");
   r.get<bool>("imu.use", o.use_imu);
   r.get<double>("imu.gap_s", o.imu_gap_s, positive, "> 0");
+  r.get<bool>("imu.window.enabled", p.imu_window);
+  int window = static_cast<int>(p.window.size), align = static_cast<int>(p.window.align_sweeps);
+  r.get<int>("imu.window.size", window, [](const int& v) { return v >= 2 && v <= 100; }, "2..100");
+  r.get<int>("imu.window.align_sweeps", align, [](const int& v) { return v >= 2 && v <= 1000; }, "2..1000");
+  r.get<double>("imu.window.gyro_noise", p.window.noise.gyro_noise, positive, "> 0");
+  r.get<double>("imu.window.accel_noise", p.window.noise.accel_noise, positive, "> 0");
+  r.get<double>("imu.window.gyro_bias_walk", p.window.noise.gyro_bias_walk, positive, "> 0");
+  r.get<double>("imu.window.accel_bias_walk", p.window.noise.accel_bias_walk, positive, "> 0");
+  p.window.size = static_cast<size_t>(window);
+  p.window.align_sweeps = static_cast<size_t>(align);
   std::vector<double> t = {0, 0, 0}, q = {0, 0, 0, 1};
   r.get<std::vector<double>>("imu.T_lidar_imu.position", t, [](const std::vector<double>& v) { return v.size() == 3; }, "3 numbers");
   r.get<std::vector<double>>("imu.T_lidar_imu.orientation", q, [](const std::vector<double>& v) { return v.size() == 4; },
@@ -244,6 +254,9 @@ int run_frontend(const FrontendNodeOptions& o) {
                      {"keyframes", keyframes_sent},
                      {"registration_failures", s.registration_failures},
                      {"registration_rejected", s.registration_rejected},
+                     {"imu_predictions", s.imu_predictions},
+                     {"imu_predictions_rejected", s.imu_predictions_rejected},
+                     {"imu_window_restarts", s.imu_window_restarts},
                      {"corrections", s.corrections},
                      {"corrections_for_unknown_keyframes", corrections_unknown},
                      {"imu_samples", s.imu_samples},

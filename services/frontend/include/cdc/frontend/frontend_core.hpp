@@ -2,13 +2,15 @@
 // back-end's corrections taken in through adaptive pose fusion (CDC-SLAM eq. 8-14), so that the
 // published trajectory never jumps.
 //
-// Per sweep: deskew (IMU rotation over the sweep when IMU samples are given, otherwise a
-// constant-velocity model), range crop and voxel downsampling; scan-to-map registration against a
-// voxel map that slides with the robot (common/odometry), started from the IMU-propagated or
-// constant-velocity prediction, with a correspondence gate that adapts to the prediction error;
+// Per sweep: deskew (the bias-corrected IMU's rotation over the sweep when IMU samples are given,
+// otherwise a constant-velocity model), range crop and voxel downsampling; scan-to-map registration
+// against a voxel map that slides with the robot (common/odometry), started from the prediction of
+// the sliding-window IMU estimator (imu_window.hpp: preintegration, biases, velocity; Ceres) or, until
+// it runs, from constant velocity, with a correspondence gate that adapts to the prediction error;
 // keyframes by travelled distance and rotation.
 #pragma once
 
+#include "cdc/frontend/imu_window.hpp"
 #include "cdc/geometry/fusion.hpp"
 #include "cdc/odometry/registration.hpp"
 #include "cdc/odometry/voxel_map.hpp"
@@ -17,6 +19,7 @@
 
 #include <cstdint>
 #include <deque>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -46,6 +49,10 @@ struct FrontendParams {
   double information_scale = 20.0;
   geometry::FusionThresholds fusion{0.10, 1.0 * M_PI / 180.0};
   Eigen::Isometry3d T_lidar_imu = Eigen::Isometry3d::Identity();  // extrinsic (IMU frame -> LiDAR frame)
+  bool imu_window = true;                         // sliding-window IMU estimation when there is IMU
+  ImuWindowParams window;
+  // An IMU prediction this far from the constant-velocity one is not used (a window gone wrong).
+  double max_imu_prediction_gap_m = 1.0, max_imu_prediction_gap_rad = 0.2;
 };
 
 struct ScanPoint {
@@ -85,6 +92,9 @@ struct ScanOut {
 struct FrontendStats {
   uint64_t scans = 0, keyframes = 0, registration_failures = 0, corrections = 0, imu_samples = 0;
   uint64_t registration_rejected = 0;  // converged too far from the prediction (counted in failures too)
+  uint64_t imu_predictions = 0;        // sweeps predicted by the IMU window
+  uint64_t imu_predictions_rejected = 0;  // ... whose prediction was implausible (constant velocity used)
+  uint64_t imu_window_restarts = 0;    // IMU gaps and implausible window solutions
 };
 
 class FrontendCore {
@@ -104,6 +114,9 @@ class FrontendCore {
                       const Eigen::Isometry3d& T_world_robot);
 
   const FrontendStats& stats() const noexcept { return stats_; }
+  // The sliding window's latest IMU state (velocity, biases) and gravity, once it runs.
+  std::optional<ImuState> imu_state() const;
+  std::optional<Eigen::Vector3d> gravity() const;
   size_t map_voxels() const noexcept { return map_.voxels(); }
 
  private:
@@ -111,10 +124,16 @@ class FrontendCore {
                                        std::vector<uint16_t>& rings);
   std::optional<Eigen::Matrix3d> imu_rotation(int64_t from_ns, int64_t to_ns) const;
   std::vector<std::optional<Eigen::Matrix3d>> imu_rotations(int64_t from_ns, const std::vector<int64_t>& to_ns) const;
+  // The IMU's increments over [from, to] at the given biases; none where the samples do not cover.
+  std::unique_ptr<odometry::ImuPreintegration> preintegrate(int64_t from_ns, int64_t to_ns, const Eigen::Vector3d& bg,
+                                                            const Eigen::Vector3d& ba) const;
+  void update_window(int64_t stamp_ns, const Eigen::Isometry3d& T, const odometry::RegistrationOutput& reg);
 
   FrontendParams p_;
   odometry::VoxelMap map_;
   std::deque<ImuIn> imu_;
+  std::unique_ptr<ImuWindow> window_;
+  Eigen::Vector3d gyro_bias_ = Eigen::Vector3d::Zero();  // the window's latest estimate
   FrontendStats stats_;
   bool first_ = true;
   int64_t last_stamp_ = 0;
