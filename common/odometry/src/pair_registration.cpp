@@ -1,6 +1,10 @@
 #include "cdc/odometry/pair_registration.hpp"
 
+#include "cdc/geometry/se3.hpp"
 #include "cdc/odometry/voxel_map.hpp"
+#include "kdtree.hpp"
+
+#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
@@ -12,8 +16,87 @@
 
 namespace cdc::odometry {
 
+namespace {
+
+// Each point's covariance from its k nearest neighbours, with the eigenvalues replaced by
+// (1e-3, 1, 1): a plane through the neighbourhood, certain along its normal (GICP's plane-to-plane).
+std::vector<Eigen::Matrix3d> plane_covariances(const std::vector<Eigen::Vector3d>& cloud, const detail::KdTree& tree, int k) {
+  std::vector<Eigen::Matrix3d> out(cloud.size(), Eigen::Matrix3d::Identity());
+  std::vector<size_t> idx(static_cast<size_t>(k));
+  std::vector<double> d2(static_cast<size_t>(k));
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const size_t found = tree.knnSearch(cloud[i].data(), static_cast<size_t>(k), idx.data(), d2.data());
+    if (found < 5) continue;
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (size_t j = 0; j < found; ++j) mean += cloud[idx[j]];
+    mean /= static_cast<double>(found);
+    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+    for (size_t j = 0; j < found; ++j) {
+      const Eigen::Vector3d v = cloud[idx[j]] - mean;
+      cov += v * v.transpose();
+    }
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+    out[i] = es.eigenvectors() * Eigen::Vector3d(1e-3, 1, 1).asDiagonal() * es.eigenvectors().transpose();
+  }
+  return out;
+}
+
+RegistrationOutput gicp(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
+                        const Eigen::Isometry3d& guess, const PairRegistrationParams& params) {
+  const std::vector<Eigen::Vector3d> src = voxel_centroids(source, params.gicp_voxel_m);
+  const std::vector<Eigen::Vector3d> tgt = voxel_centroids(target, params.gicp_voxel_m);
+  const detail::CloudAdaptor sa{&src}, ta{&tgt};
+  detail::KdTree stree(3, sa, nanoflann::KDTreeSingleIndexAdaptorParams(10)), ttree(3, ta, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  stree.buildIndex();
+  ttree.buildIndex();
+  const std::vector<Eigen::Matrix3d> cs = plane_covariances(src, stree, params.gicp_neighbours);
+  const std::vector<Eigen::Matrix3d> ct = plane_covariances(tgt, ttree, params.gicp_neighbours);
+  const double max2 = params.gicp_max_correspondence_m * params.gicp_max_correspondence_m;
+  RegistrationOutput out;
+  out.T_map_sensor = guess;
+  for (int it = 0; it < params.gicp_max_iterations; ++it) {
+    const Eigen::Matrix3d R = out.T_map_sensor.rotation();
+    Matrix6d H = Matrix6d::Zero();
+    Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
+    int n = 0;
+    double sum2 = 0;
+    for (size_t i = 0; i < src.size(); ++i) {
+      const Eigen::Vector3d q = out.T_map_sensor * src[i];
+      size_t j = 0;
+      double d2 = 0;
+      if (ttree.knnSearch(q.data(), 1, &j, &d2) < 1 || d2 > max2) continue;
+      const Eigen::Matrix3d M = (ct[j] + R * cs[i] * R.transpose()).inverse();
+      const Eigen::Vector3d e = tgt[j] - q;
+      // d(T Exp(dx) s)/d(dx) = R [I, -hat(s)] (right perturbation, (t, r) order); e = target - that.
+      Eigen::Matrix<double, 3, 6> J;
+      J.leftCols<3>() = -R;
+      J.rightCols<3>() = R * geometry::hat(src[i]);
+      H.noalias() += J.transpose() * M * J;
+      b.noalias() += J.transpose() * M * e;
+      ++n;
+      sum2 += d2;
+    }
+    out.correspondences = n;
+    out.iterations = it + 1;
+    out.hessian = H;
+    out.rmse = n > 0 ? std::sqrt(sum2 / n) : 0;
+    if (n < 20) return out;
+    const Eigen::Matrix<double, 6, 1> dx = H.ldlt().solve(-b);
+    if (!dx.allFinite()) return out;
+    out.T_map_sensor = out.T_map_sensor * geometry::se3_exp(dx);
+    if (dx.head<3>().norm() < 1e-5 && dx.tail<3>().norm() < 1e-6) {
+      out.converged = true;
+      break;
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
 RegistrationOutput register_pair(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
                                  const Eigen::Isometry3d& guess, const PairRegistrationParams& params) {
+  if (params.method == PairMethod::kGicp) return gicp(source, target, guess, params);
   VoxelMap map(VoxelMapParams{params.map_voxel_m, 1000.0, 20});  // no pruning: one target sweep
   map.add(voxel_filter(target, params.target_voxel_m));
   const std::vector<Eigen::Vector3d> src = voxel_filter(source, params.source_voxel_m);

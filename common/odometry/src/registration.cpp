@@ -1,10 +1,10 @@
 #include "cdc/odometry/registration.hpp"
 
 #include "cdc/geometry/se3.hpp"
+#include "kdtree.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
-#include <nanoflann.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -124,27 +124,12 @@ std::vector<Eigen::Vector3d> range_image_normals(const std::vector<Eigen::Vector
   return normals;
 }
 
-namespace {
-
-struct CloudAdaptor {
-  const std::vector<Eigen::Vector3d>* pts;
-  size_t kdtree_get_point_count() const { return pts->size(); }
-  double kdtree_get_pt(size_t i, size_t dim) const { return (*pts)[i][static_cast<Eigen::Index>(dim)]; }
-  template <class BBox>
-  bool kdtree_get_bbox(BBox&) const {
-    return false;
-  }
-};
-
-}  // namespace
-
 std::vector<Eigen::Vector3d> knn_normals(const std::vector<Eigen::Vector3d>& queries, const std::vector<Eigen::Vector3d>& cloud,
                                          int k, double max_neighbour_m) {
   std::vector<Eigen::Vector3d> normals(queries.size(), Eigen::Vector3d::Zero());
   if (cloud.size() < static_cast<size_t>(k) || k < 3) return normals;
-  using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, CloudAdaptor>, CloudAdaptor, 3, size_t>;
-  CloudAdaptor adaptor{&cloud};
-  Tree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  detail::CloudAdaptor adaptor{&cloud};
+  detail::KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
   tree.buildIndex();
   std::vector<size_t> idx(static_cast<size_t>(k));
   std::vector<double> d2(static_cast<size_t>(k));

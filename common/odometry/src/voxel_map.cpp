@@ -88,6 +88,30 @@ std::vector<size_t> voxel_filter_indices(const std::vector<Eigen::Vector3d>& poi
   return out;
 }
 
+std::vector<Eigen::Vector3d> voxel_centroids(const std::vector<Eigen::Vector3d>& points, double voxel_m) {
+  struct Hash {
+    size_t operator()(const Eigen::Vector3i& k) const noexcept { return voxel_hash(k.x(), k.y(), k.z()); }
+  };
+  std::unordered_map<Eigen::Vector3i, size_t, Hash> slot;  // voxel -> index into the sums
+  slot.reserve(points.size());
+  std::vector<Eigen::Vector3d> sum;
+  std::vector<int> count;
+  for (const Eigen::Vector3d& p : points) {
+    const Eigen::Vector3i k(static_cast<int>(std::floor(p.x() / voxel_m)), static_cast<int>(std::floor(p.y() / voxel_m)),
+                            static_cast<int>(std::floor(p.z() / voxel_m)));
+    const auto [it, added] = slot.emplace(k, sum.size());
+    if (added) {
+      sum.push_back(p);
+      count.push_back(1);
+    } else {
+      sum[it->second] += p;
+      ++count[it->second];
+    }
+  }
+  for (size_t i = 0; i < sum.size(); ++i) sum[i] /= static_cast<double>(count[i]);
+  return sum;
+}
+
 std::vector<Eigen::Vector3d> voxel_filter(const std::vector<Eigen::Vector3d>& points, double voxel_m) {
   std::vector<Eigen::Vector3d> out;
   for (size_t i : voxel_filter_indices(points, voxel_m)) out.push_back(points[i]);

@@ -1,5 +1,5 @@
 // cdc-register: registers one saved sweep onto another with the front-end's point-to-plane
-// registration (common/odometry/pair_registration.hpp) and prints T_target_source; with a reference
+// registration or generalized ICP (common/odometry/pair_registration.hpp) and prints T_target_source; with a reference
 // transform it prints how far the result is from it.
 #include "cdc/geometry/se3.hpp"
 #include "cdc/odometry/pair_registration.hpp"
@@ -14,9 +14,10 @@ using namespace cdc;
 
 int main(int argc, char** argv) {
   CLI::App app{
-      "cdc-register: registers SOURCE onto TARGET (KITTI .bin, binary .pcd or binary little-endian .ply) with the\n"
-      "front-end's point-to-plane registration, coarse to fine from the identity, and prints T_target_source\n"
-      "(4x4, row by row). --reference FILE (16 numbers) also prints the difference to a reference transform."};
+      "cdc-register: registers SOURCE onto TARGET (KITTI .bin, binary .pcd or binary little-endian .ply) from the\n"
+      "identity, with the front-end's point-to-plane registration (coarse to fine) or generalized ICP, and prints\n"
+      "T_target_source (4x4, row by row). --reference FILE (16 numbers) also prints the difference to a reference\n"
+      "transform."};
   std::string source, target, reference;
   odometry::PairRegistrationParams p;
   bool json = false;
@@ -27,8 +28,18 @@ int main(int argc, char** argv) {
   app.add_option("--target-voxel", p.target_voxel_m, "downsampling of the target [m]")->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("--map-voxel", p.map_voxel_m, "voxel of the target map [m]")->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("--normal-neighbours", p.normal_neighbours, "points per source normal")->capture_default_str()->check(CLI::Range(3, 100));
+  std::string method = "point-to-plane";
+  app.add_option("--method", method, "point-to-plane (the front-end's) or gicp (generalized ICP, plane-to-plane)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"point-to-plane", "gicp"}));
+  app.add_option("--gicp-voxel", p.gicp_voxel_m, "gicp: downsampling of both clouds [m]")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--gicp-neighbours", p.gicp_neighbours, "gicp: points per covariance")->capture_default_str()->check(CLI::Range(5, 100));
+  app.add_option("--gicp-max-correspondence", p.gicp_max_correspondence_m, "gicp: correspondence distance [m]")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   app.add_flag("--json", json, "print one JSON object instead");
   CLI11_PARSE(app, argc, argv);
+  p.method = method == "gicp" ? odometry::PairMethod::kGicp : odometry::PairMethod::kPointToPlane;
   try {
     const auto src = odometry::read_cloud_file(source), tgt = odometry::read_cloud_file(target);
     if (src.size() < 100 || tgt.size() < 100) {

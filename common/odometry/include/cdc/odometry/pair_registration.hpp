@@ -1,7 +1,8 @@
-// Registration of one saved sweep onto another (no motion prediction): the target becomes a voxel
-// map, the source's normals come from its own neighbourhoods, and register_to_map runs from the
-// guess with a correspondence gate that shrinks coarse to fine. Used by cdc-register and by the
-// tests on real sweep pairs.
+// Registration of one saved sweep onto another (no motion prediction), by one of two methods:
+// point-to-plane (the target becomes a voxel map, the source's normals come from its own
+// neighbourhoods, and register_to_map runs from the guess with a correspondence gate that shrinks
+// coarse to fine), or generalized ICP (plane-to-plane on both clouds' local covariances). Used by
+// cdc-register and by the tests on real sweep pairs.
 #pragma once
 
 #include "cdc/odometry/registration.hpp"
@@ -13,13 +14,27 @@
 
 namespace cdc::odometry {
 
+enum class PairMethod {
+  kPointToPlane,  // the front-end's registration: the target as a voxel map, coarse-to-fine gates
+  kGicp,          // generalized ICP: plane-to-plane, both clouds' local covariances (Segal et al. 2009)
+};
+
 struct PairRegistrationParams {
+  PairMethod method = PairMethod::kPointToPlane;
   double source_voxel_m = 0.5;        // downsampling of the registered source points
   double target_voxel_m = 0.1;        // downsampling of the target points put in the map
   double map_voxel_m = 0.5;           // the map's voxel
   int normal_neighbours = 10;         // source normals: k nearest points within normal_radius_m
   double normal_radius_m = 1.5;
   std::vector<double> gates_m = {2.0, 1.0, 0.5, 0.25, 0.1};  // coarse to fine; kernel = gate / 3
+  // GICP: both clouds reduced to voxel centroids (gicp_voxel_m), covariances from gicp_neighbours
+  // points (flattened to planes), correspondences within gicp_max_correspondence_m. The defaults
+  // suit dense sweeps (64 beams); on sparse ones (16 beams) a point's neighbours lie on its own ring,
+  // and voxels coarser than the ring spacing (0.5 m) are needed.
+  double gicp_voxel_m = 0.1;
+  int gicp_neighbours = 10;
+  double gicp_max_correspondence_m = 1.0;
+  int gicp_max_iterations = 64;
 };
 
 // T_target_source (as RegistrationOutput::T_map_sensor) of the last, finest stage.

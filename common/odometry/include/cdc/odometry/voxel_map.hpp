@@ -61,5 +61,7 @@ class VoxelMap {
 std::vector<Eigen::Vector3d> voxel_filter(const std::vector<Eigen::Vector3d>& points, double voxel_m);
 // The same selection, as indices into `points`.
 std::vector<size_t> voxel_filter_indices(const std::vector<Eigen::Vector3d>& points, double voxel_m);
+// The centroid of each occupied voxel (smoother than keeping one point: the quantisation averages out).
+std::vector<Eigen::Vector3d> voxel_centroids(const std::vector<Eigen::Vector3d>& points, double voxel_m);
 
 }  // namespace cdc::odometry
