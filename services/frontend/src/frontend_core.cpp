@@ -27,7 +27,8 @@ void FrontendCore::add_imu(const ImuIn& s) {
 }
 
 // Rotations of the IMU from `from` to each instant of `to` (ascending) by integrating the gyro
-// (sample-and-hold, less the window's bias estimate) once, expressed in the LiDAR frame; none where the samples do not cover.
+// (sample-and-hold, less the window's bias estimate) once, expressed in the LiDAR frame; none where
+// the samples do not cover.
 std::vector<std::optional<Eigen::Matrix3d>> FrontendCore::imu_rotations(int64_t from, const std::vector<int64_t>& to) const {
   std::vector<std::optional<Eigen::Matrix3d>> out(to.size());
   if (imu_.size() < 2 || imu_.front().stamp_ns > from) return out;
@@ -75,17 +76,13 @@ std::optional<Eigen::Vector3d> FrontendCore::gravity() const {
 
 // The window takes each sweep's pose with the registration's information (the same scaled Hessian
 // the keyframes' information comes from; a sweep whose registration failed gets a weak one, so the
-// IMU carries it), and the IMU since the previous sweep.
-void FrontendCore::update_window(int64_t stamp_ns, const Eigen::Isometry3d& T, const odometry::RegistrationOutput& reg) {
+// IMU carries it), and the IMU since the previous sweep (`pre`, none where it does not cover).
+void FrontendCore::update_window(int64_t stamp_ns, const Eigen::Isometry3d& T, const odometry::RegistrationOutput& reg,
+                                 std::unique_ptr<odometry::ImuPreintegration> pre) {
   if (!p_.imu_window || imu_.empty()) return;
   if (!window_) window_ = std::make_unique<ImuWindow>(p_.window, p_.T_lidar_imu);
   const Matrix6d info = reg.converged && reg.correspondences > 0 ? Matrix6d(reg.hessian * p_.information_scale)
                                                                  : Matrix6d(Matrix6d::Identity());
-  std::unique_ptr<odometry::ImuPreintegration> pre;
-  if (!first_) {
-    const ImuState s = window_->ready() ? window_->latest() : ImuState{};
-    pre = preintegrate(last_stamp_, stamp_ns, s.bg, s.ba);
-  }
   const uint64_t restarts = window_->restarts();
   window_->add(stamp_ns, T, info, std::move(pre));
   stats_.imu_window_restarts += window_->restarts() - restarts;
@@ -142,11 +139,17 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
   // Prediction: the IMU window's latest state propagated with the bias-corrected IMU; until the
   // window runs, constant velocity with the IMU's rotation when it covers the interval.
   Eigen::Isometry3d delta = geometry::se3_exp(geometry::se3_log(delta_) * (dt / dt_last_));
+  // The IMU since the previous sweep, at the window's biases: for the prediction and the window.
+  std::unique_ptr<odometry::ImuPreintegration> pre;
+  if (!first_ && window_) {
+    const ImuState st = window_->ready() ? window_->latest() : ImuState{};
+    pre = preintegrate(last_stamp_, stamp_ns, st.bg, st.ba);
+  }
   if (!first_) {
     bool predicted = false;
     if (window_ && window_->ready()) {
       const ImuState& st = window_->latest();
-      if (const auto pre = preintegrate(last_stamp_, stamp_ns, st.bg, st.ba)) {
+      if (pre) {
         // The motion the IMU predicts from the window's latest pose, applied to the registered one.
         const Eigen::Isometry3d T_window = geometry::make_pose(st.p, st.q) * p_.T_lidar_imu.inverse();
         const Eigen::Isometry3d d = T_window.inverse() * window_->predict_lidar(*pre);
@@ -260,7 +263,7 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
       if (model_errors_.size() > 100) model_errors_.pop_front();
     }
   }
-  update_window(stamp_ns, T, out.registration);
+  update_window(stamp_ns, T, out.registration, std::move(pre));
   // Map update (points in the odometry frame) and sliding.
   {
     std::vector<Eigen::Vector3d> world = odometry::voxel_filter(deskewed, p_.map_voxel_m);

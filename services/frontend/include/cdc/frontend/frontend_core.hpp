@@ -127,7 +127,8 @@ class FrontendCore {
   // The IMU's increments over [from, to] at the given biases; none where the samples do not cover.
   std::unique_ptr<odometry::ImuPreintegration> preintegrate(int64_t from_ns, int64_t to_ns, const Eigen::Vector3d& bg,
                                                             const Eigen::Vector3d& ba) const;
-  void update_window(int64_t stamp_ns, const Eigen::Isometry3d& T, const odometry::RegistrationOutput& reg);
+  void update_window(int64_t stamp_ns, const Eigen::Isometry3d& T, const odometry::RegistrationOutput& reg,
+                     std::unique_ptr<odometry::ImuPreintegration> pre);
 
   FrontendParams p_;
   odometry::VoxelMap map_;
