@@ -144,6 +144,13 @@ void ImuWindow::restart() {
 
 void ImuWindow::add(int64_t stamp_ns, const Eigen::Isometry3d& T_odom_lidar, const Matrix6d& information,
                     std::unique_ptr<odometry::ImuPreintegration> since_previous) {
+  if (!T_odom_lidar.matrix().allFinite() || !information.allFinite()) {
+    ++restarts_;
+    states_.clear();
+    alignment_.clear();
+    solved_ = false;
+    return;
+  }
   Node n;
   n.state.stamp_ns = stamp_ns;
   const Eigen::Isometry3d T_odom_imu = T_odom_lidar * T_lidar_imu_;

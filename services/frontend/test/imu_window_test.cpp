@@ -8,6 +8,8 @@
 
 #include <gtest/gtest.h>
 
+#include <limits>
+
 namespace cdc::frontend {
 namespace {
 
@@ -132,6 +134,12 @@ TEST(ImuWindow, AnIntervalWithoutImuRestartsTheWindowAndKeepsGravity) {
   EXPECT_EQ(w.gravity(), g);
   const Eigen::Vector3d v_true = r.T0.rotation().transpose() * r.traj.velocity(last);
   EXPECT_LT((w.latest().v - v_true).norm(), 0.1);
+  // A non-finite pose is not taken: the window empties and says so.
+  Eigen::Isometry3d bad = r.lidar(4.4);
+  bad.translation().x() = std::numeric_limits<double>::quiet_NaN();
+  w.add(4'400'000'000, bad, lidar_information(), r.preintegrate(w, last, 4.4));
+  EXPECT_FALSE(w.ready());
+  EXPECT_EQ(w.restarts(), 2u);
 }
 
 }  // namespace

@@ -22,7 +22,6 @@
 #include <cstdint>
 #include <deque>
 #include <memory>
-#include <optional>
 #include <vector>
 
 namespace cdc::frontend {
@@ -58,7 +57,8 @@ class ImuWindow {
 
   // A sweep's registered LiDAR pose (odometry frame) with its information ((t, r) order, right
   // perturbation), and the preintegration since the previous sweep (none: the IMU did not cover
-  // the interval, and the window starts again here). Optimises the window.
+  // the interval, and the window starts again here). Optimises the window. A non-finite pose or
+  // information empties the window (counted as a restart).
   void add(int64_t stamp_ns, const Eigen::Isometry3d& T_odom_lidar, const Matrix6d& information,
            std::unique_ptr<odometry::ImuPreintegration> since_previous);
 
