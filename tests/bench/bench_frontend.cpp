@@ -53,7 +53,7 @@ long rss_kb(const char* field) {
 
 // A long drive (procedural stadium laps along rays, VLP-16 with IMU): resident memory sampled
 // every simulated minute, to show that the front-end's memory stays bounded.
-nlohmann::json memory_run(double minutes) {
+nlohmann::json memory_run(double minutes, const frontend::FrontendParams& params) {
   sim::MissionOptions mo;
   mo.pattern = sim::MissionPattern::kRays;
   mo.robots = 1;
@@ -63,7 +63,10 @@ nlohmann::json memory_run(double minutes) {
   sim::SplineTrajectory traj;
   sim::World world;
   drive_and_world(sim::procedural_mission(mo).front(), 2, traj, world);
-  frontend::FrontendCore core(frontend::FrontendParams{});
+  const std::vector<sim::ImuSample> imu =
+      sim::simulate_imu(traj, Eigen::Isometry3d::Identity(), traj.start(), traj.end(), 200.0, sim::ImuNoise{}, 13);
+  size_t imu_next = 0;
+  frontend::FrontendCore core(params);
   std::mt19937_64 rng(3);
   nlohmann::json samples = nlohmann::json::array();
   const long before = rss_kb("VmRSS:");
@@ -73,6 +76,10 @@ nlohmann::json memory_run(double minutes) {
     scan.clear();
     for (const auto& p : sim::sweep(world, sim::LidarModel::vlp16(), [&](double dt) { return traj.pose(t + dt); }, rng)) {
       scan.push_back({Eigen::Vector3f(p.x, p.y, p.z), p.time_offset, p.ring});
+    }
+    while (imu_next < imu.size() && imu[imu_next].t <= t + 0.1) {
+      core.add_imu({static_cast<int64_t>(imu[imu_next].t * 1e9), imu[imu_next].gyro, imu[imu_next].accel});
+      ++imu_next;
     }
     core.process(static_cast<int64_t>(t * 1e9), scan);
     if (n % 600 == 599) {
@@ -85,7 +92,12 @@ nlohmann::json memory_run(double minutes) {
       std::fflush(stdout);
     }
   }
-  return {{"minutes", minutes}, {"scans", n}, {"rss_before_kb", before}, {"samples", samples}, {"peak_rss_kb", rss_kb("VmHWM:")}};
+  return {{"minutes", minutes},
+          {"scans", n},
+          {"imu_predictions", core.stats().imu_predictions},
+          {"rss_before_kb", before},
+          {"samples", samples},
+          {"peak_rss_kb", rss_kb("VmHWM:")}};
 }
 
 long peak_rss_kb() {
@@ -179,7 +191,9 @@ int main(int argc, char** argv) {
                "predict from constant velocity and the raw gyro instead of the sliding-window IMU estimator (for comparison)");
   CLI11_PARSE(app, argc, argv);
   if (memory_minutes > 0) {
-    nlohmann::json j{{"memory", memory_run(memory_minutes)}};
+    frontend::FrontendParams p;
+    p.imu_window = !no_imu_window;
+    nlohmann::json j{{"memory", memory_run(memory_minutes, p)}};
     std::cout << j.dump() << '\n';
     return 0;
   }
