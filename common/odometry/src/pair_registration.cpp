@@ -27,14 +27,7 @@ std::vector<Eigen::Matrix3d> plane_covariances(const std::vector<Eigen::Vector3d
   for (size_t i = 0; i < cloud.size(); ++i) {
     const size_t found = tree.knnSearch(cloud[i].data(), static_cast<size_t>(k), idx.data(), d2.data());
     if (found < 5) continue;
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (size_t j = 0; j < found; ++j) mean += cloud[idx[j]];
-    mean /= static_cast<double>(found);
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (size_t j = 0; j < found; ++j) {
-      const Eigen::Vector3d v = cloud[idx[j]] - mean;
-      cov += v * v.transpose();
-    }
+    const Eigen::Matrix3d cov = detail::neighbour_scatter(cloud, idx.data(), found);
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
     out[i] = es.eigenvectors() * Eigen::Vector3d(1e-3, 1, 1).asDiagonal() * es.eigenvectors().transpose();
   }

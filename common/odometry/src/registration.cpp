@@ -137,14 +137,7 @@ std::vector<Eigen::Vector3d> knn_normals(const std::vector<Eigen::Vector3d>& que
   for (size_t i = 0; i < queries.size(); ++i) {
     const size_t found = tree.knnSearch(queries[i].data(), static_cast<size_t>(k), idx.data(), d2.data());
     if (found < static_cast<size_t>(k) || d2[found - 1] > lim2) continue;
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (size_t j = 0; j < found; ++j) mean += cloud[idx[j]];
-    mean /= static_cast<double>(found);
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (size_t j = 0; j < found; ++j) {
-      const Eigen::Vector3d v = cloud[idx[j]] - mean;
-      cov += v * v.transpose();
-    }
+    const Eigen::Matrix3d cov = detail::neighbour_scatter(cloud, idx.data(), found);
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
     const Eigen::Vector3d ev = es.eigenvalues();  // ascending
     // Planar: the normal's spread small against the middle one (a line has two small ones).
