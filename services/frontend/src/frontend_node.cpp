@@ -52,7 +52,7 @@ FrontendNodeOptions load_frontend_options(const std::string& path) {
   r.get<bool>("imu.window.enabled", p.imu_window);
   int window = static_cast<int>(p.window.size), align = static_cast<int>(p.window.align_sweeps);
   r.get<int>("imu.window.size", window, [](const int& v) { return v >= 2 && v <= 100; }, "2..100");
-  r.get<int>("imu.window.align_sweeps", align, [](const int& v) { return v >= 2 && v <= 1000; }, "2..1000");
+  r.get<int>("imu.window.align_sweeps", align, [](const int& v) { return v >= 3 && v <= 1000; }, "3..1000");
   r.get<double>("imu.window.gyro_noise", p.window.noise.gyro_noise, positive, "> 0");
   r.get<double>("imu.window.accel_noise", p.window.noise.accel_noise, positive, "> 0");
   r.get<double>("imu.window.gyro_bias_walk", p.window.noise.gyro_bias_walk, positive, "> 0");

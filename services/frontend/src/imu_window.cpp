@@ -191,7 +191,8 @@ void ImuWindow::add(int64_t stamp_ns, const Eigen::Isometry3d& T_odom_lidar, con
     states_.front().preint.reset();
   }
   if (!gravity_known_) {
-    if (alignment_.size() + 1 < std::max<size_t>(p_.align_sweeps, 2) || !align_gravity()) return;
+    // Two intervals at least: with one, the velocities and gravity are not determined.
+    if (alignment_.size() + 1 < std::max<size_t>(p_.align_sweeps, 3) || !align_gravity()) return;
   }
   if (states_.size() >= 2) optimise();
 }
@@ -225,9 +226,13 @@ bool ImuWindow::align_gravity() {
     return false;
   }
   g_ = g.normalized() * p_.gravity;
-  // The window's states are the last ones aligned.
+  // The window's states are the last ones aligned (after a failed alignment dropped its oldest
+  // interval, the window can reach further back than the intervals: those states keep their guess).
   const int n = static_cast<int>(states_.size());
-  for (int k = 0; k < n; ++k) states_[static_cast<size_t>(k)].state.v = x.segment<3>(3 * (m + 1 - n + k));
+  for (int k = 0; k < n; ++k) {
+    const int aligned = m + 1 - n + k;
+    if (aligned >= 0) states_[static_cast<size_t>(k)].state.v = x.segment<3>(3 * aligned);
+  }
   gravity_known_ = true;
   alignment_.clear();
   alignment_.shrink_to_fit();

@@ -142,5 +142,29 @@ TEST(ImuWindow, AnIntervalWithoutImuRestartsTheWindowAndKeepsGravity) {
   EXPECT_EQ(w.restarts(), 2u);
 }
 
+// An alignment shorter than the window, with a jolt that makes its first tries fail: the window then
+// holds more states than the intervals aligned, and gravity is still found once the jolt has passed.
+TEST(ImuWindow, AShortAlignmentAfterAFailedOneStaysInsideTheWindow) {
+  TiltedRun r(Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  ImuWindowParams p;
+  p.align_sweeps = 3;
+  ImuWindow w(p, Eigen::Isometry3d::Identity());
+  double last = 1.0;
+  int failed_tries = 0;
+  for (double t = 1.0; t < 3.0; t += 0.1) {
+    std::unique_ptr<odometry::ImuPreintegration> pre;
+    if (t > 1.0) pre = r.preintegrate(w, last, t);
+    Eigen::Isometry3d pose = r.lidar(t);
+    if (t < 1.45) pose.translation().z() += (static_cast<int>(std::lround(t * 10)) % 2 == 0 ? 0.3 : -0.3);  // a jolt
+    w.add(static_cast<int64_t>(std::llround(t * 1e9)), pose, lidar_information(), std::move(pre));
+    if (!w.gravity_known() && t > 1.15) ++failed_tries;
+    last = t;
+  }
+  EXPECT_GT(failed_tries, 0) << "the jolt should have made an alignment fail";
+  ASSERT_TRUE(w.gravity_known());
+  const Eigen::Vector3d g_true = r.T0.rotation().transpose() * sim::kGravity;
+  EXPECT_LT(std::acos(std::clamp(w.gravity().normalized().dot(g_true.normalized()), -1.0, 1.0)), 2.0 * M_PI / 180);
+}
+
 }  // namespace
 }  // namespace cdc::frontend

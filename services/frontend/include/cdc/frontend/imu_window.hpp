@@ -35,7 +35,7 @@ struct ImuState {
 
 struct ImuWindowParams {
   size_t size = 10;                 // sweeps in the window (1 s at 10 Hz)
-  size_t align_sweeps = 30;         // sweeps the gravity alignment spans (a longer span averages the LiDAR's noise)
+  size_t align_sweeps = 30;         // sweeps the gravity alignment spans (at least 3; longer averages the LiDAR's noise)
   odometry::ImuNoiseParams noise;   // of the IMU's samples (inflated when the IMU model is rough)
   double gravity = 9.80665;         // [m/s^2]
   double max_gravity_error = 0.5;   // [m/s^2] an alignment whose |g| is further off is retried later
