@@ -71,35 +71,38 @@ bool VoxelMap::nearest(const Eigen::Vector3d& q, Eigen::Vector3d& out, double& b
   return found;
 }
 
+namespace {
+
+// The integer voxel of a point, and its hash, for the filters below.
+Eigen::Vector3i voxel_of(const Eigen::Vector3d& p, double voxel_m) {
+  return {static_cast<int>(std::floor(p.x() / voxel_m)), static_cast<int>(std::floor(p.y() / voxel_m)),
+          static_cast<int>(std::floor(p.z() / voxel_m))};
+}
+
+struct VoxelOfHash {
+  size_t operator()(const Eigen::Vector3i& k) const noexcept { return voxel_hash(k.x(), k.y(), k.z()); }
+};
+
+}  // namespace
+
 std::vector<size_t> voxel_filter_indices(const std::vector<Eigen::Vector3d>& points, double voxel_m) {
-  struct Hash {
-    size_t operator()(const Eigen::Vector3i& k) const noexcept { return voxel_hash(k.x(), k.y(), k.z()); }
-  };
-  std::unordered_map<Eigen::Vector3i, bool, Hash> seen;
+  std::unordered_map<Eigen::Vector3i, bool, VoxelOfHash> seen;
   seen.reserve(points.size());
   std::vector<size_t> out;
   out.reserve(points.size() / 2);
   for (size_t i = 0; i < points.size(); ++i) {
-    const Eigen::Vector3d& p = points[i];
-    const Eigen::Vector3i k(static_cast<int>(std::floor(p.x() / voxel_m)), static_cast<int>(std::floor(p.y() / voxel_m)),
-                            static_cast<int>(std::floor(p.z() / voxel_m)));
-    if (seen.emplace(k, true).second) out.push_back(i);
+    if (seen.emplace(voxel_of(points[i], voxel_m), true).second) out.push_back(i);
   }
   return out;
 }
 
 std::vector<Eigen::Vector3d> voxel_centroids(const std::vector<Eigen::Vector3d>& points, double voxel_m) {
-  struct Hash {
-    size_t operator()(const Eigen::Vector3i& k) const noexcept { return voxel_hash(k.x(), k.y(), k.z()); }
-  };
-  std::unordered_map<Eigen::Vector3i, size_t, Hash> slot;  // voxel -> index into the sums
+  std::unordered_map<Eigen::Vector3i, size_t, VoxelOfHash> slot;  // voxel -> index into the sums
   slot.reserve(points.size());
   std::vector<Eigen::Vector3d> sum;
   std::vector<int> count;
   for (const Eigen::Vector3d& p : points) {
-    const Eigen::Vector3i k(static_cast<int>(std::floor(p.x() / voxel_m)), static_cast<int>(std::floor(p.y() / voxel_m)),
-                            static_cast<int>(std::floor(p.z() / voxel_m)));
-    const auto [it, added] = slot.emplace(k, sum.size());
+    const auto [it, added] = slot.emplace(voxel_of(p, voxel_m), sum.size());
     if (added) {
       sum.push_back(p);
       count.push_back(1);
