@@ -148,11 +148,9 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
   if (!first_) {
     bool predicted = false;
     if (window_ && window_->ready()) {
-      const ImuState& st = window_->latest();
       if (pre) {
         // The motion the IMU predicts from the window's latest pose, applied to the registered one.
-        const Eigen::Isometry3d T_window = geometry::make_pose(st.p, st.q) * p_.T_lidar_imu.inverse();
-        const Eigen::Isometry3d d = T_window.inverse() * window_->predict_lidar(*pre);
+        const Eigen::Isometry3d d = window_->latest_lidar().inverse() * window_->predict_lidar(*pre);
         const Eigen::Isometry3d gap = delta.inverse() * d;
         if (d.matrix().allFinite() && gap.translation().norm() <= p_.max_imu_prediction_gap_m &&
             angle_of(gap) <= p_.max_imu_prediction_gap_rad) {

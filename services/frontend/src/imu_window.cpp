@@ -1,5 +1,7 @@
 #include "cdc/frontend/imu_window.hpp"
 
+#include "cdc/geometry/se3.hpp"
+
 #include <ceres/ceres.h>
 #include <ceres/rotation.h>
 
@@ -122,6 +124,11 @@ ImuWindow::ImuWindow(const ImuWindowParams& params, const Eigen::Isometry3d& T_l
 
 ImuWindow::~ImuWindow() = default;
 
+Eigen::Isometry3d ImuWindow::latest_lidar() const {
+  const ImuState& s = latest();
+  return geometry::make_pose(s.p, s.q) * T_imu_lidar_;
+}
+
 Eigen::Isometry3d ImuWindow::predict_lidar(const odometry::ImuPreintegration& pre) const {
   const ImuState& s = latest();
   Eigen::Matrix3d R;
@@ -133,22 +140,24 @@ Eigen::Isometry3d ImuWindow::predict_lidar(const odometry::ImuPreintegration& pr
   return T * T_imu_lidar_;
 }
 
-void ImuWindow::restart() {
+void ImuWindow::start_over() {
   ++restarts_;
+  states_.clear();
+  alignment_.clear();
+  solved_ = false;
+}
+
+void ImuWindow::restart() {
   Node last = std::move(states_.back());
   last.preint.reset();
-  states_.clear();
+  start_over();
   states_.push_back(std::move(last));
-  solved_ = false;
 }
 
 void ImuWindow::add(int64_t stamp_ns, const Eigen::Isometry3d& T_odom_lidar, const Matrix6d& information,
                     std::unique_ptr<odometry::ImuPreintegration> since_previous) {
   if (!T_odom_lidar.matrix().allFinite() || !information.allFinite()) {
-    ++restarts_;
-    states_.clear();
-    alignment_.clear();
-    solved_ = false;
+    start_over();
     return;
   }
   Node n;
@@ -179,11 +188,7 @@ void ImuWindow::add(int64_t stamp_ns, const Eigen::Isometry3d& T_odom_lidar, con
     }
     n.preint = std::move(since_previous);
   } else if (!states_.empty()) {
-    // The IMU did not cover the interval: start again from this sweep.
-    ++restarts_;
-    states_.clear();
-    alignment_.clear();
-    solved_ = false;
+    start_over();  // the IMU did not cover the interval: start again from this sweep
   }
   states_.push_back(std::move(n));
   while (states_.size() > p_.size) {

@@ -67,7 +67,8 @@ class ImuWindow {
   const ImuState& latest() const { return states_.back().state; }
   const Eigen::Vector3d& gravity() const noexcept { return g_; }
   bool gravity_known() const noexcept { return gravity_known_; }
-  // The LiDAR pose after `preint` from the latest state.
+  // The latest state's LiDAR pose, and the LiDAR pose after `preint` from it.
+  Eigen::Isometry3d latest_lidar() const;
   Eigen::Isometry3d predict_lidar(const odometry::ImuPreintegration& preint) const;
   uint64_t restarts() const noexcept { return restarts_; }
   uint64_t solves() const noexcept { return solves_; }
@@ -87,7 +88,8 @@ class ImuWindow {
   };
   bool align_gravity();
   void optimise();
-  void restart();
+  void start_over();  // empties the window (gravity stays known), counted as a restart
+  void restart();     // starts over from the latest sweep
 
   ImuWindowParams p_;
   Eigen::Isometry3d T_lidar_imu_, T_imu_lidar_;
