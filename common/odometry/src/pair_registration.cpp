@@ -105,6 +105,32 @@ RegistrationOutput register_pair(const std::vector<Eigen::Vector3d>& source, con
   return out;
 }
 
+AlignmentScore score_alignment(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
+                               const Eigen::Isometry3d& T_target_source, double voxel_m, double max_distance_m) {
+  const std::vector<Eigen::Vector3d> src = voxel_filter(source, voxel_m), tgt = voxel_filter(target, voxel_m);
+  const std::vector<Eigen::Vector3d> normals = knn_normals(tgt, tgt, 10, 1.0);
+  detail::CloudAdaptor adaptor{&tgt};
+  detail::KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  tree.buildIndex();
+  AlignmentScore out;
+  double sum2 = 0;
+  for (const Eigen::Vector3d& p : src) {
+    const Eigen::Vector3d q = T_target_source * p;
+    size_t j = 0;
+    double d2 = 0;
+    if (tree.knnSearch(q.data(), 1, &j, &d2) < 1 || d2 > max_distance_m * max_distance_m) continue;
+    if (normals[j].squaredNorm() < 0.5) continue;  // not on a plane
+    const double r = normals[j].dot(q - tgt[j]);
+    sum2 += r * r;
+    ++out.matched;
+    if (std::abs(r) <= 0.01) ++out.within_1cm;
+    if (std::abs(r) <= 0.02) ++out.within_2cm;
+  }
+  out.source_points = src.size();
+  out.rms_point_to_plane_m = out.matched > 0 ? std::sqrt(sum2 / static_cast<double>(out.matched)) : 0.0;
+  return out;
+}
+
 namespace {
 
 std::string read_all(const std::string& path) {

@@ -203,6 +203,26 @@ TEST(Registration, RealKittiPairsAgreeWithGroundTruth) {
 // They are 1.9 cm and 0.228 deg apart, so no estimate is within 0.2 deg of both unless it falls
 // between them. Ours reproduces small_gicp's (its settings: 0.1 m voxels, 10 neighbours); against
 // fast_gicp's, the translation is asserted and the rotation only printed.
+TEST(Registration, AlignmentScoresRankTheTrueTransformFirst) {
+  Scene s;
+  const Eigen::Isometry3d A = pose(0, 0, 0.05), B = pose(1.5, -0.4, 0.13);
+  std::vector<Eigen::Vector3d> target;
+  for (const auto& p : s.scan(A)) target.push_back(A * p);
+  const std::vector<Eigen::Vector3d> source = s.scan(B);
+  const AlignmentScore truth = score_alignment(source, target, B);
+  ASSERT_GT(truth.matched, truth.source_points / 5);  // a sparse VLP-16 sweep: many points have no neighbour on a plane
+  EXPECT_GE(truth.within_2cm, truth.within_1cm);
+  EXPECT_GE(truth.matched, truth.within_2cm);
+  for (const auto& [dt, dyaw] : std::vector<std::pair<double, double>>{{0.03, 0}, {0, 0.3 * M_PI / 180}}) {
+    const AlignmentScore off = score_alignment(source, target, B * pose(dt, 0, dyaw) * pose(0, 0, 0).inverse());
+    std::printf("true: %zu within 1 cm, rms %.1f mm; %.2f m / %.2f deg off: %zu, rms %.1f mm\n", truth.within_1cm,
+                truth.rms_point_to_plane_m * 1e3, dt, dyaw * 180 / M_PI, off.within_1cm, off.rms_point_to_plane_m * 1e3);
+    EXPECT_GT(truth.within_1cm, off.within_1cm);
+    EXPECT_LT(truth.rms_point_to_plane_m, off.rms_point_to_plane_m);
+  }
+  EXPECT_EQ(score_alignment(source, {}, B).matched, 0u) << "nothing to match";
+}
+
 TEST(Registration, RealSweepPairAgreesWithTheGicpReferences) {
   const std::string d = data_dir() + "/registration";
   if (!std::filesystem::exists(d + "/small_gicp/source.ply") || !std::filesystem::exists(d + "/fast_gicp/relative.txt")) {

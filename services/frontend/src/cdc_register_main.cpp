@@ -17,7 +17,7 @@ int main(int argc, char** argv) {
       "cdc-register: registers SOURCE onto TARGET (KITTI .bin, binary .pcd or binary little-endian .ply) from the\n"
       "identity, with the front-end's point-to-plane registration (coarse to fine) or generalized ICP, and prints\n"
       "T_target_source (4x4, row by row). --reference FILE (16 numbers) also prints the difference to a reference\n"
-      "transform."};
+      "transform; --score FILE... scores the result and the given transforms by how well they align the two sweeps."};
   std::string source, target, reference;
   odometry::PairRegistrationParams p;
   bool json = false;
@@ -37,6 +37,11 @@ int main(int argc, char** argv) {
   app.add_option("--gicp-max-correspondence", p.gicp_max_correspondence_m, "gicp: correspondence distance [m]")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  std::vector<std::string> scores;
+  app.add_option("--score", scores,
+                 "also score these transforms (4x4 files) and the result: point-to-plane RMS of the matched source points "
+                 "(0.1 m voxels, within 0.2 m) and how many matched, to compare references")
+      ->check(CLI::ExistingFile);
   app.add_flag("--json", json, "print one JSON object instead");
   CLI11_PARSE(app, argc, argv);
   p.method = method == "gicp" ? odometry::PairMethod::kGicp : odometry::PairMethod::kPointToPlane;
@@ -59,6 +64,15 @@ int main(int argc, char** argv) {
       out["from_reference"] = {{"translation_m", e.translation().norm()},
                                {"rotation_deg", geometry::rotation_angle(e.rotation()) * 180 / M_PI}};
     }
+    if (!scores.empty()) {
+      auto score = [&](const std::string& name, const Eigen::Isometry3d& T) {
+        const odometry::AlignmentScore a = odometry::score_alignment(src, tgt, T);
+        out["scores"].push_back({{"transform", name}, {"matched", a.matched}, {"within_1cm", a.within_1cm}, {"within_2cm", a.within_2cm}, {"source_points", a.source_points},
+                                 {"rms_point_to_plane_m", a.rms_point_to_plane_m}});
+      };
+      score("result", r.T_map_sensor);
+      for (const std::string& f : scores) score(f, odometry::read_matrix_file(f));
+    }
     if (json) {
       std::cout << out.dump() << '\n';
       return 0;
@@ -71,6 +85,13 @@ int main(int argc, char** argv) {
     if (out.contains("from_reference")) {
       std::printf("from the reference: %.4f m, %.4f deg\n", out["from_reference"]["translation_m"].get<double>(),
                   out["from_reference"]["rotation_deg"].get<double>());
+    }
+    if (out.contains("scores")) {
+      for (const auto& sc : out["scores"]) {
+        std::printf("score of %s: %zu of %zu points matched, %zu within 1 cm of a plane and %zu within 2 cm, rms %.2f mm\n",
+                    sc["transform"].get<std::string>().c_str(), sc["matched"].get<size_t>(), sc["source_points"].get<size_t>(),
+                    sc["within_1cm"].get<size_t>(), sc["within_2cm"].get<size_t>(), sc["rms_point_to_plane_m"].get<double>() * 1e3);
+      }
     }
     return 0;
   } catch (const std::exception& e) {

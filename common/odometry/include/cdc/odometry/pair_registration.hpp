@@ -41,6 +41,18 @@ struct PairRegistrationParams {
 RegistrationOutput register_pair(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
                                  const Eigen::Isometry3d& guess, const PairRegistrationParams& params);
 
+// How well T_target_source aligns two sweeps, independently of any registration's own cost: both
+// clouds reduced to voxel_m, each source point moved by T and matched to its nearest target point
+// within max_distance_m that lies on a plane (normal from its 10 neighbours); the RMS of the
+// point-to-plane distances and the share matched. A better transform has more matches and a
+// smaller RMS (used to judge reference transforms against each other).
+struct AlignmentScore {
+  size_t source_points = 0, matched = 0, within_1cm = 0, within_2cm = 0;
+  double rms_point_to_plane_m = 0;
+};
+AlignmentScore score_alignment(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
+                               const Eigen::Isometry3d& T_target_source, double voxel_m = 0.1, double max_distance_m = 0.2);
+
 // x, y, z of a saved sweep: KITTI velodyne .bin (float32 x y z i), binary .pcd (float32 x y z
 // fields; other fields skipped) or binary little-endian .ply (float32 vertex properties). Throws
 // std::runtime_error naming the file and what is wrong (unknown extension, ascii or compressed
