@@ -82,7 +82,7 @@ int main(int argc, char** argv) {
   std::string input, out_dir, poses, calib;
   uint32_t robot = 0;
   size_t max_scans = 0;
-  bool kitti = false, lidar_only = false, no_deskew = false, no_imu_window = false, json = false;
+  bool kitti = false, lidar_only = false, no_deskew = false, no_imu_window = false, imu_deskew = false, json = false;
   app.add_option("dataset", input, "dataset folder")->required()->check(CLI::ExistingDirectory);
   app.add_option("--robot", robot, "robot of a cdc-sim dataset")->capture_default_str();
   app.add_flag("--kitti", kitti, "DATASET is a KITTI velodyne folder");
@@ -92,6 +92,9 @@ int main(int argc, char** argv) {
   app.add_flag("--no-deskew", no_deskew, "do not deskew sweeps");
   app.add_flag("--no-imu-window", no_imu_window,
                "predict sweeps from constant velocity and the raw gyro instead of the sliding-window IMU estimator");
+  app.add_flag("--imu-deskew", imu_deskew,
+               "deskew with the IMU's whole motion (translation from the window's velocity) instead of its rotation and "
+               "constant-velocity translation");
   app.add_option("--max-scans", max_scans, "at most this many scans (0: all)")->capture_default_str();
   app.add_option("--out", out_dir, "write odometry.tum, odometry.kitti, keyframes.tum and report.json here");
   app.add_flag("--json", json, "print the report as one JSON object");
@@ -102,6 +105,7 @@ int main(int argc, char** argv) {
     frontend::FrontendParams params;
     params.deskew = !no_deskew;
     params.imu_window = !no_imu_window;
+    params.imu_deskew = imu_deskew;
     params.T_lidar_imu = in.T_lidar_imu;
     frontend::FrontendCore core(params);
     const bool use_imu = !lidar_only && !in.imu.empty();

@@ -26,31 +26,49 @@ void FrontendCore::add_imu(const ImuIn& s) {
   while (imu_.size() > 2 && imu_[1].stamp_ns < last_stamp_ - 500'000'000) imu_.pop_front();
 }
 
-// Rotations of the IMU from `from` to each instant of `to` (ascending) by integrating the gyro
-// (sample-and-hold, less the window's bias estimate) once, expressed in the LiDAR frame; none where
-// the samples do not cover.
-std::vector<std::optional<Eigen::Matrix3d>> FrontendCore::imu_rotations(int64_t from, const std::vector<int64_t>& to) const {
-  std::vector<std::optional<Eigen::Matrix3d>> out(to.size());
-  if (imu_.size() < 2 || imu_.front().stamp_ns > from) return out;
-  const Eigen::Matrix3d R_li = p_.T_lidar_imu.rotation();
-  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+std::vector<std::optional<ImuIncrement>> integrate_imu(const std::deque<ImuIn>& imu, int64_t from,
+                                                       const std::vector<int64_t>& to, const Eigen::Vector3d& bg,
+                                                       const Eigen::Vector3d& ba) {
+  std::vector<std::optional<ImuIncrement>> out(to.size());
+  if (imu.size() < 2 || imu.front().stamp_ns > from) return out;
+  ImuIncrement inc;
+  Eigen::Vector3d v = Eigen::Vector3d::Zero();
   int64_t reached = from;
   size_t i = 0;
   for (size_t k = 0; k < to.size(); ++k) {
-    if (imu_.back().stamp_ns < to[k]) break;  // nor are later instants covered
+    if (imu.back().stamp_ns < to[k]) break;  // nor are later instants covered
     while (reached < to[k]) {
-      while (imu_[i + 1].stamp_ns <= reached) ++i;  // the sample held at `reached`
-      const int64_t end = std::min(imu_[i + 1].stamp_ns, to[k]);
-      R = R * geometry::so3_exp((imu_[i].gyro - gyro_bias_) * (static_cast<double>(end - reached) * 1e-9));
+      while (imu[i + 1].stamp_ns <= reached) ++i;  // the sample held at `reached`
+      const int64_t end = std::min(imu[i + 1].stamp_ns, to[k]);
+      const double h = static_cast<double>(end - reached) * 1e-9;
+      const Eigen::Vector3d a = inc.R * (imu[i].accel - ba);
+      inc.p += v * h + 0.5 * a * h * h;
+      v += a * h;
+      inc.R = inc.R * geometry::so3_exp((imu[i].gyro - bg) * h);
       reached = end;
     }
-    out[k] = R_li * R * R_li.transpose();
+    inc.dt = static_cast<double>(to[k] - from) * 1e-9;
+    out[k] = inc;
   }
   return out;
 }
 
+Eigen::Isometry3d lidar_motion(const ImuIncrement& inc, const Eigen::Isometry3d& T_lidar_imu, const ImuStart* start) {
+  Eigen::Isometry3d T_imu = Eigen::Isometry3d::Identity();
+  T_imu.linear() = inc.R;
+  if (start == nullptr) {
+    Eigen::Isometry3d R = Eigen::Isometry3d::Identity();
+    R.linear() = T_lidar_imu.rotation() * inc.R * T_lidar_imu.rotation().transpose();
+    return R;
+  }
+  T_imu.translation() = start->velocity * inc.dt + 0.5 * start->gravity * inc.dt * inc.dt + inc.p;
+  return T_lidar_imu * T_imu * T_lidar_imu.inverse();
+}
+
 std::optional<Eigen::Matrix3d> FrontendCore::imu_rotation(int64_t from, int64_t to) const {
-  return imu_rotations(from, {to}).front();
+  const auto inc = integrate_imu(imu_, from, {to}, gyro_bias_, Eigen::Vector3d::Zero()).front();
+  if (!inc) return std::nullopt;
+  return lidar_motion(*inc, p_.T_lidar_imu, nullptr).rotation();
 }
 
 std::unique_ptr<odometry::ImuPreintegration> FrontendCore::preintegrate(int64_t from, int64_t to, const Eigen::Vector3d& bg,
@@ -90,7 +108,8 @@ void FrontendCore::update_window(int64_t stamp_ns, const Eigen::Isometry3d& T, c
 }
 
 std::vector<Eigen::Vector3d> FrontendCore::prepare(int64_t stamp_ns, const std::vector<ScanPoint>& points,
-                                                   const Eigen::Isometry3d& sweep_motion, std::vector<uint16_t>& rings) {
+                                                   const Eigen::Isometry3d& sweep_motion, const ImuStart* start,
+                                                   std::vector<uint16_t>& rings) {
   // Motion over the sweep (0.1 s nominal) sampled at 64 instants; each point is moved into the
   // sensor frame at the sweep's start.
   constexpr int kSlots = 64;
@@ -106,9 +125,16 @@ std::vector<Eigen::Vector3d> FrontendCore::prepare(int64_t stamp_ns, const std::
     instants[static_cast<size_t>(k)] = stamp_ns + static_cast<int64_t>(f * span * 1e9);
   }
   if (!imu_.empty()) {
-    const auto R = imu_rotations(stamp_ns, instants);  // one pass over the samples for all slots
-    for (size_t k = 0; k < R.size(); ++k) {
-      if (R[k]) slot[k].linear() = *R[k];
+    const Eigen::Vector3d ba = start != nullptr && window_ ? window_->latest().ba : Eigen::Vector3d::Zero();
+    const auto inc = integrate_imu(imu_, stamp_ns, instants, gyro_bias_, ba);  // one pass for all slots
+    for (size_t k = 0; k < inc.size(); ++k) {
+      if (!inc[k]) continue;
+      const Eigen::Isometry3d m = lidar_motion(*inc[k], p_.T_lidar_imu, start);
+      if (start != nullptr) {
+        slot[k] = m;
+      } else {
+        slot[k].linear() = m.linear();
+      }
     }
   }
   std::vector<Eigen::Vector3d> out;
@@ -145,11 +171,13 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
     const ImuState st = window_->ready() ? window_->latest() : ImuState{};
     pre = preintegrate(last_stamp_, stamp_ns, st.bg, st.ba);
   }
+  std::optional<ImuStart> imu_start;  // the IMU's state at this sweep's start, when predicted
   if (!first_) {
     bool predicted = false;
     if (window_ && window_->ready()) {
       if (pre) {
         // The motion the IMU predicts from the window's latest pose, applied to the registered one.
+        const ImuState next = window_->predict(*pre);
         const Eigen::Isometry3d d = window_->latest_lidar().inverse() * window_->predict_lidar(*pre);
         const Eigen::Isometry3d gap = delta.inverse() * d;
         if (d.matrix().allFinite() && gap.translation().norm() <= p_.max_imu_prediction_gap_m &&
@@ -157,6 +185,10 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
           delta = d;
           predicted = true;
           ++stats_.imu_predictions;
+          if (p_.imu_deskew) {
+            const Eigen::Matrix3d Rt = next.q.toRotationMatrix().transpose();
+            imu_start = ImuStart{Rt * next.v, Rt * window_->gravity()};
+          }
         } else {
           ++stats_.imu_predictions_rejected;
         }
@@ -172,9 +204,9 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
   const Eigen::Isometry3d sweep_motion =
       first_ ? Eigen::Isometry3d::Identity() : geometry::se3_exp(geometry::se3_log(delta) * (static_cast<double>(t_max) / dt));
   std::vector<Eigen::Vector3d> deskewed, pts, normals;
-  auto select = [&](int64_t stamp, const std::vector<ScanPoint>& in, const Eigen::Isometry3d& motion) {
+  auto select = [&](int64_t stamp, const std::vector<ScanPoint>& in, const Eigen::Isometry3d& motion, const ImuStart* start) {
     std::vector<uint16_t> rings;
-    deskewed = prepare(stamp, in, motion, rings);
+    deskewed = prepare(stamp, in, motion, start, rings);
     pts.clear();
     normals.clear();
     const std::vector<size_t> keep = odometry::voxel_filter_indices(deskewed, p_.voxel_m);
@@ -198,7 +230,7 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
       }
     }
   };
-  select(stamp_ns, points, sweep_motion);
+  select(stamp_ns, points, sweep_motion, imu_start ? &*imu_start : nullptr);
   out.points_used = pts.size();
 
   Eigen::Isometry3d T = T_last_;
@@ -228,21 +260,22 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
         return geometry::se3_exp(geometry::se3_log(D) * (static_cast<double>(tm) / dt));
       };
       map_ = odometry::VoxelMap(p_.map);
-      select(first_stamp_, first_points_, over(first_points_));
+      select(first_stamp_, first_points_, over(first_points_), nullptr);
       std::vector<Eigen::Vector3d> world = odometry::voxel_filter(deskewed, p_.map_voxel_m);
       for (auto& p : world) p = T_last_ * p;
       map_.add(world);
-      select(stamp_ns, points, over(points));
+      select(stamp_ns, points, over(points), nullptr);
       out.registration = odometry::register_to_map(pts, normals, map_, out.registration.T_map_sensor, rp);
       first_points_.clear();
       first_points_.shrink_to_fit();
     }
-    if (p_.deskew && p_.redeskew && stats_.scans > 2 && out.registration.converged) {
+    if (p_.deskew && p_.redeskew && !imu_start && stats_.scans > 2 && out.registration.converged) {
       // Deskew again with the motion just estimated (the prediction's error leaves a residual
-      // distortion), and refine.
+      // distortion), and refine. A sweep deskewed with the IMU's whole motion keeps it: the
+      // registration corrects the pose, not the velocity the IMU's motion starts from.
       const Eigen::Isometry3d D = T_last_.inverse() * out.registration.T_map_sensor;
-      Eigen::Isometry3d motion = geometry::se3_exp(geometry::se3_log(D) * (static_cast<double>(t_max) / dt));
-      select(stamp_ns, points, motion);
+      const Eigen::Isometry3d motion = geometry::se3_exp(geometry::se3_log(D) * (static_cast<double>(t_max) / dt));
+      select(stamp_ns, points, motion, nullptr);
       out.registration = odometry::register_to_map(pts, normals, map_, out.registration.T_map_sensor, rp);
     }
     // A registration that lands further from the prediction than the widest gate (or turns more

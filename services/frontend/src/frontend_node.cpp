@@ -50,6 +50,9 @@ FrontendNodeOptions load_frontend_options(const std::string& path) {
   r.get<bool>("imu.use", o.use_imu);
   r.get<double>("imu.gap_s", o.imu_gap_s, positive, "> 0");
   r.get<bool>("imu.window.enabled", p.imu_window);
+  r.get<bool>("imu.window.deskew", p.imu_deskew);
+  r.get<bool>("imu.window.refine_gravity", p.window.refine_gravity);
+  r.get<double>("imu.window.gravity_prior_sigma", p.window.gravity_prior_sigma, positive, "> 0");
   int window = static_cast<int>(p.window.size), align = static_cast<int>(p.window.align_sweeps);
   r.get<int>("imu.window.size", window, [](const int& v) { return v >= 2 && v <= 100; }, "2..100");
   r.get<int>("imu.window.align_sweeps", align, [](const int& v) { return v >= 3 && v <= 1000; }, "3..1000");

@@ -56,9 +56,9 @@ struct ImuFactor {
   double bg_weight, ba_weight, dt;
   Eigen::Matrix3d JR_bg, Jv_bg, Jv_ba, Jp_bg, Jp_ba;
   Eigen::Quaterniond dR0;
-  Eigen::Vector3d dv0, dp0, bg0, ba0, g;
+  Eigen::Vector3d dv0, dp0, bg0, ba0;
 
-  ImuFactor(const odometry::ImuPreintegration& p, const odometry::ImuNoiseParams& n, const Eigen::Vector3d& gravity) : g(gravity) {
+  ImuFactor(const odometry::ImuPreintegration& p, const odometry::ImuNoiseParams& n) {
     const Eigen::Matrix<double, 9, 9> cov = p.covariance() + Eigen::Matrix<double, 9, 9>::Identity() * 1e-12;
     sqrt_info = Eigen::LLT<Eigen::Matrix<double, 9, 9>>(cov.inverse()).matrixU();
     dt = p.dt();
@@ -78,7 +78,7 @@ struct ImuFactor {
 
   template <class T>
   bool operator()(const T* qi_, const T* pi_, const T* vi_, const T* bi_, const T* qj_, const T* pj_, const T* vj_,
-                  const T* bj_, T* r) const {
+                  const T* bj_, const T* g_, T* r) const {
     const Eigen::Map<const Quat<T>> qi(qi_), qj(qj_);
     const Eigen::Map<const Vec3<T>> pi(pi_), vi(vi_), pj(pj_), vj(vj_);
     const Vec3<T> dbg = Vec3<T>(bi_[0], bi_[1], bi_[2]) - bg0.cast<T>();
@@ -90,7 +90,7 @@ struct ImuFactor {
     const Vec3<T> dv = dv0.cast<T>() + Jv_bg.cast<T>() * dbg + Jv_ba.cast<T>() * dba;
     const Vec3<T> dp = dp0.cast<T>() + Jp_bg.cast<T>() * dbg + Jp_ba.cast<T>() * dba;
     const T Dt(dt);
-    const Vec3<T> G = g.cast<T>();
+    const Eigen::Map<const Vec3<T>> G(g_);
     const Quat<T> qi_inv = qi.conjugate();
     Eigen::Matrix<T, 9, 1> e;
     e.template segment<3>(0) = small_angle<T>(dR.conjugate() * (qi_inv * qj));
@@ -129,15 +129,19 @@ Eigen::Isometry3d ImuWindow::latest_lidar() const {
   return geometry::make_pose(s.p, s.q) * T_imu_lidar_;
 }
 
-Eigen::Isometry3d ImuWindow::predict_lidar(const odometry::ImuPreintegration& pre) const {
+ImuState ImuWindow::predict(const odometry::ImuPreintegration& pre) const {
   const ImuState& s = latest();
+  ImuState out = s;
   Eigen::Matrix3d R;
-  Eigen::Vector3d v, p;
-  pre.predict(s.q.toRotationMatrix(), s.v, s.p, g_, R, v, p);
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = R;
-  T.translation() = p;
-  return T * T_imu_lidar_;
+  pre.predict(s.q.toRotationMatrix(), s.v, s.p, g_, R, out.v, out.p);
+  out.q = Eigen::Quaterniond(R).normalized();
+  out.stamp_ns = s.stamp_ns + static_cast<int64_t>(std::llround(pre.dt() * 1e9));
+  return out;
+}
+
+Eigen::Isometry3d ImuWindow::predict_lidar(const odometry::ImuPreintegration& pre) const {
+  const ImuState s = predict(pre);
+  return geometry::make_pose(s.p, s.q) * T_imu_lidar_;
 }
 
 void ImuWindow::start_over() {
@@ -268,9 +272,23 @@ void ImuWindow::optimise() {
   for (size_t k = 1; k < states_.size(); ++k) {
     Node& a = states_[k - 1];
     Node& b = states_[k];
-    auto* f = new ImuFactor(*b.preint, p_.noise, g_);
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<ImuFactor, 15, 4, 3, 3, 6, 4, 3, 3, 6>(f), nullptr, a.qbuf, a.pbuf,
-                             a.vbuf, a.bbuf, b.qbuf, b.pbuf, b.vbuf, b.bbuf);
+    auto* f = new ImuFactor(*b.preint, p_.noise);
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<ImuFactor, 15, 4, 3, 3, 6, 4, 3, 3, 6, 3>(f), nullptr, a.qbuf, a.pbuf,
+                             a.vbuf, a.bbuf, b.qbuf, b.pbuf, b.vbuf, b.bbuf, gbuf);
+  }
+  // Gravity: its direction refined in every window (its norm held) and drawn to its last estimate,
+  // so the evidence of all windows accumulates; held outright when refinement is off.
+  std::copy(g_.data(), g_.data() + 3, gbuf);
+  ceres::SphereManifold<3> sphere;
+  if (states_.size() > 1) {
+    if (p_.refine_gravity) {
+      problem.SetManifold(gbuf, &sphere);
+      problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<VectorPrior<3>, 3, 3>(new VectorPrior<3>{g_, Eigen::Vector3d::Constant(1.0 / p_.gravity_prior_sigma)}),
+          nullptr, gbuf);
+    } else {
+      problem.SetParameterBlockConstant(gbuf);
+    }
   }
   // The anchor: the oldest state's pose held, its velocity and biases at their last estimate, and
   // the biases near zero at a MEMS IMU's scale.
@@ -318,6 +336,7 @@ void ImuWindow::optimise() {
     restart();
     return;
   }
+  if (states_.size() > 1 && p_.refine_gravity) g_ = Eigen::Vector3d(gbuf[0], gbuf[1], gbuf[2]).normalized() * p_.gravity;
   for (Node& n : states_) {
     n.state.q = Eigen::Quaterniond(n.qbuf[3], n.qbuf[0], n.qbuf[1], n.qbuf[2]).normalized();
     n.state.p = Eigen::Vector3d(n.pbuf[0], n.pbuf[1], n.pbuf[2]);

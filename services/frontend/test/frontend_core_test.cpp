@@ -198,6 +198,96 @@ TEST(Frontend, TheImuWindowPredictsTheSweepsAndFindsTheGyroBias) {
   EXPECT_EQ(st.registration_failures, 0u);
 }
 
+TEST(Frontend, DeskewingWithTheImusWholeMotionFollowsTheDrive) {
+  Drive d(10.0, 0.5, 9.0);
+  auto imu = sim::simulate_imu(d.traj, Eigen::Isometry3d::Identity(), 0.0, 8.5, 200.0, sim::ImuNoise{}, 9);
+  FrontendParams p;
+  p.imu_deskew = true;
+  FrontendCore core(p);
+  const Eigen::Isometry3d T0 = d.traj.pose(0.2);
+  size_t next = 0;
+  double worst = 0;
+  for (int k = 0; k < 75; ++k) {
+    const double t = 0.2 + 0.1 * k;
+    while (next < imu.size() && imu[next].t <= t + 0.1) {
+      core.add_imu({static_cast<int64_t>(std::llround(imu[next].t * 1e9)), imu[next].gyro, imu[next].accel});
+      ++next;
+    }
+    const ScanOut o = core.process(static_cast<int64_t>(std::llround(t * 1e9)), d.sweep(t));
+    worst = std::max(worst, ((T0.inverse() * d.traj.pose(t)).inverse() * o.T_odom_raw).translation().norm());
+  }
+  std::printf("IMU-deskewed: %llu sweeps predicted, worst position error over 80 m %.3f m\n",
+              static_cast<unsigned long long>(core.stats().imu_predictions), worst);
+  EXPECT_GE(core.stats().imu_predictions, 40u);
+  EXPECT_EQ(core.stats().registration_failures, 0u);
+  EXPECT_LT(worst, 0.25);
+}
+
+TEST(FrontendCore, TheImusMotionOverASweepFollowsAnAcceleratingTurningDrive) {
+  // Speed 8 +- 4 m/s (up to 3.2 m/s^2) with a yaw rate of up to 0.5 rad/s; the IMU 0.3 m behind the
+  // LiDAR and turned 2 deg. The motion within a sweep from the IMU (start velocity and gravity
+  // given, as the window gives them) against the truth, and against constant velocity.
+  std::vector<Eigen::Isometry3d> controls;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  for (int i = 0; i < 200; ++i) {
+    controls.push_back(T);
+    const double t = 0.1 * i;
+    Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+    step.translation().x() = 0.1 * (8.0 + 4.0 * std::sin(0.8 * t));
+    step.linear() = Eigen::AngleAxisd(0.05 * std::sin(0.6 * t), Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+                    Eigen::AngleAxisd(0.004 * std::cos(0.9 * t), Eigen::Vector3d::UnitY()).toRotationMatrix();
+    T = T * step;
+  }
+  const sim::SplineTrajectory traj(controls, 0.0, 0.1);
+  Eigen::Isometry3d T_lidar_imu = Eigen::Isometry3d::Identity();
+  T_lidar_imu.translation() = Eigen::Vector3d(-0.3, 0.1, -0.2);
+  T_lidar_imu.linear() = Eigen::AngleAxisd(2.0 * M_PI / 180, Eigen::Vector3d(0.3, 0.5, 1).normalized()).toRotationMatrix();
+  std::deque<ImuIn> imu;
+  for (const auto& m : sim::simulate_imu(traj, T_lidar_imu, 0.5, 18.0, 200.0, sim::ImuNoise::none(), 3)) {
+    imu.push_back({static_cast<int64_t>(std::llround(m.t * 1e9)), m.gyro, m.accel});
+  }
+  double worst_imu = 0, worst_cv = 0, worst_rot = 0, worst_rot_only = 0;
+  for (double t0 = 2.0; t0 < 17.0; t0 += 0.7) {
+    const int64_t from = static_cast<int64_t>(std::llround(t0 * 1e9));
+    std::vector<int64_t> to;
+    for (int k = 1; k <= 4; ++k) to.push_back(from + k * 25'000'000);
+    const auto inc = integrate_imu(imu, from, to, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+    // The IMU's state at the start, as the window would give it.
+    const Eigen::Isometry3d L0 = traj.pose(t0), I0 = L0 * T_lidar_imu;
+    const Eigen::Vector3d v_imu = traj.velocity(t0) + L0.rotation() * traj.angular_velocity(t0).cross(T_lidar_imu.translation());
+    const ImuStart start{I0.rotation().transpose() * v_imu, I0.rotation().transpose() * sim::kGravity};
+    const geometry::Vector6d xi = geometry::se3_log(traj.pose(t0 - 0.1).inverse() * L0);  // constant velocity
+    for (size_t k = 0; k < to.size(); ++k) {
+      ASSERT_TRUE(inc[k].has_value());
+      const double tau = 0.025 * static_cast<double>(k + 1);
+      const Eigen::Isometry3d truth = L0.inverse() * traj.pose(t0 + tau);
+      const Eigen::Isometry3d full = lidar_motion(*inc[k], T_lidar_imu, &start);
+      const Eigen::Isometry3d rot_only = lidar_motion(*inc[k], T_lidar_imu, nullptr);
+      const Eigen::Isometry3d cv = geometry::se3_exp(xi * (tau / 0.1));
+      worst_imu = std::max(worst_imu, (truth.translation() - full.translation()).norm());
+      worst_cv = std::max(worst_cv, (truth.translation() - cv.translation()).norm());
+      worst_rot = std::max(worst_rot, geometry::rotation_angle(truth.rotation().transpose() * full.rotation()));
+      worst_rot_only = std::max(worst_rot_only, geometry::rotation_angle(truth.rotation().transpose() * rot_only.rotation()));
+      EXPECT_LT(rot_only.translation().norm(), 1e-12);
+    }
+  }
+  std::printf("within a sweep: IMU %.2f mm, constant velocity %.2f mm; rotation %.4f deg\n", worst_imu * 1e3, worst_cv * 1e3,
+              worst_rot * 180 / M_PI);
+  EXPECT_LT(worst_imu, 2e-3);
+  EXPECT_LT(worst_imu, 0.2 * worst_cv);
+  // Sample-and-hold at 200 Hz lags the gyro by half a sample: with the yaw rate changing by up to
+  // 0.3 rad/s^2 that is 0.3 * 0.0025 * 0.1 s = 7.5e-5 rad (0.0043 deg) over a sweep.
+  EXPECT_LT(worst_rot, 0.01 * M_PI / 180);
+  EXPECT_LT(worst_rot_only, 0.01 * M_PI / 180);
+  // Instants the samples do not cover give nothing.
+  const auto late = integrate_imu(imu, imu.back().stamp_ns - 1'000'000, {imu.back().stamp_ns + 1'000'000},
+                                  Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  EXPECT_FALSE(late.front().has_value());
+  const auto early = integrate_imu(imu, imu.front().stamp_ns - 1'000'000, {imu.front().stamp_ns},
+                                   Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  EXPECT_FALSE(early.front().has_value());
+}
+
 TEST(FrontendCore, RegistrationsFarFromThePredictionAreImplausible) {
   FrontendParams p;  // max_gate_m 2 m, max_jump_rad 0.35
   Eigen::Isometry3d prediction = Eigen::Isometry3d::Identity();

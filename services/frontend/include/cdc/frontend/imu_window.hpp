@@ -39,6 +39,10 @@ struct ImuWindowParams {
   odometry::ImuNoiseParams noise;   // of the IMU's samples (inflated when the IMU model is rough)
   double gravity = 9.80665;         // [m/s^2]
   double max_gravity_error = 0.5;   // [m/s^2] an alignment whose |g| is further off is retried later
+  // After the alignment, every window refines gravity's direction, drawn to its last estimate with
+  // this sigma: the alignment's few seconds of early, noisy LiDAR poses leave it degrees off.
+  bool refine_gravity = true;
+  double gravity_prior_sigma = 0.05;  // [m/s^2]
   int max_iterations = 10;
   double gyro_bias_sigma = 0.01;    // [rad/s] zero-mean bias priors
   double accel_bias_sigma = 0.1;    // [m/s^2]
@@ -67,8 +71,10 @@ class ImuWindow {
   const ImuState& latest() const { return states_.back().state; }
   const Eigen::Vector3d& gravity() const noexcept { return g_; }
   bool gravity_known() const noexcept { return gravity_known_; }
-  // The latest state's LiDAR pose, and the LiDAR pose after `preint` from it.
+  // The latest state's LiDAR pose; the IMU state after `preint` from it (biases held), and its
+  // LiDAR pose.
   Eigen::Isometry3d latest_lidar() const;
+  ImuState predict(const odometry::ImuPreintegration& preint) const;
   Eigen::Isometry3d predict_lidar(const odometry::ImuPreintegration& preint) const;
   uint64_t restarts() const noexcept { return restarts_; }
   uint64_t solves() const noexcept { return solves_; }
@@ -96,6 +102,7 @@ class ImuWindow {
   std::deque<Node> states_;
   std::vector<Interval> alignment_;
   Eigen::Vector3d g_ = Eigen::Vector3d(0, 0, -9.80665);
+  double gbuf[3];
   bool gravity_known_ = false, solved_ = false;
   uint64_t restarts_ = 0, solves_ = 0;
 };
