@@ -150,17 +150,20 @@ nlohmann::json run(const Setup& s, const sim::LidarModel& lidar, bool use_imu, c
   const double rate = static_cast<double>(s.stamps.size()) / busy_s;
   const frontend::FrontendStats& st = core.stats();
   // The window's gravity against the truth (the odometry frame is the first sweep's).
-  double gravity_error_deg = -1;
+  nlohmann::json gravity_error_deg;  // null without IMU
+  std::string gravity_text;
   if (const auto g = core.gravity()) {
     const Eigen::Vector3d g_true = T0.rotation().transpose() * sim::kGravity;
-    gravity_error_deg = std::acos(std::clamp(g->normalized().dot(g_true.normalized()), -1.0, 1.0)) * 180 / M_PI;
+    const double deg = std::acos(std::clamp(g->normalized().dot(g_true.normalized()), -1.0, 1.0)) * 180 / M_PI;
+    gravity_error_deg = deg;
+    gravity_text = ", gravity " + std::to_string(deg).substr(0, 5) + " deg off";
   }
   std::printf("%-18s %zu scans: drift %.3f %% / %.4f deg/100m, ATE %.3f m, %.1f scans/s, %llu registration failures, "
-              "%.1f iterations per scan (last pass); IMU window: %llu predictions, %llu rejected, %llu restarts, gravity %.3f deg off\n",
+              "%.1f iterations per scan (last pass); IMU window: %llu predictions, %llu rejected, %llu restarts%s\n",
               name.c_str(), s.stamps.size(), drift.translation_pct, drift.rotation_deg_per_100m, ate.translation.rmse, rate,
               static_cast<unsigned long long>(st.registration_failures), iterations / static_cast<double>(s.stamps.size()),
               static_cast<unsigned long long>(st.imu_predictions), static_cast<unsigned long long>(st.imu_predictions_rejected),
-              static_cast<unsigned long long>(st.imu_window_restarts), gravity_error_deg);
+              static_cast<unsigned long long>(st.imu_window_restarts), gravity_text.c_str());
   if (!out_dir.empty()) {
     std::ofstream f(std::filesystem::path(out_dir) / (name + ".txt"));
     for (size_t i = 0; i < est.size(); ++i) {
@@ -191,7 +194,7 @@ int main(int argc, char** argv) {
   app.add_option("--scans", max_scans, "at most this many scans (0: the whole sequence)")->capture_default_str();
   app.add_option("--configs", configs, "configurations to run")->capture_default_str();
   app.add_option("--out", out_dir, "write per-configuration trajectories here");
-  bool no_deskew = false, no_imu_window = false, imu_deskew = false;
+  bool no_deskew = false, no_imu_window = false, imu_deskew = false, no_gravity_refinement = false;
   double memory_minutes = 0;
   app.add_option("--memory-minutes", memory_minutes, "instead: a drive this long, reporting resident memory every minute");
   app.add_flag("--no-deskew", no_deskew, "turn deskewing off (for comparison)");
@@ -200,11 +203,14 @@ int main(int argc, char** argv) {
   app.add_flag("--imu-deskew", imu_deskew,
                "deskew with the IMU's whole motion (translation from the window's velocity) instead of its rotation and "
                "constant-velocity translation (for comparison)");
+  app.add_flag("--no-gravity-refinement", no_gravity_refinement,
+               "hold the IMU window's gravity at its first alignment instead of refining it in every window (for comparison)");
   CLI11_PARSE(app, argc, argv);
   if (memory_minutes > 0) {
     frontend::FrontendParams p;
     p.imu_window = !no_imu_window;
     p.imu_deskew = imu_deskew;
+    p.window.refine_gravity = !no_gravity_refinement;
     nlohmann::json j{{"memory", memory_run(memory_minutes, p)}};
     std::cout << j.dump() << '\n';
     return 0;
@@ -233,6 +239,7 @@ int main(int argc, char** argv) {
     p.deskew = !no_deskew;
     p.imu_window = !no_imu_window;
     p.imu_deskew = imu_deskew;
+    p.window.refine_gravity = !no_gravity_refinement;
     if (const char* e = std::getenv("FE_KDIV")) p.kernel_divisor = std::atof(e);
     if (const char* e = std::getenv("FE_CONV")) p.registration.convergence = std::atof(e);
     out[c] = run(s, hdl ? sim::LidarModel::hdl64() : sim::LidarModel::vlp16(), imu, p, c, out_dir);

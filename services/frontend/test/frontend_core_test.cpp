@@ -49,6 +49,26 @@ struct Drive {
   }
 };
 
+// Sweep k of a drive (at 0.2 + 0.1 k s) with the IMU samples up to its end, into a core; keeps the
+// worst position error of the odometry against the truth.
+struct ImuFeed {
+  Drive& d;
+  std::vector<sim::ImuSample> imu;
+  FrontendCore& core;
+  Eigen::Isometry3d T0 = d.traj.pose(0.2);
+  size_t next = 0;
+  double worst = 0;
+  void scan(int k) {
+    const double t = 0.2 + 0.1 * k;
+    while (next < imu.size() && imu[next].t <= t + 0.1) {
+      core.add_imu({static_cast<int64_t>(std::llround(imu[next].t * 1e9)), imu[next].gyro, imu[next].accel});
+      ++next;
+    }
+    const ScanOut o = core.process(static_cast<int64_t>(std::llround(t * 1e9)), d.sweep(t));
+    worst = std::max(worst, ((T0.inverse() * d.traj.pose(t)).inverse() * o.T_odom_raw).translation().norm());
+  }
+};
+
 double run_error(Drive& d, bool deskew, int scans) {
   FrontendParams p;
   p.deskew = deskew;
@@ -157,19 +177,10 @@ TEST(Frontend, TheImuWindowPredictsTheSweepsAndFindsTheGyroBias) {
     m.accel += ba;
   }
   FrontendCore core(FrontendParams{});
-  const Eigen::Isometry3d T0 = d.traj.pose(0.2);
-  size_t next = 0;
-  double worst = 0;
-  auto scan = [&](int k) {
-    const double t = 0.2 + 0.1 * k;
-    while (next < imu.size() && imu[next].t <= t + 0.1) {
-      core.add_imu({static_cast<int64_t>(std::llround(imu[next].t * 1e9)), imu[next].gyro, imu[next].accel});
-      ++next;
-    }
-    const ScanOut o = core.process(static_cast<int64_t>(std::llround(t * 1e9)), d.sweep(t));
-    worst = std::max(worst, ((T0.inverse() * d.traj.pose(t)).inverse() * o.T_odom_raw).translation().norm());
-  };
-  for (int k = 0; k < 80; ++k) scan(k);
+  ImuFeed feed{d, imu, core};
+  const Eigen::Isometry3d& T0 = feed.T0;
+  const double& worst = feed.worst;
+  for (int k = 0; k < 80; ++k) feed.scan(k);
   const FrontendStats& st = core.stats();
   ASSERT_TRUE(core.imu_state().has_value());
   ASSERT_TRUE(core.gravity().has_value());
@@ -189,10 +200,10 @@ TEST(Frontend, TheImuWindowPredictsTheSweepsAndFindsTheGyroBias) {
   // An IMU gap (the node clears the history; nothing between 8.1 and 8.15 s): the interval before
   // sweep 80 is not covered, the window restarts there and predicts again two sweeps on.
   core.clear_imu();
-  next = 0;
-  while (next < imu.size() && imu[next].t <= 8.15) ++next;
+  feed.next = 0;
+  while (feed.next < imu.size() && imu[feed.next].t <= 8.15) ++feed.next;
   const uint64_t before = st.imu_predictions;
-  for (int k = 80; k < 90; ++k) scan(k);
+  for (int k = 80; k < 90; ++k) feed.scan(k);
   EXPECT_EQ(st.imu_window_restarts, 1u);
   EXPECT_GE(st.imu_predictions, before + 7);
   EXPECT_EQ(st.registration_failures, 0u);
@@ -204,23 +215,13 @@ TEST(Frontend, DeskewingWithTheImusWholeMotionFollowsTheDrive) {
   FrontendParams p;
   p.imu_deskew = true;
   FrontendCore core(p);
-  const Eigen::Isometry3d T0 = d.traj.pose(0.2);
-  size_t next = 0;
-  double worst = 0;
-  for (int k = 0; k < 75; ++k) {
-    const double t = 0.2 + 0.1 * k;
-    while (next < imu.size() && imu[next].t <= t + 0.1) {
-      core.add_imu({static_cast<int64_t>(std::llround(imu[next].t * 1e9)), imu[next].gyro, imu[next].accel});
-      ++next;
-    }
-    const ScanOut o = core.process(static_cast<int64_t>(std::llround(t * 1e9)), d.sweep(t));
-    worst = std::max(worst, ((T0.inverse() * d.traj.pose(t)).inverse() * o.T_odom_raw).translation().norm());
-  }
+  ImuFeed feed{d, imu, core};
+  for (int k = 0; k < 75; ++k) feed.scan(k);
   std::printf("IMU-deskewed: %llu sweeps predicted, worst position error over 80 m %.3f m\n",
-              static_cast<unsigned long long>(core.stats().imu_predictions), worst);
+              static_cast<unsigned long long>(core.stats().imu_predictions), feed.worst);
   EXPECT_GE(core.stats().imu_predictions, 40u);
   EXPECT_EQ(core.stats().registration_failures, 0u);
-  EXPECT_LT(worst, 0.25);
+  EXPECT_LT(feed.worst, 0.25);
 }
 
 TEST(FrontendCore, TheImusMotionOverASweepFollowsAnAcceleratingTurningDrive) {
