@@ -5,7 +5,8 @@
 //
 // Gravity: the odometry frame is the first sweep's, so gravity is a constant vector in it, found
 // once by a linear alignment over the first align_sweeps sweeps (LiDAR positions against the
-// preintegrated increments, velocities unknown), then held. The oldest state of the window is the anchor: its
+// preintegrated increments, velocities unknown), then refined by every window (its direction a
+// parameter on the sphere, drawn to its last estimate). The oldest state of the window is the anchor: its
 // pose is held, its velocity and biases carry a prior at their previous estimate (a conservative
 // stand-in for marginalisation), and the biases a weak zero-mean prior of a MEMS IMU's size.
 //
@@ -40,7 +41,7 @@ struct ImuWindowParams {
   double gravity = 9.80665;         // [m/s^2]
   double max_gravity_error = 0.5;   // [m/s^2] an alignment whose |g| is further off is retried later
   // After the alignment, every window refines gravity's direction, drawn to its last estimate with
-  // this sigma: the alignment's few seconds of early, noisy LiDAR poses leave it degrees off.
+  // this sigma: the alignment's few seconds of early, noisy LiDAR poses can leave it degrees off.
   bool refine_gravity = true;
   double gravity_prior_sigma = 0.05;  // [m/s^2]
   int max_iterations = 10;
