@@ -54,15 +54,15 @@ std::vector<std::optional<ImuIncrement>> integrate_imu(const std::deque<ImuIn>& 
 }
 
 Eigen::Isometry3d lidar_motion(const ImuIncrement& inc, const Eigen::Isometry3d& T_lidar_imu, const ImuStart* start) {
-  Eigen::Isometry3d T_imu = Eigen::Isometry3d::Identity();
-  T_imu.linear() = inc.R;
   if (start == nullptr) {
     Eigen::Isometry3d R = Eigen::Isometry3d::Identity();
-    R.linear() = T_lidar_imu.rotation() * inc.R * T_lidar_imu.rotation().transpose();
+    R.linear() = T_lidar_imu.linear() * inc.R * T_lidar_imu.linear().transpose();
     return R;
   }
+  Eigen::Isometry3d T_imu = Eigen::Isometry3d::Identity();
+  T_imu.linear() = inc.R;
   T_imu.translation() = start->velocity * inc.dt + 0.5 * start->gravity * inc.dt * inc.dt + inc.p;
-  return T_lidar_imu * T_imu * T_lidar_imu.inverse();
+  return T_lidar_imu * T_imu * T_lidar_imu.inverse(Eigen::Isometry);
 }
 
 std::optional<Eigen::Matrix3d> FrontendCore::imu_rotation(int64_t from, int64_t to) const {
@@ -177,7 +177,6 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
     if (window_ && window_->ready()) {
       if (pre) {
         // The motion the IMU predicts from the window's latest pose, applied to the registered one.
-        const ImuState next = window_->predict(*pre);
         const Eigen::Isometry3d d = window_->latest_lidar().inverse() * window_->predict_lidar(*pre);
         const Eigen::Isometry3d gap = delta.inverse() * d;
         if (d.matrix().allFinite() && gap.translation().norm() <= p_.max_imu_prediction_gap_m &&
@@ -186,6 +185,7 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
           predicted = true;
           ++stats_.imu_predictions;
           if (p_.imu_deskew) {
+            const ImuState next = window_->predict(*pre);
             const Eigen::Matrix3d Rt = next.q.toRotationMatrix().transpose();
             imu_start = ImuStart{Rt * next.v, Rt * window_->gravity()};
           }
