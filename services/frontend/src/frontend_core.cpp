@@ -26,13 +26,12 @@ void FrontendCore::add_imu(const ImuIn& s) {
   while (imu_.size() > 2 && imu_[1].stamp_ns < last_stamp_ - 500'000'000) imu_.pop_front();
 }
 
-std::vector<std::optional<ImuIncrement>> integrate_imu(const std::deque<ImuIn>& imu, int64_t from,
-                                                       const std::vector<int64_t>& to, const Eigen::Vector3d& bg,
-                                                       const Eigen::Vector3d& ba) {
-  std::vector<std::optional<ImuIncrement>> out(to.size());
+std::vector<std::optional<odometry::ImuDelta>> integrate_imu(const std::deque<ImuIn>& imu, int64_t from,
+                                                             const std::vector<int64_t>& to, const Eigen::Vector3d& bg,
+                                                             const Eigen::Vector3d& ba) {
+  std::vector<std::optional<odometry::ImuDelta>> out(to.size());
   if (imu.size() < 2 || imu.front().stamp_ns > from) return out;
-  ImuIncrement inc;
-  Eigen::Vector3d v = Eigen::Vector3d::Zero();
+  odometry::ImuDelta inc;
   int64_t reached = from;
   size_t i = 0;
   for (size_t k = 0; k < to.size(); ++k) {
@@ -41,19 +40,15 @@ std::vector<std::optional<ImuIncrement>> integrate_imu(const std::deque<ImuIn>& 
       while (imu[i + 1].stamp_ns <= reached) ++i;  // the sample held at `reached`
       const int64_t end = std::min(imu[i + 1].stamp_ns, to[k]);
       const double h = static_cast<double>(end - reached) * 1e-9;
-      const Eigen::Vector3d a = inc.R * (imu[i].accel - ba);
-      inc.p += v * h + 0.5 * a * h * h;
-      v += a * h;
-      inc.R = inc.R * geometry::so3_exp((imu[i].gyro - bg) * h);
+      inc.step(geometry::so3_exp((imu[i].gyro - bg) * h), imu[i].accel - ba, h);
       reached = end;
     }
-    inc.dt = static_cast<double>(to[k] - from) * 1e-9;
     out[k] = inc;
   }
   return out;
 }
 
-Eigen::Isometry3d lidar_motion(const ImuIncrement& inc, const Eigen::Isometry3d& T_lidar_imu, const ImuStart* start) {
+Eigen::Isometry3d lidar_motion(const odometry::ImuDelta& inc, const Eigen::Isometry3d& T_lidar_imu, const ImuStart* start) {
   if (start == nullptr) {
     Eigen::Isometry3d R = Eigen::Isometry3d::Identity();
     R.linear() = T_lidar_imu.linear() * inc.R * T_lidar_imu.linear().transpose();

@@ -17,6 +17,22 @@ struct ImuNoiseParams {
   double accel_bias_walk = 3.0e-4;   // [m/s^3/sqrt(Hz)]
 };
 
+// The mean increments of bias-corrected IMU samples held over intervals (sample-and-hold), in the
+// body frame at the start, gravity excluded: rotation R, velocity v and position p after dt seconds.
+// The body's own motion is then p_start + v_start dt + g dt^2 / 2 + R_start p (and likewise v).
+struct ImuDelta {
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d v = Eigen::Vector3d::Zero(), p = Eigen::Vector3d::Zero();
+  double dt = 0;
+  // Acceleration a (bias removed, body frame) held over h seconds, during which the body turns by dR.
+  void step(const Eigen::Matrix3d& dR, const Eigen::Vector3d& a, double h) {
+    p += v * h + 0.5 * R * a * h * h;
+    v += R * a * h;
+    R = R * dR;
+    dt += h;
+  }
+};
+
 class ImuPreintegration {
  public:
   using Matrix9d = Eigen::Matrix<double, 9, 9>;
@@ -26,7 +42,7 @@ class ImuPreintegration {
   // One sample held over dt seconds (sample-and-hold).
   void integrate(const Eigen::Vector3d& gyro, const Eigen::Vector3d& accel, double dt);
 
-  double dt() const noexcept { return dt_; }
+  double dt() const noexcept { return d_.dt; }
   // Increments corrected to first order for other biases.
   Eigen::Matrix3d delta_R(const Eigen::Vector3d& bg) const;
   Eigen::Vector3d delta_v(const Eigen::Vector3d& bg, const Eigen::Vector3d& ba) const;
@@ -48,9 +64,7 @@ class ImuPreintegration {
  private:
   ImuNoiseParams noise_;
   Eigen::Vector3d bg_, ba_;
-  double dt_ = 0;
-  Eigen::Matrix3d dR_ = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d dv_ = Eigen::Vector3d::Zero(), dp_ = Eigen::Vector3d::Zero();
+  ImuDelta d_;  // the increments at the biases integrated with
   Eigen::Matrix3d dR_dbg_ = Eigen::Matrix3d::Zero(), dv_dbg_ = Eigen::Matrix3d::Zero(), dv_dba_ = Eigen::Matrix3d::Zero();
   Eigen::Matrix3d dp_dbg_ = Eigen::Matrix3d::Zero(), dp_dba_ = Eigen::Matrix3d::Zero();
   Matrix9d cov_ = Matrix9d::Zero();

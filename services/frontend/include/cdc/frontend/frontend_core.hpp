@@ -12,6 +12,7 @@
 
 #include "cdc/frontend/imu_window.hpp"
 #include "cdc/geometry/fusion.hpp"
+#include "cdc/odometry/imu_preintegration.hpp"
 #include "cdc/odometry/registration.hpp"
 #include "cdc/odometry/voxel_map.hpp"
 
@@ -74,18 +75,10 @@ struct ImuIn {
   Eigen::Vector3d accel = Eigen::Vector3d::Zero();  // [m/s^2], IMU frame
 };
 
-// The IMU's motion from `from` to an instant, integrated sample-and-hold from the bias-corrected
-// samples, in the IMU frame at `from`: the rotation, and the position part the accelerometer alone
-// gives. With the velocity v0 and gravity g0 at `from` (same frame), the position at the instant is
-// v0 dt + g0 dt^2 / 2 + p.
-struct ImuIncrement {
-  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-  Eigen::Vector3d p = Eigen::Vector3d::Zero();
-  double dt = 0;  // [s]
-};
-// Increments from `from` to each instant of `to` (ascending), in one pass over the samples (time
-// order); none where the samples do not cover.
-std::vector<std::optional<ImuIncrement>> integrate_imu(const std::deque<ImuIn>& imu, int64_t from_ns,
+// The IMU's increments (odometry::ImuDelta: in the IMU frame at `from`, gravity excluded) from
+// `from` to each instant of `to` (ascending), in one pass over the bias-corrected samples (time
+// order, sample-and-hold); none where the samples do not cover.
+std::vector<std::optional<odometry::ImuDelta>> integrate_imu(const std::deque<ImuIn>& imu, int64_t from_ns,
                                                        const std::vector<int64_t>& to_ns, const Eigen::Vector3d& gyro_bias,
                                                        const Eigen::Vector3d& accel_bias);
 // The IMU's velocity and gravity at the start of an increment, in its body frame there.
@@ -94,7 +87,7 @@ struct ImuStart {
 };
 // The LiDAR's pose at the end of `inc` relative to its pose at the start: rotation and translation
 // when the start is known, else the rotation alone (no translation).
-Eigen::Isometry3d lidar_motion(const ImuIncrement& inc, const Eigen::Isometry3d& T_lidar_imu, const ImuStart* start);
+Eigen::Isometry3d lidar_motion(const odometry::ImuDelta& inc, const Eigen::Isometry3d& T_lidar_imu, const ImuStart* start);
 
 struct KeyframeOut {
   uint32_t id = 0;
