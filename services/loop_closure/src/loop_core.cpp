@@ -7,6 +7,7 @@ namespace cdc::loops {
 void LoopEvents::append(LoopEvents&& o) {
   loops.insert(loops.end(), o.loops.begin(), o.loops.end());
   requests.insert(requests.end(), o.requests.begin(), o.requests.end());
+  verifications.insert(verifications.end(), o.verifications.begin(), o.verifications.end());
 }
 
 lidar::ScanContext wire_form(const lidar::ScanContext& sc) { return lidar::dequantize(lidar::quantize(sc)); }
@@ -26,6 +27,11 @@ LoopEvents LoopCore::add_keyframe_data(KeyframeIn kf, Nanos now) {
   }
   if (kf.id > 0) {
     add_odometry(kf.robot, kf.id - 1u, kf.id, kf.T_prev, kf.information);
+  }
+  if (const auto prev = chained_.find({kf.robot, kf.id - 1u}); kf.id > 0 && prev != chained_.end()) {
+    chained_[me] = {prev->second.pose * kf.T_prev, prev->second.path_m + kf.T_prev.translation().norm()};
+  } else if (data_robots_.count(kf.robot) == 0) {
+    chained_[me] = {Eigen::Isometry3d::Identity(), 0.0};
   }
   data_robots_.insert(kf.robot);
   clouds_[me] = lidar::voxel_downsample(kf.cloud, p_.registration.voxel_m);
@@ -90,7 +96,11 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
     ++stats_.queries;
     candidates = db_.query(d.context, p_.knn, [&](size_t id) {
       const auto& [robot, k] = owner_[id];
-      return robot != d.robot || k + p_.exclude_recent < d.id;
+      if (robot != d.robot) return true;
+      if (k + p_.exclude_recent >= d.id) return false;
+      if (intra_plausible(me, owner_[id])) return true;
+      ++stats_.intra_gated;
+      return false;
     });
   } else if (reverse) {
     ++stats_.reverse_queries;
@@ -154,6 +164,14 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
   return out;
 }
 
+bool LoopCore::intra_plausible(const Id& query, const Id& candidate) const {
+  if (p_.intra_gate_m <= 0) return true;
+  const auto q = chained_.find(query), c = chained_.find(candidate);
+  if (q == chained_.end() || c == chained_.end()) return true;  // no unbroken chain between them: no evidence
+  const double apart = (q->second.pose.translation() - c->second.pose.translation()).norm();
+  return apart <= p_.intra_gate_m + p_.intra_gate_per_m * std::abs(q->second.path_m - c->second.path_m);
+}
+
 std::optional<LoopCore::Job> LoopCore::neighbour_job(const Job& job) const {
   const auto [robot, id] = job.candidate;
   const auto asked = requested_.find(robot);
@@ -205,23 +223,53 @@ LoopEvents LoopCore::on_cloud(uint32_t robot, uint32_t id, std::vector<Eigen::Ve
   return out;
 }
 
-void LoopCore::on_cloud_missing(uint32_t robot, uint32_t id) {
-  if (pending_.erase({robot, id}) != 0) {
-    ++stats_.missing;
-  } else {
-    ++stats_.replies_unexpected;
+void LoopCore::park(const Id& candidate, Pending p, Nanos now) {
+  if (p.attempts >= p_.request_attempts) {
+    ++stats_.requests_abandoned;
+    return;
   }
+  p.deadline = now + p_.request_retry;
+  parked_[candidate] = std::move(p);
 }
 
-void LoopCore::tick(Nanos now) {
+void LoopCore::on_cloud_missing(uint32_t robot, uint32_t id, Nanos now) {
+  auto it = pending_.find({robot, id});
+  if (it == pending_.end()) {
+    ++stats_.replies_unexpected;
+    return;
+  }
+  ++stats_.missing;
+  Pending p = std::move(it->second);
+  pending_.erase(it);
+  park({robot, id}, std::move(p), now);
+}
+
+LoopEvents LoopCore::tick(Nanos now) {
+  LoopEvents out;
   for (auto it = pending_.begin(); it != pending_.end();) {
     if (it->second.deadline <= now) {
       ++stats_.timed_out;
+      park(it->first, std::move(it->second), now);
       it = pending_.erase(it);
     } else {
       ++it;
     }
   }
+  for (auto it = parked_.begin(); it != parked_.end();) {
+    if (it->second.deadline > now || !reachable_(it->first.first)) {
+      ++it;
+      continue;
+    }
+    Pending p = std::move(it->second);
+    ++p.attempts;
+    p.deadline = now + p_.request_timeout;
+    out.requests.push_back({it->first.first, it->first.second});
+    ++stats_.requests;
+    ++stats_.requests_retried;
+    pending_[it->first] = std::move(p);
+    it = parked_.erase(it);
+  }
+  return out;
 }
 
 std::vector<LoopOut> LoopCore::add_keyframe(KeyframeIn kf) {
@@ -250,10 +298,16 @@ LoopEvents LoopCore::verify(const Job& job) {
   rp.voxel_m = 0;  // already downsampled
   const lidar::RegistrationResult r = lidar::register_clouds(src->second, tgt->second, job.guess, rp);
   ++stats_.verified;
+  Verification v{robot_b, kf_b, robot_a, kf_a, r.converged, false, r.fitness, r.overlap,
+                 job.guess.translation().norm(), (job.guess.inverse() * r.T_target_source).translation().norm()};
   if (!r.converged || r.fitness > p_.max_fitness || r.overlap < p_.min_overlap) {
     ++stats_.verification_failed;
+    ++(!r.converged ? stats_.failed_not_converged : r.fitness > p_.max_fitness ? stats_.failed_fitness : stats_.failed_overlap);
+    out.verifications.push_back(v);
     return out;
   }
+  v.passed = true;
+  out.verifications.push_back(v);
   LoopOut loop{robot_a, kf_a, robot_b, kf_b, r.T_target_source, r.information, r.fitness, false};
   graph::Factor f;
   f.kind = graph::FactorKind::kLoop;

@@ -64,6 +64,8 @@ LoopNodeOptions load_loop_options(const std::string& path) {
   r.get<double>("retrieval.max_sc_distance", p.max_sc_distance, [](const double& v) { return v > 0 && v <= 1; }, "(0, 1]");
   r.get<int>("retrieval.exclude_recent", recent, [](const int& v) { return v >= 0; }, ">= 0");
   r.get<int>("retrieval.max_verify", verify, positive_i, "> 0");
+  r.get<double>("retrieval.intra_gate_m", p.intra_gate_m, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get<double>("retrieval.intra_gate_per_m", p.intra_gate_per_m, [](const double& v) { return v >= 0; }, ">= 0");
   r.get<double>("verification.max_fitness_m2", p.max_fitness, positive_d, "> 0");
   r.get<double>("verification.min_overlap", p.min_overlap, [](const double& v) { return v > 0 && v <= 1; }, "(0, 1]");
   r.get<double>("verification.voxel_m", p.registration.voxel_m, [](const double& v) { return v >= 0; }, ">= 0");
@@ -73,6 +75,10 @@ LoopNodeOptions load_loop_options(const std::string& path) {
   int timeout = static_cast<int>(p.request_timeout.count() / 1'000'000);
   r.get<int>("cloud_request_timeout_ms", timeout, positive_i, "> 0");
   r.get<int>("cloud_cache", cache, positive_i, "> 0");
+  r.get<int>("cloud_request_attempts", p.request_attempts, positive_i, "> 0");
+  int retry = static_cast<int>(p.request_retry.count() / 1'000'000);
+  r.get<int>("cloud_request_retry_ms", retry, positive_i, "> 0");
+  p.request_retry = std::chrono::milliseconds(retry);
   r.get<int>("peer_timeout_ms", o.peer_timeout_ms, positive_i, "> 0");
   r.get<int>("tick_ms", o.tick_ms, positive_i, "> 0");
   int resend = static_cast<int>(std::chrono::duration_cast<std::chrono::milliseconds>(o.sequencer.resend).count());
@@ -195,6 +201,12 @@ int run_loop_closure(const LoopNodeOptions& o) {
       spdlog::debug("requested cloud {}/{} (request {})", c.robot, c.id, q.request_id);
       traffic.out(topics::kCloudRequest, dds::wire_size(q), c.robot);
     }
+    for (const Verification& v : ev.verifications) {
+      spdlog::debug("verified {}/{} against {}/{}: {}, fitness {:.3f} m^2, overlap {:.2f}, guess {:.1f} m, moved {:.2f} m",
+                    v.query_robot, v.query_id, v.candidate_robot, v.candidate_id,
+                    v.passed ? "passed" : (v.converged ? "failed" : "not converged"), v.fitness, v.overlap, v.guess_m,
+                    v.correction_m);
+    }
     for (const LoopOut& l : ev.loops) {
       cdc_msg_LoopClosure m{};
       m.robot_a = l.robot_a;
@@ -303,14 +315,17 @@ int run_loop_closure(const LoopNodeOptions& o) {
         handle(core.add_descriptor(std::move(d), now));
       }
     };
-    r_desc_resent.take(16).for_each_valid(on_descriptor);  // a resend asked for comes here, also the robot's own
-    r_desc.take(16).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t& i) {
+    // One descriptor (and below one cloud reply) per pass: each can start registrations, and between
+    // them peers' cloud requests and this robot's own keyframes must not wait (a burst of descriptors
+    // after a reconnection takes many seconds to search and verify).
+    r_desc_resent.take(1).for_each_valid(on_descriptor);  // a resend asked for comes here, also the robot's own
+    r_desc.take(1).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t& i) {
       // With a local domain the robot's own live descriptors come there; their radio copies are
       // dropped before any work.
       if (!(r_desc_local && m.robot_id == me)) on_descriptor(m, i);
     });
     if (r_desc_local) {
-      r_desc_local->take(16).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t& i) {
+      r_desc_local->take(1).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t& i) {
         if (m.robot_id == me) on_descriptor(m, i);
       });
     }
@@ -331,7 +346,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
         handle(core.add_descriptor(std::move(d), now));
       }
     }
-    r_rep.take(16).for_each_valid([&](const cdc_msg_CloudReply& m, const dds_sample_info_t&) {
+    r_rep.take(1).for_each_valid([&](const cdc_msg_CloudReply& m, const dds_sample_info_t&) {
       if (m.requester_robot_id != me) {
         return;
       }
@@ -348,7 +363,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
       }
       requests.erase(it);
       if (!m.found) {
-        core.on_cloud_missing(m.owner_robot_id, m.keyframe_id);
+        core.on_cloud_missing(m.owner_robot_id, m.keyframe_id, now_ns());
         return;
       }
       std::vector<Eigen::Vector3f> cloud;
@@ -356,7 +371,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
                                   cloud);  // validated above
       handle(core.on_cloud(m.owner_robot_id, m.keyframe_id, std::move(cloud), now));
     });
-    core.tick(now_ns());
+    handle(core.tick(now_ns()));
     // Requests the core gave up on (timed out) are forgotten here as well.
     for (auto it = requests.begin(); it != requests.end();) {
       it = core.is_pending(it->second.first, it->second.second) ? std::next(it) : requests.erase(it);
@@ -374,10 +389,14 @@ int run_loop_closure(const LoopNodeOptions& o) {
                      {"loops_published", loops_sent},
                      {"queries", s.queries},
                      {"reverse_queries", s.reverse_queries},
+                     {"intra_gated", s.intra_gated},
                      {"skipped_near_requested", s.skipped_near_requested},
                      {"verified_with_neighbour", s.verified_with_neighbour},
                      {"verified", s.verified},
                      {"verification_failed", s.verification_failed},
+                     {"verification_failed_by", {{"not_converged", s.failed_not_converged},
+                                                 {"fitness", s.failed_fitness},
+                                                 {"overlap", s.failed_overlap}}},
                      {"intra_accepted", s.intra_accepted},
                      {"inter_accepted", s.inter_accepted},
                      {"withdrawn", s.withdrawn},
@@ -385,6 +404,8 @@ int run_loop_closure(const LoopNodeOptions& o) {
                      {"cloud_replies", s.replies},
                      {"cloud_missing", s.missing},
                      {"cloud_timed_out", s.timed_out},
+                     {"cloud_requests_retried", s.requests_retried},
+                     {"cloud_requests_abandoned", s.requests_abandoned},
                      {"cloud_unreachable", s.unreachable},
                      {"requests_served", requests_served},
                      {"descriptor_sync_requests", sequencer.stats().sync_requests},

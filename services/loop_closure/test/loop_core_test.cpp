@@ -68,6 +68,56 @@ TEST(LoopCore, FindsTrueLoopsBetweenTwoRobotsOnTheSameBlock) {
   EXPECT_GE(inter, 10u);
 }
 
+// One robot drives 1.75 laps of a circle of 20 m radius. With its true odometry the second lap closes loops with the
+// first; with odometry that has it climbing 0.5 m per keyframe (30 m up after a lap, beyond the
+// gate of 15 m + 5 % of the 125 m driven), those candidates are never verified.
+TEST(LoopCore, OwnCandidatesTheOdometryPutsFarAwayAreNotVerified) {
+  sim::MissionOptions mo;
+  mo.pattern = sim::MissionPattern::kLoops;
+  mo.robots = 1;
+  mo.size_m = 20;  // radius: a 126 m lap
+  mo.speed_mps = 2;
+  mo.duration_s = 110;
+  const auto lap = sim::procedural_mission(mo).front();
+  std::vector<Eigen::Vector3d> path;
+  for (const auto& sp : lap) path.push_back(sp.pose.translation());
+  sim::WorldOptions wo;
+  wo.seed = 3;
+  wo.spacing_m = 8;
+  const sim::World world = sim::World::generate({path}, wo);
+  const sim::LidarModel lidar = sim::LidarModel::vlp16();
+  auto run = [&](double climb_m, double gate_m = 15) {
+    std::mt19937_64 rng(1);
+    LoopParams params;
+    params.intra_gate_m = gate_m;
+    LoopCore core(params);
+    size_t intra = 0;
+    Eigen::Isometry3d prev = Eigen::Isometry3d::Identity();
+    for (size_t k = 0; k * 10 < lap.size(); ++k) {
+      const Eigen::Isometry3d T = lap[k * 10].pose;
+      KeyframeIn kf;
+      kf.id = static_cast<uint32_t>(k);
+      kf.T_prev = prev.inverse() * T;
+      kf.T_prev.translation().z() += climb_m;
+      prev = T;
+      kf.information.diagonal() << 2500, 2500, 2500, 250000, 250000, 250000;
+      for (const auto& p : sim::sweep(world, lidar, [&](double) { return T; }, rng)) kf.cloud.emplace_back(p.x, p.y, p.z);
+      for (const auto& l : core.add_keyframe(std::move(kf))) intra += l.robot_a == l.robot_b ? 1 : 0;
+    }
+    return std::make_pair(intra, core.stats());
+  };
+  const auto [true_loops, true_stats] = run(0.0);
+  const auto [climb_loops, climb_stats] = run(0.5);
+  std::printf("true odometry: %zu loops, %llu verified; climbing: %zu loops, %llu verified, %llu gated\n", true_loops,
+              static_cast<unsigned long long>(true_stats.verified), climb_loops,
+              static_cast<unsigned long long>(climb_stats.verified),
+              static_cast<unsigned long long>(climb_stats.intra_gated));
+  EXPECT_GE(true_loops, 5u);
+  EXPECT_EQ(climb_loops, 0u);
+  EXPECT_EQ(climb_stats.verified, 0u);
+  EXPECT_GT(climb_stats.intra_gated, 0u);
+}
+
 // Three robots on one 40 m circle, 8 m apart; keyframes every 2 m with their true clouds.
 struct Circle {
   sim::World world;
@@ -202,6 +252,7 @@ TEST(LoopCore, AnUnansweredRequestTimesOutWithoutBlockingOtherCandidates) {
   params.max_verify = 4;
   params.peer_request_spacing = 0;
   params.request_timeout = std::chrono::seconds(1);
+  params.request_attempts = 1;  // given up at the first timeout
   LoopCore core(params, 2u);
   std::vector<LoopOut> loops;
   size_t to_silent = 0;
@@ -231,6 +282,87 @@ TEST(LoopCore, AnUnansweredRequestTimesOutWithoutBlockingOtherCandidates) {
   core.tick(now + std::chrono::seconds(2));
   EXPECT_EQ(core.pending_requests(), 0u);
   EXPECT_EQ(core.stats().timed_out, to_silent);
+  EXPECT_EQ(core.stats().requests_abandoned, to_silent);
+}
+
+// The link to the peer drops while its clouds are asked for (or its service does not hold a keyframe
+// yet): the requests are parked, asked again once the peer is back in reach, and their loops found.
+TEST(LoopCore, UnansweredRequestsAreAskedAgainWhenTheOwnerIsBackInReach) {
+  const Circle c(30, 2);
+  LoopParams params;
+  params.exclude_recent = 1000;
+  params.peer_request_spacing = 0;
+  params.request_timeout = std::chrono::seconds(1);
+  params.request_retry = std::chrono::seconds(1);
+  params.request_attempts = 3;
+  LoopCore core(params, 1u);
+  bool in_reach = true;
+  core.set_reachable([&](uint32_t) { return in_reach; });
+  std::set<uint32_t> lost, not_held;
+  Nanos now{0};
+  for (uint32_t k = 0; c.truth.count({1, k}) != 0; ++k) {
+    now += std::chrono::milliseconds(10);
+    LoopEvents ev = core.add_descriptor(c.descriptor(0, k, params), now);
+    ev.append(core.add_keyframe_data(c.keyframe(1, k), now));
+    ev.append(core.add_descriptor(c.descriptor(1, k, params), now));
+    EXPECT_TRUE(ev.loops.empty());
+    for (const auto& r : ev.requests) {
+      // Every other request is lost on the radio; the rest are answered "not held yet".
+      if (r.id % 2 == 0) {
+        lost.insert(r.id);
+      } else {
+        not_held.insert(r.id);
+        core.on_cloud_missing(r.robot, r.id, now);
+      }
+    }
+  }
+  ASSERT_GE(lost.size() + not_held.size(), 4u);
+  in_reach = false;  // the peer has gone: nothing is asked again
+  EXPECT_TRUE(core.tick(now += std::chrono::seconds(2)).requests.empty());
+  EXPECT_TRUE(core.tick(now += std::chrono::seconds(2)).requests.empty());
+  EXPECT_EQ(core.pending_requests(), 0u);
+  in_reach = true;  // back: every parked request is asked again, once
+  const LoopEvents again = core.tick(now += std::chrono::seconds(1));
+  std::set<uint32_t> asked;
+  for (const auto& r : again.requests) asked.insert(r.id);
+  std::set<uint32_t> all = lost;
+  all.insert(not_held.begin(), not_held.end());
+  EXPECT_EQ(asked, all);
+  EXPECT_EQ(core.stats().requests_retried, all.size());
+  std::vector<LoopOut> loops;
+  for (const auto& r : again.requests) {
+    for (const auto& l : core.on_cloud(r.robot, r.id, c.clouds.at({r.robot, r.id}), now).loops) loops.push_back(l);
+  }
+  ASSERT_GE(loops.size(), 3u);
+  for (const auto& l : loops) c.expect_true(l);
+  EXPECT_EQ(core.stats().requests_abandoned, 0u);
+}
+
+TEST(LoopCore, ARequestIsAbandonedAfterItsLastAttempt) {
+  const Circle c(16, 2);
+  LoopParams params;
+  params.exclude_recent = 1000;
+  params.peer_request_spacing = 0;
+  params.request_timeout = std::chrono::seconds(1);
+  params.request_retry = std::chrono::seconds(1);
+  params.request_attempts = 2;
+  LoopCore core(params, 1u);
+  size_t first = 0;
+  Nanos now{0};
+  for (uint32_t k = 0; c.truth.count({1, k}) != 0; ++k) {
+    LoopEvents ev = core.add_descriptor(c.descriptor(0, k, params), now);
+    ev.append(core.add_keyframe_data(c.keyframe(1, k), now));
+    ev.append(core.add_descriptor(c.descriptor(1, k, params), now));
+    first += ev.requests.size();
+  }
+  ASSERT_GE(first, 2u);
+  EXPECT_TRUE(core.tick(now += std::chrono::seconds(2)).requests.empty());        // timed out: parked
+  EXPECT_EQ(core.tick(now += std::chrono::seconds(1)).requests.size(), first);   // second attempt
+  EXPECT_TRUE(core.tick(now += std::chrono::seconds(2)).requests.empty());        // timed out again
+  EXPECT_TRUE(core.tick(now += std::chrono::seconds(5)).requests.empty());        // no third
+  EXPECT_EQ(core.stats().timed_out, 2 * first);
+  EXPECT_EQ(core.stats().requests_abandoned, first);
+  EXPECT_EQ(core.pending_requests(), 0u);
 }
 
 // Neighbouring keyframes of a peer close the same loop: with a request spacing of 5 keyframes, no

@@ -39,13 +39,22 @@ struct LoopParams {
   size_t knn = 10;                 // ring-key neighbours examined
   double max_sc_distance = 0.35;   // Scan Context distance for a candidate
   uint32_t exclude_recent = 50;    // same-robot keyframes too recent to close a loop with
+  // A same-robot candidate is only verified when the robot's own odometry puts it within
+  // intra_gate_m + intra_gate_per_m * (path driven between the two) of the query: Scan Context
+  // confuses look-alike streets, and each verification costs a registration. 0: no gate.
+  double intra_gate_m = 15, intra_gate_per_m = 0.05;
   size_t max_verify = 2;           // candidates verified per keyframe
   lidar::RegistrationParams registration;
   double max_fitness = 0.15;       // [m^2] mean squared inlier distance
   double min_overlap = 0.55;
   graph::PcmOptions pcm;
   size_t min_inter_support = 2;    // inter-robot loops are published from a consistent set at least this large
-  Nanos request_timeout = std::chrono::seconds(10);  // an unanswered cloud request is dropped after this
+  Nanos request_timeout = std::chrono::seconds(10);  // an unanswered cloud request is given up after this
+  // A request that timed out, or that its owner could not answer yet (the keyframe had not reached its
+  // own loop-closure service), is asked again after request_retry while the owner is in reach, up to
+  // request_attempts requests in all; then its verifications are dropped.
+  int request_attempts = 3;
+  Nanos request_retry = std::chrono::seconds(5);
   size_t cloud_cache = 256;        // peers' clouds kept after verification (least recently received dropped)
   // A peer's cloud is not requested when one within this many of that peer's keyframes was requested
   // already: neighbouring keyframes (1 m apart) close the same loop, and each request is a whole cloud
@@ -82,18 +91,31 @@ struct CloudWanted {
   uint32_t robot = 0, id = 0;
 };
 
+// One geometric verification and its outcome (for the service's debug log).
+struct Verification {
+  uint32_t query_robot = 0, query_id = 0, candidate_robot = 0, candidate_id = 0;
+  bool converged = false, passed = false;
+  double fitness = 0, overlap = 0;
+  double guess_m = 0, correction_m = 0;  // |t| of the starting guess, and how far registration moved it
+};
+
 struct LoopEvents {
   std::vector<LoopOut> loops;           // newly accepted loops and withdrawals, in order
   std::vector<CloudWanted> requests;    // clouds to ask their owners for
+  std::vector<Verification> verifications;
   void append(LoopEvents&& o);
 };
 
 struct LoopStats {
   uint64_t queries = 0, candidates = 0, verified = 0, verification_failed = 0;
+  // Why verifications failed (each failure counts under its first reason).
+  uint64_t failed_not_converged = 0, failed_fitness = 0, failed_overlap = 0;
   uint64_t intra_accepted = 0, intra_inconsistent = 0, inter_proposed = 0, inter_accepted = 0, withdrawn = 0;
   uint64_t requests = 0, replies = 0, replies_unexpected = 0, missing = 0, timed_out = 0, unreachable = 0;
+  uint64_t requests_retried = 0, requests_abandoned = 0;  // asked again; given up after request_attempts
   uint64_t duplicate_descriptors = 0, deferred_dropped = 0;
   uint64_t reverse_queries = 0;  // peers' descriptors searched among this robot's own keyframes
+  uint64_t intra_gated = 0;      // same-robot candidates too far by the robot's odometry (not verified)
   uint64_t skipped_near_requested = 0;  // candidates next to a peer keyframe whose cloud was requested
   uint64_t verified_with_neighbour = 0; // candidates sent to a neighbouring keyframe's cloud (held or requested)
 };
@@ -114,10 +136,11 @@ class LoopCore {
   LoopEvents add_descriptor(DescriptorIn d, Nanos now);
   // A requested cloud arrived (keyframe frame): verifications waiting for it run now.
   LoopEvents on_cloud(uint32_t robot, uint32_t id, std::vector<Eigen::Vector3f> cloud, Nanos now);
-  // The owner answered that it does not have the keyframe: its waiting verifications are dropped.
-  void on_cloud_missing(uint32_t robot, uint32_t id);
-  // Drops requests past their deadline (their candidates are abandoned; others are unaffected).
-  void tick(Nanos now);
+  // The owner answered that it does not have the keyframe (yet): asked again later (request_attempts).
+  void on_cloud_missing(uint32_t robot, uint32_t id, Nanos now);
+  // Requests past their deadline are parked to be asked again (or abandoned after request_attempts);
+  // parked ones whose owner is in reach are asked again now (the returned requests).
+  LoopEvents tick(Nanos now);
 
   // Offline convenience: keyframe data and its (quantised) descriptor in one call; every cloud is
   // local, so no requests arise.
@@ -138,9 +161,12 @@ class LoopCore {
     Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();  // T_candidate_query to start from
   };
   struct Pending {
-    Nanos deadline{0};
+    Nanos deadline{0};  // pending: answer expected by; parked: ask again from
     std::vector<Job> jobs;
+    int attempts = 1;
   };
+  // A request not answered with a cloud: park it for another attempt, or abandon it.
+  void park(const Id& candidate, Pending p, Nanos now);
   LoopEvents verify(const Job& job);
   // A keyframe of the candidate's robot within peer_request_spacing of it whose cloud is held or
   // requested, with the job re-aimed at it (the offset from the robot's pose hints), if any.
@@ -159,10 +185,18 @@ class LoopCore {
   std::set<Id> local_;                                     // keyframes whose data is held here
   std::deque<Id> cache_order_;                             // cached peer clouds, oldest first
   std::set<uint32_t> data_robots_;                         // robots with odometry from keyframe data
+  struct Chained {
+    Eigen::Isometry3d pose;  // in the robot's odometry frame (from its first keyframe here)
+    double path_m = 0;       // distance driven since then
+  };
+  std::map<Id, Chained> chained_;                          // keyframes with an unbroken odometry chain
+  // Whether the robot's odometry allows a same-robot loop between these two keyframes (intra gate).
+  bool intra_plausible(const Id& query, const Id& candidate) const;
   std::map<uint32_t, std::pair<uint32_t, Eigen::Isometry3d>> last_hint_;  // robot -> (id, pose hint)
   std::map<Id, Eigen::Isometry3d> hints_;                  // peers' keyframes: T_odom_keyframe
   std::set<std::pair<Id, Id>> tried_;                     // (query, candidate) verified or waiting for a cloud
   std::map<Id, Pending> pending_;                          // requested clouds
+  std::map<Id, Pending> parked_;                           // unanswered requests waiting to be asked again
   std::map<Id, DescriptorIn> deferred_;                    // query descriptors waiting for their keyframe
   graph::PoseGraph odometry_;                              // every robot's odometry + inter loops
   std::map<std::pair<uint32_t, uint32_t>, std::vector<size_t>> inter_;  // robot pair -> factor ids
