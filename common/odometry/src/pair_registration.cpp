@@ -11,6 +11,7 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -101,6 +102,22 @@ RegistrationOutput register_pair(const std::vector<Eigen::Vector3d>& source, con
     p.max_correspondence_m = gate;
     p.kernel_m = gate / 3;
     out = register_to_map(src, normals, map, out.T_map_sensor, p);
+  }
+  return out;
+}
+
+std::vector<double> nearest_distances(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
+                                      const Eigen::Isometry3d& T_target_source) {
+  std::vector<double> out(source.size(), std::numeric_limits<double>::infinity());
+  if (target.empty()) return out;
+  const detail::CloudAdaptor adaptor{&target};
+  detail::KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  tree.buildIndex();
+  for (size_t i = 0; i < source.size(); ++i) {
+    const Eigen::Vector3d q = T_target_source * source[i];
+    size_t j = 0;
+    double d2 = 0;
+    if (tree.knnSearch(q.data(), 1, &j, &d2) == 1) out[i] = std::sqrt(d2);
   }
   return out;
 }

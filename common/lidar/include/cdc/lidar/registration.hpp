@@ -1,5 +1,5 @@
-// Pairwise registration of two clouds (GICP), for loop-closure verification. PCL stays inside
-// src/registration.cpp; callers pass plain Eigen points.
+// Pairwise registration of two clouds (generalized ICP, the odometry library's), for loop-closure
+// verification; callers pass plain Eigen points.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -11,6 +11,7 @@ namespace cdc::lidar {
 struct RegistrationParams {
   double max_correspondence_m = 2.0;  // GICP correspondence distance
   int max_iterations = 40;
+  int neighbours = 10;                // points per GICP covariance
   double inlier_distance_m = 0.5;     // for fitness and overlap after convergence
   double voxel_m = 0.4;               // downsampling of both clouds before registration (0: none)
 };

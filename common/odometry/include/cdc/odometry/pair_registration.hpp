@@ -41,6 +41,11 @@ struct PairRegistrationParams {
 RegistrationOutput register_pair(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
                                  const Eigen::Isometry3d& guess, const PairRegistrationParams& params);
 
+// For each source point moved by T_target_source, the distance to its nearest target point (loop
+// verification's fitness and overlap start from these).
+std::vector<double> nearest_distances(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
+                                      const Eigen::Isometry3d& T_target_source);
+
 // How well T_target_source aligns two sweeps, independently of any registration's own cost: both
 // clouds reduced to voxel_m, each source point moved by T and matched to its nearest target point
 // within max_distance_m that lies on a plane (normal from its 10 neighbours); the RMS of the
