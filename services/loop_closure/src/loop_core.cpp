@@ -201,14 +201,16 @@ std::optional<LoopCore::Job> LoopCore::neighbour_job(const Job& job) const {
 LoopEvents LoopCore::on_cloud(uint32_t robot, uint32_t id, std::vector<Eigen::Vector3f> cloud, Nanos) {
   LoopEvents out;
   const Id key{robot, id};
-  auto it = pending_.find(key);
-  if (it == pending_.end()) {
+  // An answer to an earlier attempt of a request that was asked again, or is parked to be, counts too.
+  std::map<Id, Pending>& from = pending_.count(key) != 0 ? pending_ : parked_;
+  auto it = from.find(key);
+  if (it == from.end()) {
     ++stats_.replies_unexpected;
     return out;
   }
   ++stats_.replies;
   const std::vector<Job> jobs = std::move(it->second.jobs);
-  pending_.erase(it);
+  from.erase(it);
   if (local_.count(key) == 0) {
     clouds_[key] = lidar::voxel_downsample(cloud, p_.registration.voxel_m);
     cache_order_.push_back(key);
@@ -234,7 +236,7 @@ void LoopCore::park(const Id& candidate, Pending p, Nanos now) {
 
 void LoopCore::on_cloud_missing(uint32_t robot, uint32_t id, Nanos now) {
   auto it = pending_.find({robot, id});
-  if (it == pending_.end()) {
+  if (it == pending_.end()) {  // (a parked request stays parked)
     ++stats_.replies_unexpected;
     return;
   }

@@ -179,7 +179,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
   };
   core.set_reachable(in_reach);
   std::map<uint64_t, std::pair<uint32_t, uint32_t>> requests;  // request id -> (owner, keyframe)
-  uint64_t next_request = 1, requests_served = 0, requests_unknown = 0, loops_sent = 0, points_served = 0;
+  uint64_t next_request = 1, duplicate_replies = 0, requests_served = 0, requests_unknown = 0, loops_sent = 0, points_served = 0;
   uint32_t incarnation = 0, loop_seq = 0;
   Traffic traffic;
   spdlog::info("loop-closure service of robot {} up: {} robots, PCM chi2 {}, domain {}{}", me, o.robots,
@@ -356,12 +356,18 @@ int run_loop_closure(const LoopNodeOptions& o) {
       }
       traffic.in(topics::kCloudReply, dds::wire_size(m), m.owner_robot_id);
       const auto it = requests.find(m.request_id);
-      if (it == requests.end() || it->second != std::make_pair(m.owner_robot_id, m.keyframe_id)) {
+      const bool open = it != requests.end() && it->second == std::make_pair(m.owner_robot_id, m.keyframe_id);
+      // A late answer to an earlier attempt of a request asked again is as good as the awaited one.
+      if (!open && core.cloud(m.owner_robot_id, m.keyframe_id) != nullptr) {
+        ++duplicate_replies;  // the answer to both attempts of a request asked again: one was used
+        return;
+      }
+      if (!open && !core.is_wanted(m.owner_robot_id, m.keyframe_id)) {
         rejected.record(topics::kCloudReply, dds::Validation::fail("request_id: answers no open request of this robot"));
         spdlog::warn("rejected cloud reply: {}", rejected.last_reason());
         return;
       }
-      requests.erase(it);
+      if (open) requests.erase(it);
       if (!m.found) {
         core.on_cloud_missing(m.owner_robot_id, m.keyframe_id, now_ns());
         return;
@@ -406,6 +412,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
                      {"cloud_timed_out", s.timed_out},
                      {"cloud_requests_retried", s.requests_retried},
                      {"cloud_requests_abandoned", s.requests_abandoned},
+                     {"cloud_replies_duplicate", duplicate_replies},
                      {"cloud_unreachable", s.unreachable},
                      {"requests_served", requests_served},
                      {"descriptor_sync_requests", sequencer.stats().sync_requests},

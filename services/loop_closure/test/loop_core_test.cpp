@@ -321,15 +321,20 @@ TEST(LoopCore, UnansweredRequestsAreAskedAgainWhenTheOwnerIsBackInReach) {
   EXPECT_TRUE(core.tick(now += std::chrono::seconds(2)).requests.empty());
   EXPECT_TRUE(core.tick(now += std::chrono::seconds(2)).requests.empty());
   EXPECT_EQ(core.pending_requests(), 0u);
-  in_reach = true;  // back: every parked request is asked again, once
+  // A late answer to a parked request is used (and that request is not asked again).
+  const uint32_t late = *lost.begin();
+  std::vector<LoopOut> loops = core.on_cloud(0, late, c.clouds.at({0, late}), now).loops;
+  EXPECT_EQ(core.stats().replies, 1u);
+  EXPECT_EQ(core.stats().replies_unexpected, 0u);
+  in_reach = true;  // back: every other parked request is asked again, once
   const LoopEvents again = core.tick(now += std::chrono::seconds(1));
   std::set<uint32_t> asked;
   for (const auto& r : again.requests) asked.insert(r.id);
   std::set<uint32_t> all = lost;
   all.insert(not_held.begin(), not_held.end());
+  all.erase(late);
   EXPECT_EQ(asked, all);
   EXPECT_EQ(core.stats().requests_retried, all.size());
-  std::vector<LoopOut> loops;
   for (const auto& r : again.requests) {
     for (const auto& l : core.on_cloud(r.robot, r.id, c.clouds.at({r.robot, r.id}), now).loops) loops.push_back(l);
   }

@@ -134,7 +134,8 @@ class LoopCore {
   LoopEvents add_keyframe_data(KeyframeIn kf, Nanos now);
   // A descriptor of any robot's keyframe; searches when it is the query robot's.
   LoopEvents add_descriptor(DescriptorIn d, Nanos now);
-  // A requested cloud arrived (keyframe frame): verifications waiting for it run now.
+  // A requested cloud arrived (keyframe frame; also one answering an earlier attempt of a request
+  // asked again): verifications waiting for it run now.
   LoopEvents on_cloud(uint32_t robot, uint32_t id, std::vector<Eigen::Vector3f> cloud, Nanos now);
   // The owner answered that it does not have the keyframe (yet): asked again later (request_attempts).
   void on_cloud_missing(uint32_t robot, uint32_t id, Nanos now);
@@ -150,6 +151,8 @@ class LoopCore {
   const std::vector<Eigen::Vector3f>* cloud(uint32_t robot, uint32_t id) const;
   size_t pending_requests() const noexcept { return pending_.size(); }
   bool is_pending(uint32_t robot, uint32_t id) const { return pending_.count({robot, id}) != 0; }
+  // Requested and not yet answered with a cloud: pending, or parked to be asked again.
+  bool is_wanted(uint32_t robot, uint32_t id) const { return is_pending(robot, id) || parked_.count({robot, id}) != 0; }
   const LoopStats& stats() const noexcept { return stats_; }
   size_t keyframes() const noexcept { return db_.size(); }
   const lidar::ScanContextDatabase& database() const noexcept { return db_; }
