@@ -6,9 +6,10 @@
 // Event-driven, no I/O and no clock of its own. The keyframes whose clouds are held locally come
 // in with add_keyframe_data (with their odometry); descriptors of any robot with add_descriptor.
 // A descriptor of a robot this core queries for starts a search; a candidate whose cloud is not
-// held locally becomes a cloud request (returned to the caller, answered with on_cloud or
-// on_cloud_missing, or dropped by tick after its deadline), and its verification waits while the
-// other candidates go on. Robots whose odometry is not held locally are chained through the
+// held locally becomes a cloud request (returned to the caller and answered with on_cloud or
+// on_cloud_missing; tick parks one past its deadline or not answered with a cloud and asks again
+// while the owner is in reach, a few times), and its verification waits while the other
+// candidates go on. Robots whose odometry is not held locally are chained through the
 // descriptors' pose hints with a nominal noise model (PCM needs both robots' odometry). A peer's
 // descriptor is also searched among this robot's own keyframes (a reverse search), so that places
 // both robots saw are found when the peer's descriptors arrive, whichever robot passed first.
