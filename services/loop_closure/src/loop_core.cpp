@@ -352,8 +352,18 @@ LoopEvents LoopCore::update_pcm(uint32_t a, uint32_t b) {
     g.factors.push_back(odometry_.factors[f]);
   }
   const graph::OutlierDecision d = graph::Pcm(p_.pcm).decide(g);
+  // The consistent set is published when it is large enough and rests on more than one keyframe of
+  // each robot: loops sharing a keyframe share its cloud, and a registration that slid along a
+  // featureless stretch slides the same way for all of them (consistent, and wrong together).
+  std::set<uint32_t> keyframes_a, keyframes_b;
+  for (size_t i : d.accepted) {
+    const LoopOut& l = proposed_.at(ids[i - first_loop]);
+    keyframes_a.insert(l.robot_a == a ? l.keyframe_a : l.keyframe_b);
+    keyframes_b.insert(l.robot_a == a ? l.keyframe_b : l.keyframe_a);
+  }
+  const size_t distinct = std::min<size_t>(2, p_.min_inter_support);
   std::set<size_t> accepted;
-  if (d.accepted.size() >= p_.min_inter_support) {
+  if (d.accepted.size() >= p_.min_inter_support && keyframes_a.size() >= distinct && keyframes_b.size() >= distinct) {
     for (size_t i : d.accepted) accepted.insert(ids[i - first_loop]);
   }
   for (size_t f : ids) {

@@ -208,6 +208,37 @@ TEST(LoopCore, RequestsPeerCloudsAndVerifiesWhenTheyArrive) {
   EXPECT_EQ(core.stats().replies_unexpected, 1u);
 }
 
+// Loops that share a keyframe share its cloud: a registration that slid along a featureless stretch
+// would slide the same way for each, and they would agree with each other. A consistent set is only
+// published once it rests on two keyframes of each robot.
+TEST(LoopCore, ASetOfLoopsThroughOneKeyframeIsNotPublished) {
+  const Circle c(30, 2);
+  LoopParams params;
+  params.exclude_recent = 1000;
+  params.peer_request_spacing = 0;
+  params.max_verify = 4;  // several of robot 0's keyframes against each of robot 1's
+  LoopCore core(params, 1u);
+  Nanos now{0};
+  for (uint32_t k = 0; c.truth.count({0, k}) != 0; ++k) core.add_descriptor(c.descriptor(0, k, params), now);
+  auto feed = [&](uint32_t k) {
+    LoopEvents ev = core.add_keyframe_data(c.keyframe(1, k), now);
+    ev.append(core.add_descriptor(c.descriptor(1, k, params), now));
+    for (const auto& r : ev.requests) ev.append(core.on_cloud(r.robot, r.id, c.clouds.at({r.robot, r.id}), now));
+    return ev.loops;
+  };
+  EXPECT_TRUE(feed(5).empty()) << "loops through robot 1's keyframe 5 alone";
+  const uint64_t consistent = core.stats().inter_proposed;
+  ASSERT_GE(consistent, 2u) << "the single keyframe closed several (true) loops";
+  std::vector<LoopOut> loops = feed(6);
+  ASSERT_GE(loops.size(), 3u) << "a second keyframe: the set is published, the first keyframe's loops with it";
+  std::set<uint32_t> own;
+  for (const auto& l : loops) {
+    own.insert(l.keyframe_b);
+    c.expect_true(l);
+  }
+  EXPECT_EQ(own, (std::set<uint32_t>{5, 6}));
+}
+
 // A peer that was out of range comes back and its descriptors arrive all at once, after this robot
 // has passed every one of those places: the reverse search still finds the loops.
 TEST(LoopCore, DescriptorsOfAPeerBackInRangeAreSearchedAmongOwnKeyframes) {

@@ -49,7 +49,9 @@ struct LoopParams {
   double max_fitness = 0.15;       // [m^2] mean squared inlier distance
   double min_overlap = 0.55;
   graph::PcmOptions pcm;
-  size_t min_inter_support = 2;    // inter-robot loops are published from a consistent set at least this large
+  // Inter-robot loops are published from a consistent set at least this large, spanning at least two
+  // keyframes of each robot (when this is 2 or more).
+  size_t min_inter_support = 2;
   Nanos request_timeout = std::chrono::seconds(10);  // an unanswered cloud request is given up after this
   // A request that timed out, or that its owner could not answer yet (the keyframe had not reached its
   // own loop-closure service), is asked again after request_retry while the owner is in reach, up to
