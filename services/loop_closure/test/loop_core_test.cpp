@@ -16,21 +16,32 @@
 namespace cdc::loops {
 namespace {
 
-TEST(LoopCore, FindsTrueLoopsBetweenTwoRobotsOnTheSameBlock) {
-  // Robots 0 and 1 lap the same 40 m circle, robot 1 a little behind; keyframes every 2 m.
+// A drive round a circle of radius_m at 2 m/s and a world built along it.
+struct Lap {
+  geometry::Trajectory lap;
+  sim::World world;
+};
+Lap circle_lap(double radius_m, double duration_s) {
   sim::MissionOptions mo;
   mo.pattern = sim::MissionPattern::kLoops;
   mo.robots = 1;
-  mo.size_m = 40;
+  mo.size_m = radius_m;
   mo.speed_mps = 2;
-  mo.duration_s = 70;  // 140 m: more than one lap
-  const auto lap = sim::procedural_mission(mo).front();
+  mo.duration_s = duration_s;
+  Lap out;
+  out.lap = sim::procedural_mission(mo).front();
   std::vector<Eigen::Vector3d> path;
-  for (const auto& sp : lap) path.push_back(sp.pose.translation());
+  for (const auto& sp : out.lap) path.push_back(sp.pose.translation());
   sim::WorldOptions wo;
   wo.seed = 3;
   wo.spacing_m = 8;
-  const sim::World world = sim::World::generate({path}, wo);
+  out.world = sim::World::generate({path}, wo);
+  return out;
+}
+
+TEST(LoopCore, FindsTrueLoopsBetweenTwoRobotsOnTheSameBlock) {
+  // Robots 0 and 1 drive the same circle (40 m radius), robot 1 a little behind; keyframes every 2 m.
+  const auto [lap, world] = circle_lap(40, 70);  // 140 m
   const sim::LidarModel lidar = sim::LidarModel::vlp16();
   std::mt19937_64 rng(1);
 
@@ -72,19 +83,7 @@ TEST(LoopCore, FindsTrueLoopsBetweenTwoRobotsOnTheSameBlock) {
 // first; with odometry that has it climbing 0.5 m per keyframe (30 m up after a lap, beyond the
 // gate of 15 m + 5 % of the 125 m driven), those candidates are never verified.
 TEST(LoopCore, OwnCandidatesTheOdometryPutsFarAwayAreNotVerified) {
-  sim::MissionOptions mo;
-  mo.pattern = sim::MissionPattern::kLoops;
-  mo.robots = 1;
-  mo.size_m = 20;  // radius: a 126 m lap
-  mo.speed_mps = 2;
-  mo.duration_s = 110;
-  const auto lap = sim::procedural_mission(mo).front();
-  std::vector<Eigen::Vector3d> path;
-  for (const auto& sp : lap) path.push_back(sp.pose.translation());
-  sim::WorldOptions wo;
-  wo.seed = 3;
-  wo.spacing_m = 8;
-  const sim::World world = sim::World::generate({path}, wo);
+  const auto [lap, world] = circle_lap(20, 110);  // a 126 m lap
   const sim::LidarModel lidar = sim::LidarModel::vlp16();
   auto run = [&](double climb_m, double gate_m = 15) {
     std::mt19937_64 rng(1);
@@ -125,19 +124,9 @@ struct Circle {
   std::map<std::pair<uint32_t, uint32_t>, Eigen::Isometry3d> truth;
   std::map<std::pair<uint32_t, uint32_t>, std::vector<Eigen::Vector3f>> clouds;
   Circle(double duration_s, uint32_t robots) {
-    sim::MissionOptions mo;
-    mo.pattern = sim::MissionPattern::kLoops;
-    mo.robots = 1;
-    mo.size_m = 40;
-    mo.speed_mps = 2;
-    mo.duration_s = duration_s;
-    lap = sim::procedural_mission(mo).front();
-    std::vector<Eigen::Vector3d> path;
-    for (const auto& sp : lap) path.push_back(sp.pose.translation());
-    sim::WorldOptions wo;
-    wo.seed = 3;
-    wo.spacing_m = 8;
-    world = sim::World::generate({path}, wo);
+    Lap l = circle_lap(40, duration_s);
+    lap = std::move(l.lap);
+    world = std::move(l.world);
     std::mt19937_64 rng(1);
     for (uint32_t r = 0; r < robots; ++r) {
       for (uint32_t k = 0; k * 10 + 40 * r < lap.size(); ++k) {
@@ -159,6 +148,14 @@ struct Circle {
     kf.information.diagonal() << 2500, 2500, 2500, 250000, 250000, 250000;
     kf.cloud = clouds.at({r, k});
     return kf;
+  }
+  // Robot 1's service at step k: robot 0's descriptor k (a reverse search), then robot 1's keyframe k
+  // and its descriptor.
+  LoopEvents feed_step(LoopCore& core, uint32_t k, const LoopParams& p, Nanos now) const {
+    LoopEvents ev = core.add_descriptor(descriptor(0, k, p), now);
+    ev.append(core.add_keyframe_data(keyframe(1, k), now));
+    ev.append(core.add_descriptor(descriptor(1, k, p), now));
+    return ev;
   }
   void expect_true(const LoopOut& l) const {
     const Eigen::Isometry3d e = (truth.at({l.robot_a, l.keyframe_a}).inverse() * truth.at({l.robot_b, l.keyframe_b})).inverse() * l.T_a_b;
@@ -316,16 +313,23 @@ TEST(LoopCore, AnUnansweredRequestTimesOutWithoutBlockingOtherCandidates) {
   EXPECT_EQ(core.stats().requests_abandoned, to_silent);
 }
 
+// Inter-robot loops only, every candidate's cloud asked for; requests time out after 1 s and are
+// asked again 1 s later, `attempts` times in all.
+LoopParams retrying(int attempts) {
+  LoopParams p;
+  p.exclude_recent = 1000;
+  p.peer_request_spacing = 0;
+  p.request_timeout = std::chrono::seconds(1);
+  p.request_retry = std::chrono::seconds(1);
+  p.request_attempts = attempts;
+  return p;
+}
+
 // The link to the peer drops while its clouds are asked for (or its service does not hold a keyframe
 // yet): the requests are parked, asked again once the peer is back in reach, and their loops found.
 TEST(LoopCore, UnansweredRequestsAreAskedAgainWhenTheOwnerIsBackInReach) {
   const Circle c(30, 2);
-  LoopParams params;
-  params.exclude_recent = 1000;
-  params.peer_request_spacing = 0;
-  params.request_timeout = std::chrono::seconds(1);
-  params.request_retry = std::chrono::seconds(1);
-  params.request_attempts = 3;
+  const LoopParams params = retrying(3);
   LoopCore core(params, 1u);
   bool in_reach = true;
   core.set_reachable([&](uint32_t) { return in_reach; });
@@ -333,9 +337,7 @@ TEST(LoopCore, UnansweredRequestsAreAskedAgainWhenTheOwnerIsBackInReach) {
   Nanos now{0};
   for (uint32_t k = 0; c.truth.count({1, k}) != 0; ++k) {
     now += std::chrono::milliseconds(10);
-    LoopEvents ev = core.add_descriptor(c.descriptor(0, k, params), now);
-    ev.append(core.add_keyframe_data(c.keyframe(1, k), now));
-    ev.append(core.add_descriptor(c.descriptor(1, k, params), now));
+    LoopEvents ev = c.feed_step(core, k, params, now);
     EXPECT_TRUE(ev.loops.empty());
     for (const auto& r : ev.requests) {
       // Every other request is lost on the radio; the rest are answered "not held yet".
@@ -376,19 +378,12 @@ TEST(LoopCore, UnansweredRequestsAreAskedAgainWhenTheOwnerIsBackInReach) {
 
 TEST(LoopCore, ARequestIsAbandonedAfterItsLastAttempt) {
   const Circle c(16, 2);
-  LoopParams params;
-  params.exclude_recent = 1000;
-  params.peer_request_spacing = 0;
-  params.request_timeout = std::chrono::seconds(1);
-  params.request_retry = std::chrono::seconds(1);
-  params.request_attempts = 2;
+  const LoopParams params = retrying(2);
   LoopCore core(params, 1u);
   size_t first = 0;
   Nanos now{0};
   for (uint32_t k = 0; c.truth.count({1, k}) != 0; ++k) {
-    LoopEvents ev = core.add_descriptor(c.descriptor(0, k, params), now);
-    ev.append(core.add_keyframe_data(c.keyframe(1, k), now));
-    ev.append(core.add_descriptor(c.descriptor(1, k, params), now));
+    LoopEvents ev = c.feed_step(core, k, params, now);
     first += ev.requests.size();
   }
   ASSERT_GE(first, 2u);
@@ -414,9 +409,7 @@ TEST(LoopCore, PeerCloudRequestsAreSpacedAlongThePeersKeyframes) {
   Nanos now{0};
   for (uint32_t k = 0; c.truth.count({1, k}) != 0; ++k) {
     now += std::chrono::milliseconds(200);
-    LoopEvents ev = core.add_descriptor(c.descriptor(0, k, params), now);
-    ev.append(core.add_keyframe_data(c.keyframe(1, k), now));
-    ev.append(core.add_descriptor(c.descriptor(1, k, params), now));
+    LoopEvents ev = c.feed_step(core, k, params, now);
     for (const auto& r : ev.requests) {
       asked.push_back(r.id);
       ev.append(core.on_cloud(r.robot, r.id, c.clouds.at({r.robot, r.id}), now));
