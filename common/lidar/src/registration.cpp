@@ -41,7 +41,7 @@ RegistrationResult register_clouds(const std::vector<Eigen::Vector3f>& source, c
   }
   odometry::PairRegistrationParams pp;
   pp.method = odometry::PairMethod::kGicp;
-  pp.gicp_voxel_m = 1e-3;  // already reduced above: keeps every point
+  pp.gicp_voxel_m = 0;  // already reduced above
   pp.gicp_neighbours = p.neighbours;
   pp.gicp_max_correspondence_m = p.max_correspondence_m;
   pp.gicp_max_iterations = p.max_iterations;

@@ -37,8 +37,9 @@ std::vector<Eigen::Matrix3d> plane_covariances(const std::vector<Eigen::Vector3d
 
 RegistrationOutput gicp(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
                         const Eigen::Isometry3d& guess, const PairRegistrationParams& params) {
-  const std::vector<Eigen::Vector3d> src = voxel_centroids(source, params.gicp_voxel_m);
-  const std::vector<Eigen::Vector3d> tgt = voxel_centroids(target, params.gicp_voxel_m);
+  const bool reduce = params.gicp_voxel_m > 0;
+  const std::vector<Eigen::Vector3d> src = reduce ? voxel_centroids(source, params.gicp_voxel_m) : source;
+  const std::vector<Eigen::Vector3d> tgt = reduce ? voxel_centroids(target, params.gicp_voxel_m) : target;
   const detail::CloudAdaptor sa{&src}, ta{&tgt};
   detail::KdTree stree(3, sa, nanoflann::KDTreeSingleIndexAdaptorParams(10)), ttree(3, ta, nanoflann::KDTreeSingleIndexAdaptorParams(10));
   stree.buildIndex();

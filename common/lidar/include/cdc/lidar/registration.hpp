@@ -17,7 +17,7 @@ struct RegistrationParams {
 };
 
 struct RegistrationResult {
-  bool converged = false;
+  bool converged = false;  // it ran to the end (converged or at max_iterations) with 20 or more correspondences
   Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();
   double fitness = 1e9;   // mean squared distance of inliers [m^2]
   double overlap = 0;     // fraction of source points with a target point within inlier_distance

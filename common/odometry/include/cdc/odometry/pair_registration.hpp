@@ -31,7 +31,7 @@ struct PairRegistrationParams {
   // points (flattened to planes), correspondences within gicp_max_correspondence_m. The defaults
   // suit dense sweeps (64 beams); on sparse ones (16 beams) a point's neighbours lie on its own ring,
   // and voxels coarser than the ring spacing (0.5 m) are needed.
-  double gicp_voxel_m = 0.1;
+  double gicp_voxel_m = 0.1;          // 0: the clouds as given (already reduced)
   int gicp_neighbours = 10;
   double gicp_max_correspondence_m = 1.0;
   int gicp_max_iterations = 64;
