@@ -178,7 +178,6 @@ int run_loop_closure(const LoopNodeOptions& o) {
     return it != last_heard.end() && Clock::now() - it->second <= std::chrono::milliseconds(o.peer_timeout_ms);
   };
   core.set_reachable(in_reach);
-  std::map<uint64_t, std::pair<uint32_t, uint32_t>> requests;  // request id -> (owner, keyframe)
   uint64_t next_request = 1, duplicate_replies = 0, requests_served = 0, requests_unknown = 0, loops_sent = 0, points_served = 0;
   uint32_t incarnation = 0, loop_seq = 0;
   Traffic traffic;
@@ -196,7 +195,6 @@ int run_loop_closure(const LoopNodeOptions& o) {
       q.owner_robot_id = c.robot;
       q.keyframe_id = c.id;
       q.stamp_ns = dds::now_ns();
-      requests[q.request_id] = {c.robot, c.id};
       w_req.write(q);
       spdlog::debug("requested cloud {}/{} (request {})", c.robot, c.id, q.request_id);
       traffic.out(topics::kCloudRequest, dds::wire_size(q), c.robot);
@@ -355,19 +353,17 @@ int run_loop_closure(const LoopNodeOptions& o) {
         return;
       }
       traffic.in(topics::kCloudReply, dds::wire_size(m), m.owner_robot_id);
-      const auto it = requests.find(m.request_id);
-      const bool open = it != requests.end() && it->second == std::make_pair(m.owner_robot_id, m.keyframe_id);
-      // A late answer to an earlier attempt of a request asked again is as good as the awaited one.
-      if (!open && core.cloud(m.owner_robot_id, m.keyframe_id) != nullptr) {
-        ++duplicate_replies;  // the answer to both attempts of a request asked again: one was used
-        return;
-      }
-      if (!open && !core.is_wanted(m.owner_robot_id, m.keyframe_id)) {
-        rejected.record(topics::kCloudReply, dds::Validation::fail("request_id: answers no open request of this robot"));
+      // Answered is what the core still waits for (pending, or parked to be asked again: a late answer
+      // to an earlier attempt is as good as the awaited one); the request id itself is informational.
+      if (!core.is_wanted(m.owner_robot_id, m.keyframe_id)) {
+        if (core.cloud(m.owner_robot_id, m.keyframe_id) != nullptr) {
+          ++duplicate_replies;  // the answer to both attempts of a request asked again: one was used
+          return;
+        }
+        rejected.record(topics::kCloudReply, dds::Validation::fail("keyframe_id: answers no open request of this robot"));
         spdlog::warn("rejected cloud reply: {}", rejected.last_reason());
         return;
       }
-      if (open) requests.erase(it);
       if (!m.found) {
         core.on_cloud_missing(m.owner_robot_id, m.keyframe_id, now_ns());
         return;
@@ -378,10 +374,6 @@ int run_loop_closure(const LoopNodeOptions& o) {
       handle(core.on_cloud(m.owner_robot_id, m.keyframe_id, std::move(cloud), now));
     });
     handle(core.tick(now_ns()));
-    // Requests the core gave up on (timed out) are forgotten here as well.
-    for (auto it = requests.begin(); it != requests.end();) {
-      it = core.is_pending(it->second.first, it->second.second) ? std::next(it) : requests.erase(it);
-    }
   }
   dds::ShutdownSignal::remove_guard(&stop);
   if (!o.stats_out.empty()) {

@@ -153,9 +153,8 @@ class LoopCore {
   // A locally held cloud (downsampled), or null.
   const std::vector<Eigen::Vector3f>* cloud(uint32_t robot, uint32_t id) const;
   size_t pending_requests() const noexcept { return pending_.size(); }
-  bool is_pending(uint32_t robot, uint32_t id) const { return pending_.count({robot, id}) != 0; }
   // Requested and not yet answered with a cloud: pending, or parked to be asked again.
-  bool is_wanted(uint32_t robot, uint32_t id) const { return is_pending(robot, id) || parked_.count({robot, id}) != 0; }
+  bool is_wanted(uint32_t robot, uint32_t id) const { return pending_.count({robot, id}) != 0 || parked_.count({robot, id}) != 0; }
   const LoopStats& stats() const noexcept { return stats_; }
   size_t keyframes() const noexcept { return db_.size(); }
   const lidar::ScanContextDatabase& database() const noexcept { return db_; }
