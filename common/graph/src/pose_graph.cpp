@@ -29,4 +29,27 @@ size_t PoseGraph::count(FactorKind kind) const {
   return static_cast<size_t>(std::count_if(factors.begin(), factors.end(), [&](const Factor& f) { return f.kind == kind; }));
 }
 
+std::map<Key, int> loop_counts(const PoseGraph& graph) {
+  std::map<Key, int> counts;
+  for (const Factor& f : graph.factors) {
+    if (f.kind == FactorKind::kLoop) {
+      ++counts[f.a];
+      ++counts[f.b];
+    }
+  }
+  return counts;
+}
+
+void share_loop_information(PoseGraph& graph, const std::map<Key, int>& counts) {
+  auto count_of = [&](Key k) {
+    const auto it = counts.find(k);
+    return it == counts.end() ? 1 : std::max(it->second, 1);
+  };
+  for (Factor& f : graph.factors) {
+    if (f.kind == FactorKind::kLoop) {
+      f.information /= static_cast<double>(std::max(count_of(f.a), count_of(f.b)));
+    }
+  }
+}
+
 }  // namespace cdc::graph

@@ -19,7 +19,7 @@ int main(int argc, char** argv) {
       "cdc-pgo: optimise a pose graph (g2o: VERTEX_SE3:QUAT/EDGE_SE3:QUAT, or SE2 lifted into 3D).\n"
       "Prints iterations, time, final cost (full information, no 1/2) and SE-Sync's objective f."};
   std::string input, out_path, init = "chordal";
-  bool json = false, sesync_weights = false, verbose = false, distributed = false;
+  bool json = false, sesync_weights = false, verbose = false, distributed = false, share_loops = false;
   int max_rounds = 30;
   double sor = cdc::graph::DistributedOptions{}.over_relaxation;
   int max_iterations = 100;
@@ -32,6 +32,9 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--sesync-weights", sesync_weights,
                "optimise SE-Sync's isotropic chordal objective instead of the full-information cost");
+  app.add_flag("--share-loops", share_loops,
+               "divide each loop closure's information by the most loops either of its keyframes takes part in"
+               " (as the optimiser services do; --out then writes the divided information)");
   app.add_option("--max-iterations", max_iterations, "solver iteration limit")->check(CLI::PositiveNumber)
       ->capture_default_str();
   app.add_option("--tolerance", tolerance, "relative cost-change tolerance at which the solver stops")
@@ -55,6 +58,9 @@ int main(int argc, char** argv) {
   try {
     cdc::graph::PoseGraph graph = std::filesystem::is_directory(input) ? cdc::graph::read_g2o_folder(input)
                                                                         : cdc::graph::read_g2o(input);
+    if (share_loops) {
+      cdc::graph::share_loop_information(graph);
+    }
     const auto t0 = std::chrono::steady_clock::now();
     bool missing_vertices = false;
     for (const auto& f : graph.factors) {

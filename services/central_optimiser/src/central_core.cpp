@@ -202,7 +202,15 @@ UpdateStats CentralCore::solve_with(const graph::SolverOptions& options) {
   if (graph_.factors.empty()) {
     return st;
   }
-  const graph::SolveResult r = graph::solve(graph_, options);
+  graph::SolveResult r;
+  if (config_.share_loop_information) {
+    graph::PoseGraph weighted = graph_;  // the graph keeps the loops' information as measured
+    graph::share_loop_information(weighted);
+    r = graph::solve(weighted, options);
+    graph_.poses.swap(weighted.poses);
+  } else {
+    r = graph::solve(graph_, options);
+  }
   st.solved = true;
   st.iterations = r.iterations;
   st.time_s = r.time_s;
@@ -250,6 +258,9 @@ UpdateStats CentralCore::solve_local(const graph::SolverOptions& options) {
   st.poses = active.size();
   st.factors = local.factors.size();
   if (!local.factors.empty()) {
+    if (config_.share_loop_information) {
+      graph::share_loop_information(local, graph::loop_counts(graph_));
+    }
     if (fixed.empty() && local.count(graph::FactorKind::kPrior) == 0) {
       fixed.insert(local.poses.begin()->first);
     }

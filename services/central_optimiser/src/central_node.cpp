@@ -87,6 +87,7 @@ CentralNodeOptions load_options(const std::string& path) {
   r.get<uint32_t>("optimiser.window", o.core.window);
   r.get<uint32_t>("optimiser.full_every", o.core.full_every, [](const uint32_t& v) { return v >= 1; }, ">= 1");
   r.get<double>("optimiser.loop_robust_scale", o.core.loop_robust_scale, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get<bool>("optimiser.share_loop_information", o.core.share_loop_information);
   r.get<std::string>("log_level", o.log_level);
   if (o.central_on_robot >= robots) {
     r.error("central_on_robot " + std::to_string(o.central_on_robot) + " is not one of the " + std::to_string(robots) +

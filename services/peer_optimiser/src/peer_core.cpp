@@ -215,6 +215,9 @@ std::optional<Eigen::Isometry3d> PeerCore::distributed_round() {
   if (g.factors.empty()) {
     return std::nullopt;
   }
+  if (config_.share_loop_information) {
+    graph::share_loop_information(g);
+  }
   graph::SolverOptions o;
   o.max_iterations = config_.distributed_iterations;
   o.function_tolerance = 1e-8;

@@ -67,6 +67,7 @@ PeerNodeOptions load_options(const std::string& path) {
   o.core.resend_period = std::chrono::milliseconds(resend);
   r.get<double>("peer_range_m", o.core.peer_range_m, positive_d, "> 0");
   r.get<int>("distributed_iterations", o.core.distributed_iterations, positive_i, "> 0");
+  r.get<bool>("share_loop_information", o.core.share_loop_information);
   r.get<double>("fusion.pos_max_m", o.core.fusion.pos_max, positive_d, "> 0");
   double rot_deg = o.core.fusion.rot_max * 180.0 / M_PI;
   r.get<double>("fusion.rot_max_deg", rot_deg, positive_d, "> 0");

@@ -42,4 +42,13 @@ struct PoseGraph {
   size_t count(FactorKind kind) const;
 };
 
+// Loop closures through one keyframe are registrations against the same cloud, so their errors are
+// correlated: taken as independent measurements, n of them outweigh the odometry about n-fold.
+// loop_counts gives, per key, the number of loop factors it takes part in.
+std::map<Key, int> loop_counts(const PoseGraph& graph);
+// Divides each loop factor's information by n, the larger count of its two keys in `counts`. Pass
+// the counts of the whole graph when `graph` is a part of it (a local window).
+void share_loop_information(PoseGraph& graph, const std::map<Key, int>& counts);
+inline void share_loop_information(PoseGraph& graph) { share_loop_information(graph, loop_counts(graph)); }
+
 }  // namespace cdc::graph

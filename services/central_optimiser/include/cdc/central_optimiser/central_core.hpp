@@ -54,6 +54,9 @@ struct CentralConfig {
   // Cauchy scale on loop factors in whitened units (0: none). 3 is about the 95 % chi-square
   // radius of a 6-DoF residual: inlier loops stay quadratic, gross outliers are discounted.
   double loop_robust_scale = 3.0;
+  // Loops through one keyframe share its cloud's errors: each loop's information is divided by the
+  // most loops either of its keyframes takes part in (graph::share_loop_information).
+  bool share_loop_information = true;
   size_t max_pending_loops = 100'000;
   // Incremental updates re-optimise what changed (new keyframes, loop ends) plus this many
   // preceding keyframes of the same robot, the rest held fixed; every full_every updates (and

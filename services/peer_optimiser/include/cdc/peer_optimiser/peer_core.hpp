@@ -31,6 +31,9 @@ struct PeerConfig {
   Nanos resend_grace{std::chrono::milliseconds(1500)};  // unacknowledged this long: re-send
   Nanos resend_period{std::chrono::milliseconds(500)};
   int distributed_iterations = 5;
+  // Loops through one keyframe share its cloud's errors: each loop's information is divided by the
+  // most loops either of its keyframes takes part in (graph::share_loop_information).
+  bool share_loop_information = true;
   size_t max_resend_per_step = 500;
 };
 
