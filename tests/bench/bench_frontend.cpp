@@ -194,7 +194,7 @@ int main(int argc, char** argv) {
   app.add_option("--scans", max_scans, "at most this many scans (0: the whole sequence)")->capture_default_str();
   app.add_option("--configs", configs, "configurations to run")->capture_default_str();
   app.add_option("--out", out_dir, "write per-configuration trajectories here");
-  bool no_deskew = false, no_imu_window = false, imu_deskew = false, no_gravity_refinement = false;
+  bool no_deskew = false, no_imu_window = false, imu_deskew = false, no_gravity_refinement = false, no_level = false;
   double memory_minutes = 0;
   app.add_option("--memory-minutes", memory_minutes, "instead: a drive this long, reporting resident memory every minute");
   app.add_flag("--no-deskew", no_deskew, "turn deskewing off (for comparison)");
@@ -205,12 +205,16 @@ int main(int argc, char** argv) {
                "constant-velocity translation (for comparison)");
   app.add_flag("--no-gravity-refinement", no_gravity_refinement,
                "hold the IMU window's gravity at its first alignment instead of refining it in every window (for comparison)");
+  app.add_flag("--no-level", no_level,
+               "do not level the odometry with the IMU window's gravity (roll, pitch and height then follow the map's tilt; "
+               "for comparison)");
   CLI11_PARSE(app, argc, argv);
   if (memory_minutes > 0) {
     frontend::FrontendParams p;
     p.imu_window = !no_imu_window;
     p.imu_deskew = imu_deskew;
     p.window.refine_gravity = !no_gravity_refinement;
+    p.level_with_gravity = !no_level;
     nlohmann::json j{{"memory", memory_run(memory_minutes, p)}};
     std::cout << j.dump() << '\n';
     return 0;
@@ -240,8 +244,7 @@ int main(int argc, char** argv) {
     p.imu_window = !no_imu_window;
     p.imu_deskew = imu_deskew;
     p.window.refine_gravity = !no_gravity_refinement;
-    if (const char* e = std::getenv("FE_KDIV")) p.kernel_divisor = std::atof(e);
-    if (const char* e = std::getenv("FE_CONV")) p.registration.convergence = std::atof(e);
+    p.level_with_gravity = !no_level;
     out[c] = run(s, hdl ? sim::LidarModel::hdl64() : sim::LidarModel::vlp16(), imu, p, c, out_dir);
   }
   out["sequence"] = seq;

@@ -82,7 +82,7 @@ int main(int argc, char** argv) {
   std::string input, out_dir, poses, calib;
   uint32_t robot = 0;
   size_t max_scans = 0;
-  bool kitti = false, lidar_only = false, no_deskew = false, no_imu_window = false, imu_deskew = false, json = false;
+  bool kitti = false, lidar_only = false, no_deskew = false, no_imu_window = false, imu_deskew = false, json = false, no_level = false;
   app.add_option("dataset", input, "dataset folder")->required()->check(CLI::ExistingDirectory);
   app.add_option("--robot", robot, "robot of a cdc-sim dataset")->capture_default_str();
   app.add_flag("--kitti", kitti, "DATASET is a KITTI velodyne folder");
@@ -95,6 +95,8 @@ int main(int argc, char** argv) {
   app.add_flag("--imu-deskew", imu_deskew,
                "deskew with the IMU's whole motion (translation from the window's velocity) instead of its rotation and "
                "constant-velocity translation");
+  app.add_flag("--no-level", no_level,
+               "do not level the odometry with the IMU window's gravity (roll, pitch and height then follow the map's tilt)");
   app.add_option("--max-scans", max_scans, "at most this many scans (0: all)")->capture_default_str();
   app.add_option("--out", out_dir, "write odometry.tum, odometry.kitti, keyframes.tum and report.json here");
   app.add_flag("--json", json, "print the report as one JSON object");
@@ -106,6 +108,7 @@ int main(int argc, char** argv) {
     params.deskew = !no_deskew;
     params.imu_window = !no_imu_window;
     params.imu_deskew = imu_deskew;
+    params.level_with_gravity = !no_level;
     params.T_lidar_imu = in.T_lidar_imu;
     frontend::FrontendCore core(params);
     const bool use_imu = !lidar_only && !in.imu.empty();
@@ -136,7 +139,8 @@ int main(int argc, char** argv) {
                           {"registration_failures", core.stats().registration_failures},
                           {"registration_rejected", core.stats().registration_rejected},
                           {"imu_predictions", core.stats().imu_predictions},
-                          {"imu_window_restarts", core.stats().imu_window_restarts}};
+                          {"imu_window_restarts", core.stats().imu_window_restarts},
+                          {"max_level_deg", core.stats().max_level_deg}};
     // Ground truth, expressed from the first scan's pose like the odometry.
     const auto gt_index = [&](int64_t stamp) { return geometry::interpolate_at(in.groundtruth, stamp); };
     geometry::Poses est, gt;

@@ -102,6 +102,34 @@ void FrontendCore::update_window(int64_t stamp_ns, const Eigen::Isometry3d& T, c
   gyro_bias_ = window_->ready() ? window_->latest().bg : Eigen::Vector3d::Zero();
 }
 
+Eigen::Isometry3d FrontendCore::level(const Eigen::Isometry3d& T) {
+  if (first_ || !p_.level_with_gravity) return T;
+  if (window_ && window_->ready()) {
+    // The window's gravity (map frame) through a linear-trend filter: it follows a steadily
+    // drifting tilt without lag and averages the estimate's sweep-to-sweep noise.
+    const Eigen::Vector3d g = window_->gravity().normalized();
+    if (!gravity_smoothed_) {
+      gravity_smoothed_ = g;
+      gravity_trend_.setZero();
+    }
+    const Eigen::Vector3d predicted = *gravity_smoothed_ + gravity_trend_;
+    gravity_smoothed_ = (predicted + p_.level_gain * (g - predicted)).normalized();
+    gravity_trend_ += p_.level_trend_gain * (g - predicted);
+    if (!gravity_reference_) {
+      if (++level_sweeps_ >= p_.level_reference_sweeps) gravity_reference_ = *gravity_smoothed_;
+    } else {
+      level_ = Eigen::Quaterniond::FromTwoVectors(*gravity_smoothed_, *gravity_reference_);
+      stats_.level_deg = Eigen::AngleAxisd(level_).angle() * 180.0 / M_PI;
+      stats_.max_level_deg = std::max(stats_.max_level_deg, stats_.level_deg);
+    }
+  }
+  // The registered increment, turned into the levelled frame; the orientation turned likewise.
+  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
+  out.linear() = level_.toRotationMatrix() * T.linear();
+  out.translation() = T_out_last_.translation() + level_ * (T.translation() - T_last_.translation());
+  return out;
+}
+
 std::vector<Eigen::Vector3d> FrontendCore::prepare(int64_t stamp_ns, const std::vector<ScanPoint>& points,
                                                    const Eigen::Isometry3d& sweep_motion, const ImuStart* start,
                                                    std::vector<uint16_t>& rings) {
@@ -297,10 +325,12 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
     map_.add(world);
     if (stats_.scans % 10 == 0) map_.remove_far(T.translation());
   }
+  const Eigen::Isometry3d T_map = T;
+  const Eigen::Isometry3d T_out = level(T_map);
   if (!first_) {
-    delta_ = T_last_.inverse() * T;
+    delta_ = T_last_.inverse() * T_map;
     dt_last_ = dt;
-    out.linear_velocity = (T.translation() - T_last_.translation()) / dt;
+    out.linear_velocity = (T_out.translation() - T_out_last_.translation()) / dt;
     out.angular_velocity = geometry::so3_log(delta_.rotation()) / dt;
   }
   // Keyframes: relative odometry with an information matrix from the registrations in between.
@@ -309,20 +339,20 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
     const Eigen::LDLT<Matrix6d> ldlt(info_step);
     if (ldlt.info() == Eigen::Success) cov_since_keyframe_ += ldlt.solve(Matrix6d::Identity());
   }
-  const Eigen::Isometry3d since = T_last_keyframe_.inverse() * T;
+  const Eigen::Isometry3d since = T_last_keyframe_.inverse() * T_out;
   if (!have_keyframe_ || since.translation().norm() >= p_.keyframe_distance_m || angle_of(since) >= p_.keyframe_angle_rad) {
     KeyframeOut k;
     k.id = next_keyframe_++;
     k.stamp_ns = stamp_ns;
-    k.T_odom_keyframe = T;
+    k.T_odom_keyframe = T_out;
     k.T_prev = have_keyframe_ ? since : Eigen::Isometry3d::Identity();
     Matrix6d cov = cov_since_keyframe_;
     cov.diagonal().array() += 1e-8;
     k.information = have_keyframe_ ? Matrix6d(cov.inverse()) : Matrix6d::Identity() * 1e6;
     k.information = 0.5 * (k.information + k.information.transpose());
     for (const auto& p : odometry::voxel_filter(deskewed, p_.keyframe_voxel_m)) k.cloud.push_back(p.cast<float>());
-    keyframe_poses_.emplace_back(k.id, T);
-    T_last_keyframe_ = T;
+    keyframe_poses_.emplace_back(k.id, T_out);
+    T_last_keyframe_ = T_out;
     cov_since_keyframe_.setZero();
     have_keyframe_ = true;
     ++stats_.keyframes;
@@ -330,22 +360,23 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
   }
   // Corrections: the published pose follows the odometry's own increment and is pulled towards
   // the corrected pose by at most the fusion thresholds per scan (eq. 8-14).
-  const Eigen::Isometry3d increment = first_ ? Eigen::Isometry3d::Identity() : T_last_.inverse() * T;
+  const Eigen::Isometry3d increment = first_ ? Eigen::Isometry3d::Identity() : T_out_last_.inverse() * T_out;
   if (correction_) {
-    const geometry::FusionResult f = geometry::fuse_pose(published_ * increment, *correction_ * T, p_.fusion);
+    const geometry::FusionResult f = geometry::fuse_pose(published_ * increment, *correction_ * T_out, p_.fusion);
     published_ = f.fused;
     out.fusion_lambda = f.lambda;
   } else {
-    published_ = T;
+    published_ = T_out;
   }
-  out.T_odom_raw = T;
+  out.T_odom_raw = T_out;
   out.T_odom_base = published_;
   if (T_world_robot_) out.T_world_base = *T_world_robot_ * published_;
   if (first_ && p_.deskew) {
     first_points_ = points;
     first_stamp_ = stamp_ns;
   }
-  T_last_ = T;
+  T_last_ = T_map;
+  T_out_last_ = T_out;
   last_stamp_ = stamp_ns;
   first_ = false;
   return out;

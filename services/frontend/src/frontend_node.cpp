@@ -52,6 +52,10 @@ FrontendNodeOptions load_frontend_options(const std::string& path) {
   r.get<bool>("imu.window.enabled", p.imu_window);
   r.get<bool>("imu.window.deskew", p.imu_deskew);
   r.get<bool>("imu.window.refine_gravity", p.window.refine_gravity);
+  r.get<bool>("imu.level_with_gravity", p.level_with_gravity);
+  int level_sweeps = static_cast<int>(p.level_reference_sweeps);
+  r.get<int>("imu.level_reference_sweeps", level_sweeps, [](const int& v) { return v >= 1; }, ">= 1");
+  p.level_reference_sweeps = static_cast<size_t>(level_sweeps);
   r.get<double>("imu.window.gravity_prior_sigma", p.window.gravity_prior_sigma, positive, "> 0");
   int window = static_cast<int>(p.window.size), align = static_cast<int>(p.window.align_sweeps);
   r.get<int>("imu.window.size", window, [](const int& v) { return v >= 2 && v <= 100; }, "2..100");
@@ -260,6 +264,8 @@ int run_frontend(const FrontendNodeOptions& o) {
                      {"imu_predictions", s.imu_predictions},
                      {"imu_predictions_rejected", s.imu_predictions_rejected},
                      {"imu_window_restarts", s.imu_window_restarts},
+                     {"level_deg", s.level_deg},
+                     {"max_level_deg", s.max_level_deg},
                      {"corrections", s.corrections},
                      {"corrections_for_unknown_keyframes", corrections_unknown},
                      {"imu_samples", s.imu_samples},

@@ -3,17 +3,19 @@
 // sweeps, linked by IMU preintegration factors with bias random walk, and anchored by LiDAR
 // odometry factors (each sweep's registered pose, information from the registration's Hessian).
 //
-// Gravity: the odometry frame is the first sweep's, so gravity is a constant vector in it, found
-// once by a linear alignment over the first align_sweeps sweeps (LiDAR positions against the
-// preintegrated increments, velocities unknown), then refined by every window (its direction a
-// parameter on the sphere, drawn to its last estimate). The oldest state of the window is the anchor: its
+// Gravity: the registered poses are in the map's frame, the first sweep's, so gravity is a nearly
+// constant vector in it, found once by a linear alignment over the first align_sweeps sweeps (LiDAR
+// positions against the preintegrated increments, velocities unknown), then refined by every window
+// (its direction a parameter on the sphere, drawn to its last estimate). When the map's frame tilts
+// (registration drifting in roll or pitch), the refined gravity turns with it: the front-end levels
+// its odometry with that (FrontendParams::level_with_gravity). The oldest state of the window is the anchor: its
 // pose is held, its velocity and biases carry a prior at their previous estimate (a conservative
 // stand-in for marginalisation), and the biases a weak zero-mean prior of a MEMS IMU's size.
 //
 // What it gives the front-end: the latest velocity and biases, so the next sweep is predicted
 // (and deskewed) from the bias-corrected IMU instead of a constant-velocity model. Its poses do not
-// replace the registered ones: the map and the keyframes stay on the LiDAR's poses (as in LIO-SAM,
-// where the IMU graph serves the prediction and the LiDAR pose is the odometry).
+// replace the registered ones: the map stays on the LiDAR's poses (as in LIO-SAM, where the IMU
+// graph serves the prediction and the LiDAR pose is the odometry).
 #pragma once
 
 #include "cdc/odometry/imu_preintegration.hpp"
