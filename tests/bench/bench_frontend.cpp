@@ -206,8 +206,8 @@ int main(int argc, char** argv) {
   app.add_flag("--no-gravity-refinement", no_gravity_refinement,
                "hold the IMU window's gravity at its first alignment instead of refining it in every window (for comparison)");
   app.add_flag("--no-level", no_level,
-               "do not level the odometry with the IMU window's gravity (roll, pitch and height then follow the map's tilt; "
-               "for comparison)");
+               "do not level the odometry with the IMU window's gravity "
+               "(roll, pitch and height then follow the map's tilt; for comparison)");
   CLI11_PARSE(app, argc, argv);
   if (memory_minutes > 0) {
     frontend::FrontendParams p;

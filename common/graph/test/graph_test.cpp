@@ -90,11 +90,11 @@ TEST(SharedLoops, ABundleThroughOneBiasedCloudMovesTheRobotLessThanIndependentLo
   auto build = [](bool share) {
     PoseGraph g;
     const Matrix6d odo = Matrix6d::Identity() * 400.0, loop = Matrix6d::Identity() * 25.0;
-    for (uint64_t r = 0; r < 2; ++r) {
+    for (uint32_t robot = 0; robot < 2; ++robot) {
       for (uint64_t i = 0; i < 10; ++i) {
-        g.poses[make_key(static_cast<uint32_t>(r), i)] = pose(static_cast<double>(i), 2.0 * static_cast<double>(r), 0, 0);
+        g.poses[make_key(robot, i)] = pose(static_cast<double>(i), 2.0 * robot, 0, 0);
         if (i > 0) {
-          g.add_between(make_key(static_cast<uint32_t>(r), i - 1), make_key(static_cast<uint32_t>(r), i), pose(1, 0, 0, 0), odo);
+          g.add_between(make_key(robot, i - 1), make_key(robot, i), pose(1, 0, 0, 0), odo);
         }
       }
     }

@@ -82,7 +82,8 @@ int main(int argc, char** argv) {
   std::string input, out_dir, poses, calib;
   uint32_t robot = 0;
   size_t max_scans = 0;
-  bool kitti = false, lidar_only = false, no_deskew = false, no_imu_window = false, imu_deskew = false, json = false, no_level = false;
+  bool kitti = false, lidar_only = false, no_deskew = false, no_imu_window = false, imu_deskew = false, json = false;
+  bool no_level = false;
   app.add_option("dataset", input, "dataset folder")->required()->check(CLI::ExistingDirectory);
   app.add_option("--robot", robot, "robot of a cdc-sim dataset")->capture_default_str();
   app.add_flag("--kitti", kitti, "DATASET is a KITTI velodyne folder");
@@ -96,7 +97,8 @@ int main(int argc, char** argv) {
                "deskew with the IMU's whole motion (translation from the window's velocity) instead of its rotation and "
                "constant-velocity translation");
   app.add_flag("--no-level", no_level,
-               "do not level the odometry with the IMU window's gravity (roll, pitch and height then follow the map's tilt)");
+               "do not level the odometry with the IMU window's gravity "
+               "(roll, pitch and height then follow the map's tilt)");
   app.add_option("--max-scans", max_scans, "at most this many scans (0: all)")->capture_default_str();
   app.add_option("--out", out_dir, "write odometry.tum, odometry.kitti, keyframes.tum and report.json here");
   app.add_flag("--json", json, "print the report as one JSON object");

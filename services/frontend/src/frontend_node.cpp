@@ -52,10 +52,6 @@ FrontendNodeOptions load_frontend_options(const std::string& path) {
   r.get<bool>("imu.window.enabled", p.imu_window);
   r.get<bool>("imu.window.deskew", p.imu_deskew);
   r.get<bool>("imu.window.refine_gravity", p.window.refine_gravity);
-  r.get<bool>("imu.level_with_gravity", p.level_with_gravity);
-  int level_sweeps = static_cast<int>(p.level_reference_sweeps);
-  r.get<int>("imu.level_reference_sweeps", level_sweeps, [](const int& v) { return v >= 1; }, ">= 1");
-  p.level_reference_sweeps = static_cast<size_t>(level_sweeps);
   r.get<double>("imu.window.gravity_prior_sigma", p.window.gravity_prior_sigma, positive, "> 0");
   int window = static_cast<int>(p.window.size), align = static_cast<int>(p.window.align_sweeps);
   r.get<int>("imu.window.size", window, [](const int& v) { return v >= 2 && v <= 100; }, "2..100");
@@ -66,6 +62,10 @@ FrontendNodeOptions load_frontend_options(const std::string& path) {
   r.get<double>("imu.window.accel_bias_walk", p.window.noise.accel_bias_walk, positive, "> 0");
   p.window.size = static_cast<size_t>(window);
   p.window.align_sweeps = static_cast<size_t>(align);
+  r.get<bool>("imu.level_with_gravity", p.level_with_gravity);
+  int level_sweeps = static_cast<int>(p.level_reference_sweeps);
+  r.get<int>("imu.level_reference_sweeps", level_sweeps, [](const int& v) { return v >= 1; }, ">= 1");
+  p.level_reference_sweeps = static_cast<size_t>(level_sweeps);
   std::vector<double> t = {0, 0, 0}, q = {0, 0, 0, 1};
   r.get<std::vector<double>>("imu.T_lidar_imu.position", t, [](const std::vector<double>& v) { return v.size() == 3; }, "3 numbers");
   r.get<std::vector<double>>("imu.T_lidar_imu.orientation", q, [](const std::vector<double>& v) { return v.size() == 4; },

@@ -239,7 +239,8 @@ TEST(Frontend, LevellingWithGravityHoldsTheTiltOfAMiscalibratedLidar) {
     const Eigen::Isometry3d truth = d.traj.pose(0.2 + 0.1 * from).inverse() * d.traj.pose(0.2 + 0.1 * (sweeps - 1));
     const Eigen::Isometry3d odom = odom_from.inverse() * feed.last.T_odom_raw;
     const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();  // the body's, on a flat road
-    const Eigen::Vector3d up_end_true = truth.rotation().transpose() * up, up_end_odom = odom.rotation().transpose() * up;
+    const Eigen::Vector3d up_end_true = truth.rotation().transpose() * up;
+    const Eigen::Vector3d up_end_odom = odom.rotation().transpose() * up;
     const double tilt = std::acos(std::clamp(up_end_true.dot(up_end_odom), -1.0, 1.0)) * 180 / M_PI;
     return Result{tilt, odom.translation().z() - truth.translation().z(), core.stats().level_deg};
   };
