@@ -83,6 +83,7 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
       in.T_prev = prev_truth[k.robot].inverse() * k.truth * noise;
     }
     in.information.diagonal() << 2500, 2500, 2500, 250000, 250000, 250000;
+    in.T_odom = k.truth;  // a levelled odometry's tilt: the truth's (world z is up)
     for (const auto& p : pts) in.cloud.emplace_back(p.x, p.y, p.z);
     prev_truth[k.robot] = k.truth;
     truth[{k.robot, k.id}] = k.truth;

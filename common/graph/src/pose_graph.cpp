@@ -1,6 +1,7 @@
 #include "cdc/graph/pose_graph.hpp"
 
 #include <algorithm>
+#include <cmath>
 
 namespace cdc::graph {
 
@@ -48,6 +49,33 @@ void share_loop_information(PoseGraph& graph, const std::map<Key, int>& counts) 
   for (Factor& f : graph.factors) {
     if (f.kind == FactorKind::kLoop) {
       f.information /= static_cast<double>(std::max(count_of(f.a), count_of(f.b)));
+    }
+  }
+}
+
+Matrix6d level_information(const Matrix6d& information, const Eigen::Vector3d& up_b, double tilt_scale) {
+  if (tilt_scale >= 1.0 || up_b.squaredNorm() == 0.0) {
+    return information;
+  }
+  // The rotation half of a between factor's residual is taken in the frame of its second keyframe
+  // (residuals.hpp); B turns it into that keyframe's level frame (z up), where the rows and columns
+  // of rotation about x and y are scaled, and back. Translation is untouched.
+  Matrix6d S = Matrix6d::Identity();
+  S(3, 3) = S(4, 4) = std::sqrt(std::max(tilt_scale, 0.0));
+  Matrix6d B = Matrix6d::Identity();
+  B.bottomRightCorner<3, 3>() =
+      Eigen::Quaterniond::FromTwoVectors(up_b.normalized(), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const Matrix6d level = S * (B * information * B.transpose()) * S;
+  const Matrix6d out = B.transpose() * level * B;
+  return 0.5 * (out + out.transpose());
+}
+
+void level_loop_information(PoseGraph& graph, double tilt_scale) {
+  for (Factor& f : graph.factors) {
+    const auto it = graph.poses.find(f.b);
+    if (f.kind == FactorKind::kLoop && it != graph.poses.end()) {
+      f.information = level_information(f.information, it->second.linear().transpose() * Eigen::Vector3d::UnitZ(),
+                                        tilt_scale);
     }
   }
 }

@@ -117,6 +117,70 @@ TEST(SharedLoops, ABundleThroughOneBiasedCloudMovesTheRobotLessThanIndependentLo
   EXPECT_LT(shared, 0.6 * independent);
 }
 
+TEST(LevelledLoops, TiltInformationIsScaledAboutTheLevelAxesOfTheKeyframe) {
+  PoseGraph g;
+  g.poses[make_key(0, 0)] = pose(0, 0, 0, 0);
+  g.poses[make_key(0, 1)] = pose(1, 0, 0, 0);
+  g.poses[make_key(1, 0)] = pose(0, 2, 0, 0.7);           // level, turned: tilt axes still x and y
+  g.poses[make_key(1, 1)] = pose(1, 2, 0, 0, M_PI / 2);   // pitched up 90 deg: up is its -x axis
+  const Matrix6d info = Matrix6d::Identity() * 100.0;
+  g.add_between(make_key(0, 0), make_key(0, 1), pose(1, 0, 0, 0), info);
+  g.add_between(make_key(0, 0), make_key(1, 0), pose(0, 2, 0, 0.7), info);
+  g.add_between(make_key(0, 1), make_key(1, 1), pose(0, 2, 0, 0, M_PI / 2), info);
+  PoseGraph unchanged = g;
+  level_loop_information(unchanged, 1.0);
+  for (size_t i = 0; i < g.factors.size(); ++i) {
+    EXPECT_TRUE(unchanged.factors[i].information.isApprox(info)) << "scale 1 changes nothing";
+  }
+  level_loop_information(g, 0.01);
+  using Diag = Eigen::Matrix<double, 6, 1>;
+  const std::vector<Diag> expected{(Diag() << 100, 100, 100, 100, 100, 100).finished(),   // odometry: untouched
+                                   (Diag() << 100, 100, 100, 1, 1, 100).finished(),       // roll, pitch scaled
+                                   (Diag() << 100, 100, 100, 100, 1, 1).finished()};      // about its y and z
+  for (size_t i = 0; i < expected.size(); ++i) {
+    EXPECT_LT((g.factors[i].information - Matrix6d(expected[i].asDiagonal())).norm(), 1e-9)
+        << "factor " << i << ":\n" << g.factors[i].information;
+  }
+}
+
+TEST(LevelledLoops, LoopsWithABiasedTiltBendTheTrajectoryFarLess) {
+  // A robot drives 30 m straight and level with exact odometry; loops span 10 keyframes and all
+  // carry a 0.5 deg pitch error (registrations of sparse sweeps whose ground rings disagree).
+  auto build = [](double tilt_scale) {
+    PoseGraph g;
+    Matrix6d odo = Matrix6d::Identity(), loop = Matrix6d::Identity();
+    odo.topLeftCorner<3, 3>() *= 400.0;
+    odo.bottomRightCorner<3, 3>() *= 1e4;  // 0.6 deg per step
+    loop.topLeftCorner<3, 3>() *= 100.0;
+    loop.bottomRightCorner<3, 3>() *= 1e4;
+    const int n = 31;
+    for (int i = 0; i < n; ++i) {
+      g.poses[make_key(0, static_cast<uint64_t>(i))] = pose(i, 0, 0, 0);
+      if (i > 0) {
+        g.add_between(make_key(0, static_cast<uint64_t>(i - 1)), make_key(0, static_cast<uint64_t>(i)),
+                      pose(1, 0, 0, 0), odo);
+      }
+    }
+    g.add_prior(make_key(0, 0), pose(0, 0, 0, 0), Matrix6d::Identity() * 1e6);
+    for (int i = 0; i + 10 < n; i += 2) {
+      g.add_between(make_key(0, static_cast<uint64_t>(i)), make_key(0, static_cast<uint64_t>(i + 10)),
+                    pose(10, 0, 0, 0, 0.5 * M_PI / 180), loop);
+    }
+    level_loop_information(g, tilt_scale);
+    SolverOptions o;
+    solve(g, o);
+    double worst = 0;
+    for (const auto& [k, T] : g.poses) {
+      worst = std::max(worst, std::abs(T.translation().z()));
+    }
+    return worst;
+  };
+  const double plain = build(1.0), levelled = build(0.01);
+  std::printf("largest height error: %.4f m (loops as measured), %.4f m (tilt x 0.01)\n", plain, levelled);
+  EXPECT_GT(plain, 0.05);
+  EXPECT_LT(levelled, 0.25 * plain);
+}
+
 TEST(Keys, RobotInTheTopByte) {
   const Key k = make_key(3, 12345);
   EXPECT_EQ(robot_of(k), 3u);

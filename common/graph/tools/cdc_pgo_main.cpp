@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   std::string input, out_path, init = "chordal";
   bool json = false, sesync_weights = false, verbose = false, distributed = false, share_loops = false;
   int max_rounds = 30;
+  double tilt_scale = 1.0;
   double sor = cdc::graph::DistributedOptions{}.over_relaxation;
   int max_iterations = 100;
   double tolerance = 1e-10;
@@ -35,6 +36,11 @@ int main(int argc, char** argv) {
   app.add_flag("--share-loops", share_loops,
                "divide each loop closure's information by the most loops either of its keyframes takes part in"
                " (as the optimiser services do; --out then writes the divided information)");
+  app.add_option("--loop-tilt-scale", tilt_scale,
+                 "scale each loop closure's roll/pitch information by this factor in its keyframe's level frame"
+                 " (world z up, from the estimate read), as the loop-closure service does for robots whose odometry"
+                 " holds its tilt with gravity; for graphs whose loops were not levelled")
+      ->check(CLI::Range(0.0, 1.0))->capture_default_str();
   app.add_option("--max-iterations", max_iterations, "solver iteration limit")->check(CLI::PositiveNumber)
       ->capture_default_str();
   app.add_option("--tolerance", tolerance, "relative cost-change tolerance at which the solver stops")
@@ -61,6 +67,7 @@ int main(int argc, char** argv) {
     if (share_loops) {
       cdc::graph::share_loop_information(graph);
     }
+    cdc::graph::level_loop_information(graph, tilt_scale);
     const auto t0 = std::chrono::steady_clock::now();
     bool missing_vertices = false;
     for (const auto& f : graph.factors) {

@@ -56,6 +56,7 @@ int run_dataset(const RunOptions& o) {
     loops::KeyframeIn kf;
     kf.robot = s.robot;
     kf.id = next_id[s.robot]++;
+    kf.T_odom = *s.truth;  // a levelled odometry's tilt: the truth's (world z is up)
     const Eigen::Isometry3d T0_inv = s.truth->inverse();
     for (const sim::DatasetPoint& p : sim::read_dataset_scan(s.bin, s.meta)) {
       const auto Tt = geometry::interpolate_at(traj, s.stamp_ns + static_cast<int64_t>(p.time_offset * 1e9));

@@ -34,6 +34,7 @@ LoopEvents LoopCore::add_keyframe_data(KeyframeIn kf, Nanos now) {
     chained_[me] = {Eigen::Isometry3d::Identity(), 0.0};
   }
   data_robots_.insert(kf.robot);
+  up_[me] = kf.T_odom.linear().transpose() * Eigen::Vector3d::UnitZ();
   clouds_[me] = lidar::voxel_downsample(kf.cloud, p_.registration.voxel_m);
   local_.insert(me);
   auto it = deferred_.find(me);
@@ -310,7 +311,11 @@ LoopEvents LoopCore::verify(const Job& job) {
   }
   v.passed = true;
   out.verifications.push_back(v);
-  LoopOut loop{robot_a, kf_a, robot_b, kf_b, r.T_target_source, r.information, r.fitness, false};
+  // The residual's rotation is taken in the query keyframe's frame (b): level it there.
+  const auto up = up_.find(job.query);
+  const graph::Matrix6d information = graph::level_information(
+      r.information, up == up_.end() ? Eigen::Vector3d::UnitZ() : up->second, p_.tilt_information_scale);
+  LoopOut loop{robot_a, kf_a, robot_b, kf_b, r.T_target_source, information, r.fitness, false};
   graph::Factor f;
   f.kind = graph::FactorKind::kLoop;
   f.a = graph::make_key(robot_a, kf_a);

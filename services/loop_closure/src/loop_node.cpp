@@ -68,6 +68,8 @@ LoopNodeOptions load_loop_options(const std::string& path) {
   r.get<double>("retrieval.intra_gate_per_m", p.intra_gate_per_m, [](const double& v) { return v >= 0; }, ">= 0");
   r.get<double>("verification.max_fitness_m2", p.max_fitness, positive_d, "> 0");
   r.get<double>("verification.min_overlap", p.min_overlap, [](const double& v) { return v > 0 && v <= 1; }, "(0, 1]");
+  r.get<double>("verification.tilt_information_scale", p.tilt_information_scale,
+                [](const double& v) { return v >= 0 && v <= 1; }, "0..1");
   r.get<double>("verification.voxel_m", p.registration.voxel_m, [](const double& v) { return v >= 0; }, ">= 0");
   r.get<double>("verification.max_correspondence_m", p.registration.max_correspondence_m, positive_d, "> 0");
   r.get<double>("pcm.chi2_threshold", p.pcm.chi2_threshold, positive_d, "> 0");
@@ -283,6 +285,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
       kf.id = m.keyframe_id;
       kf.T_prev = dds::to_eigen(m.T_prev_keyframe);
       kf.information = dds::information_to_eigen(m.information);
+      kf.T_odom = dds::to_eigen(m.T_odom_keyframe);
       kf.cloud.reserve(m.cloud._length);
       for (uint32_t i = 0; i < m.cloud._length; ++i) {
         kf.cloud.emplace_back(m.cloud._buffer[i].x, m.cloud._buffer[i].y, m.cloud._buffer[i].z);

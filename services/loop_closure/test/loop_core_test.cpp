@@ -59,6 +59,7 @@ TEST(LoopCore, FindsTrueLoopsBetweenTwoRobotsOnTheSameBlock) {
       kf.id = static_cast<uint32_t>(k);
       if (k > 0) kf.T_prev = truth[{r, static_cast<uint32_t>(k - 1)}].inverse() * T;
       kf.information.diagonal() << 2500, 2500, 2500, 250000, 250000, 250000;
+      kf.T_odom = T;  // a levelled odometry's tilt
       for (const auto& p : sim::sweep(world, lidar, [&](double) { return T; }, rng)) kf.cloud.emplace_back(p.x, p.y, p.z);
       truth[{r, kf.id}] = T;
       for (const auto& l : core.add_keyframe(std::move(kf))) published.push_back(l);
@@ -71,6 +72,15 @@ TEST(LoopCore, FindsTrueLoopsBetweenTwoRobotsOnTheSameBlock) {
     const Eigen::Isometry3d e = gt.inverse() * l.T_a_b;
     EXPECT_LT(e.translation().norm(), 1.0) << l.robot_a << "/" << l.keyframe_a << " - " << l.robot_b << "/" << l.keyframe_b;
     EXPECT_LT(Eigen::AngleAxisd(e.rotation()).angle(), 5 * M_PI / 180);
+    // The registration's rotation information is isotropic; about the query keyframe's horizontal
+    // axes it is scaled by tilt_information_scale, about its vertical axis it is kept.
+    const Eigen::Vector3d up = truth.at({l.robot_b, l.keyframe_b}).linear().transpose() * Eigen::Vector3d::UnitZ();
+    const Eigen::Vector3d side = up.cross(Eigen::Vector3d::UnitX()).normalized(), ahead = side.cross(up);
+    const Eigen::Matrix3d info_r = l.information.bottomRightCorner<3, 3>();
+    const double yaw_info = up.dot(info_r * up);
+    EXPECT_NEAR(side.dot(info_r * side), params.tilt_information_scale * yaw_info, 1e-9 * yaw_info);
+    EXPECT_NEAR(ahead.dot(info_r * ahead), params.tilt_information_scale * yaw_info, 1e-9 * yaw_info);
+    EXPECT_NEAR(l.information(0, 0), l.information(2, 2), 1e-9 * l.information(0, 0)) << "translation untouched";
     inter += l.robot_a != l.robot_b ? 1 : 0;
   }
   std::printf("%zu loops published (%zu inter-robot), %llu verified, %llu failed verification\n", published.size(), inter,

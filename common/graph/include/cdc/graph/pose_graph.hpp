@@ -51,4 +51,15 @@ std::map<Key, int> loop_counts(const PoseGraph& graph);
 void share_loop_information(PoseGraph& graph, const std::map<Key, int>& counts);
 inline void share_loop_information(PoseGraph& graph) { share_loop_information(graph, loop_counts(graph)); }
 
+// Where the robots' front-ends hold roll and pitch with gravity, the odometry's tilt does not drift,
+// while a loop closure's tilt is the weakest part of its registration: two single sweeps of a sparse
+// LiDAR seen from different places, each seeing the ground as rings (a miscalibrated one as a cone).
+// level_information scales a between factor's information about the two horizontal axes by
+// `tilt_scale` (0..1), in the level frame of its second keyframe b, where the rotation half of the
+// residual is taken; `up_b` is up in b's frame. Yaw and translation keep their information.
+Matrix6d level_information(const Matrix6d& information, const Eigen::Vector3d& up_b, double tilt_scale);
+// The same for every loop factor of a graph whose world z is up, with up taken from the current
+// estimate of each keyframe b (cdc-pgo --loop-tilt-scale, for graphs whose loops were not levelled).
+void level_loop_information(PoseGraph& graph, double tilt_scale);
+
 }  // namespace cdc::graph

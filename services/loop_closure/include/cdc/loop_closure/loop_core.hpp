@@ -48,6 +48,11 @@ struct LoopParams {
   lidar::RegistrationParams registration;
   double max_fitness = 0.15;       // [m^2] mean squared inlier distance
   double min_overlap = 0.55;
+  // The front-ends hold roll and pitch with gravity, so a loop's tilt (two sparse sweeps seen from
+  // different places, whose ground rings disagree) is the weakest part of it: its roll/pitch
+  // information is scaled by this in the query keyframe's level frame (graph::level_information).
+  // 1: as registered (robots whose odometry does not hold its tilt: LiDAR-only).
+  double tilt_information_scale = 0.01;
   graph::PcmOptions pcm;
   // Inter-robot loops are published from a consistent set at least this large, spanning at least two
   // keyframes of each robot (when this is 2 or more).
@@ -73,6 +78,7 @@ struct KeyframeIn {
   uint32_t robot = 0, id = 0;
   Eigen::Isometry3d T_prev = Eigen::Isometry3d::Identity();  // relative odometry from id - 1
   graph::Matrix6d information = graph::Matrix6d::Identity();
+  Eigen::Isometry3d T_odom = Eigen::Isometry3d::Identity();  // T_odom_keyframe (its tilt: where up is)
   std::vector<Eigen::Vector3f> cloud;                          // keyframe frame, sensor at the origin
 };
 
@@ -194,6 +200,7 @@ class LoopCore {
     Eigen::Isometry3d pose;  // in the robot's odometry frame (from its first keyframe here)
     double path_m = 0;       // distance driven since then
   };
+  std::map<Id, Eigen::Vector3d> up_;                       // up in each local keyframe's frame
   std::map<Id, Chained> chained_;                          // keyframes with an unbroken odometry chain
   // Whether the robot's odometry allows a same-robot loop between these two keyframes (intra gate).
   bool intra_plausible(const Id& query, const Id& candidate) const;
