@@ -86,6 +86,10 @@ CentralNodeOptions load_options(const std::string& path) {
   o.core.max_time_per_update_s = max_time_ms * 1e-3;
   r.get<uint32_t>("optimiser.window", o.core.window);
   r.get<uint32_t>("optimiser.full_every", o.core.full_every, [](const uint32_t& v) { return v >= 1; }, ">= 1");
+  r.get<int>("optimiser.full_pass_iterations", o.core.full_pass_iterations, positive, "> 0");
+  double full_pass_ms = o.core.full_pass_time_s * 1e3;
+  r.get<double>("optimiser.full_pass_time_ms", full_pass_ms, [](const double& v) { return v > 0; }, "> 0");
+  o.core.full_pass_time_s = full_pass_ms * 1e-3;
   r.get<double>("optimiser.loop_robust_scale", o.core.loop_robust_scale, [](const double& v) { return v >= 0; }, ">= 0");
   r.get<bool>("optimiser.share_loop_information", o.core.share_loop_information);
   r.get<std::string>("log_level", o.log_level);
@@ -194,6 +198,11 @@ int run_central(const CentralNodeOptions& o) {
         msg.T_world_robot = dds::to_msg(e.T_world_robot);
         dds::borrow(msg.poses, pose_storage);
         w_opt.write(msg);
+        if (!e.poses.empty()) {
+          const Eigen::Vector3d t = e.poses.back().second.translation();
+          spdlog::debug("graph version {}: robot {} newest keyframe {} at ({:.3f}, {:.3f}, {:.3f})", core.version(), e.robot,
+                        e.poses.back().first, t.x(), t.y(), t.z());
+        }
         if (static_cast<int>(e.robot) == o.central_on_robot && !e.poses.empty()) {
           central_position = e.poses.back().second.translation();
         }
