@@ -335,7 +335,7 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
   }
   // Keyframes: relative odometry with an information matrix from the registrations in between.
   if (out.registration.correspondences > 0) {
-    const Matrix6d info_step = out.registration.hessian * p_.information_scale;
+    const Matrix6d info_step = out.registration.hessian * p_.keyframe_information_scale;
     const Eigen::LDLT<Matrix6d> ldlt(info_step);
     if (ldlt.info() == Eigen::Success) cov_since_keyframe_ += ldlt.solve(Matrix6d::Identity());
   }

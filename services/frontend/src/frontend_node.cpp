@@ -44,7 +44,8 @@ FrontendNodeOptions load_frontend_options(const std::string& path) {
   double kf_deg = p.keyframe_angle_rad * 180 / M_PI, rot_deg = p.fusion.rot_max * 180 / M_PI;
   r.get<double>("keyframe.angle_deg", kf_deg, positive, "> 0");
   r.get<double>("keyframe.voxel_m", p.keyframe_voxel_m, positive, "> 0");
-  r.get<double>("keyframe.information_scale", p.information_scale, positive, "> 0");
+  r.get<double>("keyframe.information_scale", p.keyframe_information_scale, positive, "> 0");
+  r.get<double>("imu.window.information_scale", p.information_scale, positive, "> 0");
   r.get<double>("fusion.pos_max_m", p.fusion.pos_max, positive, "> 0");
   r.get<double>("fusion.rot_max_deg", rot_deg, positive, "> 0");
   r.get<bool>("imu.use", o.use_imu);

@@ -118,6 +118,20 @@ TEST(Frontend, KeyframesCarryRelativeOdometryWithInformation) {
     EXPECT_GT(es.eigenvalues().minCoeff(), 0.0) << "information not positive definite";
     EXPECT_GT(kfs[i].cloud.size(), 500u);
   }
+  // The information is not more confident than the odometry is good: the keyframes' relative-pose
+  // errors against the truth, whitened by it, stay below one per degree of freedom on average.
+  double chi2 = 0;
+  for (size_t i = 1; i < kfs.size(); ++i) {
+    const Eigen::Isometry3d truth = d.traj.pose(static_cast<double>(kfs[i - 1].stamp_ns) * 1e-9).inverse() *
+                                    d.traj.pose(static_cast<double>(kfs[i].stamp_ns) * 1e-9);
+    const Eigen::Isometry3d e = truth.inverse() * kfs[i].T_prev;
+    Eigen::Matrix<double, 6, 1> r;
+    r << e.translation(), Eigen::AngleAxisd(e.rotation()).angle() * Eigen::AngleAxisd(e.rotation()).axis();
+    chi2 += r.dot(kfs[i].information * r);
+  }
+  const double per_dof = chi2 / (6.0 * static_cast<double>(kfs.size() - 1));
+  std::printf("keyframe odometry: whitened squared error %.3f per degree of freedom\n", per_dof);
+  EXPECT_LT(per_dof, 1.0);
 }
 
 TEST(Frontend, ACorrectionIsTakenInSmoothlyAndReached) {
