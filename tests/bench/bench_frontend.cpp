@@ -209,13 +209,15 @@ int main(int argc, char** argv) {
                "do not level the odometry with the IMU window's gravity "
                "(roll, pitch and height then follow the map's tilt; for comparison)");
   CLI11_PARSE(app, argc, argv);
+  // The front-end as the comparison flags set it, for every run below.
+  frontend::FrontendParams base;
+  base.deskew = !no_deskew;
+  base.imu_window = !no_imu_window;
+  base.imu_deskew = imu_deskew;
+  base.window.refine_gravity = !no_gravity_refinement;
+  base.level_with_gravity = !no_level;
   if (memory_minutes > 0) {
-    frontend::FrontendParams p;
-    p.imu_window = !no_imu_window;
-    p.imu_deskew = imu_deskew;
-    p.window.refine_gravity = !no_gravity_refinement;
-    p.level_with_gravity = !no_level;
-    nlohmann::json j{{"memory", memory_run(memory_minutes, p)}};
+    nlohmann::json j{{"memory", memory_run(memory_minutes, base)}};
     std::cout << j.dump() << '\n';
     return 0;
   }
@@ -238,13 +240,8 @@ int main(int argc, char** argv) {
   for (const std::string& c : configs) {
     const bool hdl = c.rfind("hdl64", 0) == 0;
     const bool imu = c.find("lidar_only") == std::string::npos;
-    frontend::FrontendParams p;
+    frontend::FrontendParams p = base;
     if (hdl) p.image_columns = 2000;
-    p.deskew = !no_deskew;
-    p.imu_window = !no_imu_window;
-    p.imu_deskew = imu_deskew;
-    p.window.refine_gravity = !no_gravity_refinement;
-    p.level_with_gravity = !no_level;
     out[c] = run(s, hdl ? sim::LidarModel::hdl64() : sim::LidarModel::vlp16(), imu, p, c, out_dir);
   }
   out["sequence"] = seq;

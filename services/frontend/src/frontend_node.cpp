@@ -183,8 +183,9 @@ int run_frontend(const FrontendNodeOptions& o) {
       // The newest keyframe of the result that this front-end knows carries the correction.
       for (int64_t i = static_cast<int64_t>(m.poses._length) - 1; i >= 0; --i) {
         const cdc_msg_KeyframePose& kp = m.poses._buffer[i];
-        if (core.set_correction(kp.keyframe_id, dds::to_eigen(kp.pose), dds::to_eigen(m.T_world_robot))) {
-          const Eigen::Vector3d t = dds::to_eigen(kp.pose).translation(), w = dds::to_eigen(m.T_world_robot).translation();
+        const Eigen::Isometry3d T_world_keyframe = dds::to_eigen(kp.pose), T_world_robot = dds::to_eigen(m.T_world_robot);
+        if (core.set_correction(kp.keyframe_id, T_world_keyframe, T_world_robot)) {
+          const Eigen::Vector3d t = T_world_keyframe.translation(), w = T_world_robot.translation();
           spdlog::debug("correction: keyframe {} at ({:.3f}, {:.3f}, {:.3f}), T_world_robot at ({:.3f}, {:.3f}, {:.3f})",
                         kp.keyframe_id, t.x(), t.y(), t.z(), w.x(), w.y(), w.z());
           return;
