@@ -277,6 +277,11 @@ TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
   ASSERT_TRUE(w_sync.wait_for_readers(1, 15s));
   ASSERT_TRUE(r_sync.wait_for_writers(1, 15s));
   ASSERT_TRUE(r_to2.wait_for_writers(1, 15s));
+  ASSERT_TRUE(r_live.wait_for_writers(2, 15s));  // the test's own w_desc and descriptor 0's live writer
+  // That the test sees the services' writers does not mean they see its readers yet: each side's
+  // SEDP travels on its own, and a volatile writer sends nothing to a reader it has not matched
+  // (once, under a loaded CI, robot 0's first three live descriptors were lost that way).
+  std::this_thread::sleep_for(1s);
 
   // A small synthetic scene: a wall and a post, shifted a little per keyframe.
   auto cloud = [](uint32_t k) {
