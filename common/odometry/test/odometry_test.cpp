@@ -202,7 +202,8 @@ TEST(Registration, RealKittiPairsAgreeWithGroundTruth) {
 // reference transforms, each another GICP implementation's result: small_gicp's and fast_gicp's.
 // They are 1.9 cm and 0.228 deg apart, so no estimate is within 0.2 deg of both unless it falls
 // between them. Ours reproduces small_gicp's (its settings: 0.1 m voxels, 10 neighbours); against
-// fast_gicp's, the translation is asserted and the rotation only printed.
+// fast_gicp's, the translation is asserted and the rotation only printed: fast_gicp's own test holds
+// its registrations to 5 cm and 1 deg of that reference, so it is no tighter than that.
 TEST(Registration, AlignmentScoresRankTheTrueTransformFirst) {
   Scene s;
   const Eigen::Isometry3d A = pose(0, 0, 0.05), B = pose(1.5, -0.4, 0.13);
