@@ -162,7 +162,8 @@ int run_peer(const PeerNodeOptions& o) {
   std::map<uint32_t, StoredKeyframe> own_keyframes;
   std::map<uint32_t, cdc_msg_LoopClosure> own_loops;
   uint32_t incarnation = 0;
-  uint64_t resent_keyframes = 0, resent_loops = 0, corrections = 0, separators_sent = 0, forwarded_keyframes = 0;
+  uint64_t resent_keyframes = 0, resent_loops = 0, corrections = 0, separators_sent = 0, forwarded_keyframes = 0,
+           withheld_keyframes = 0;
   auto last_status = Clock::now() - std::chrono::hours(1);
   auto last_mode = last_status;
   std::vector<cdc_msg_KeyframePose> pose_storage;
@@ -192,6 +193,17 @@ int run_peer(const PeerNodeOptions& o) {
     w_mode.write(m);
   };
 
+  // MODE_OUT.now: "<mode> <keyframes> <transitions> <central alive 0|1>", replaced atomically, for a
+  // launcher that charges traffic to the mode it reads there (so it is written at once on a switch,
+  // before the re-sends that follow one).
+  auto write_now = [&](bool alive) {
+    if (o.mode_out.empty()) return;
+    const std::string now_path = o.mode_out + ".now", tmp = now_path + ".tmp";
+    std::ofstream(tmp, std::ios::trunc) << to_string(core.mode()) << ' ' << own_keyframes.size() << ' '
+                                        << core.rtdos().transitions() << ' ' << (alive ? 1 : 0) << '\n';
+    std::rename(tmp.c_str(), now_path.c_str());
+  };
+
   while (!dds::ShutdownSignal::requested()) {
     ws.wait(std::chrono::milliseconds(o.tick_ms));
     liveliness_changed.reset();
@@ -213,9 +225,16 @@ int run_peer(const PeerNodeOptions& o) {
       core.add_keyframe(OwnKeyframe{m.keyframe_id, m.incarnation, dds::to_eigen(m.T_odom_keyframe),
                                     dds::to_eigen(m.T_prev_keyframe), dds::information_to_eigen(m.information)},
                         now);
-      if (domains.split()) {  // the central (and its map) read keyframes on the SLAM domain
-        w_kf.write(m);
-        ++forwarded_keyframes;
+      // The central (and its map) read keyframes on the SLAM domain. Only a CENTRALIZED robot sends
+      // them: a DISTRIBUTED one exchanges descriptors and separators only, and its keyframes reach the
+      // central as the backlog it re-sends on rejoining (all the central has not acknowledged).
+      if (domains.split()) {
+        if (core.mode() == Mode::kCentralized) {
+          w_kf.write(m);
+          ++forwarded_keyframes;
+        } else {
+          ++withheld_keyframes;
+        }
       }
     });
     auto on_loop = [&](const cdc_msg_LoopClosure& m, const dds_sample_info_t&) {
@@ -293,6 +312,7 @@ int run_peer(const PeerNodeOptions& o) {
                    out.transition->distance_m ? std::to_string(*out.transition->distance_m) + " m" : "unknown");
       publish_mode(out.transition->reason);
       last_mode = Clock::now();
+      write_now(alive);
       if (mode_log.is_open()) {
         mode_log << dds::now_ns() << ',' << sim_stamp_ns << ',' << me << ',' << to_string(out.transition->from) << ','
                  << to_string(out.transition->to) << ',' << to_string(out.transition->reason) << ','
@@ -380,13 +400,7 @@ int run_peer(const PeerNodeOptions& o) {
       s.is_central = false;
       w_status.write(s);
       last_status = Clock::now();
-      if (!o.mode_out.empty()) {
-        // "<mode> <keyframes> <transitions> <central alive 0|1>", replaced atomically, for a launcher.
-        const std::string now_path = o.mode_out + ".now", tmp = now_path + ".tmp";
-        std::ofstream(tmp, std::ios::trunc) << to_string(core.mode()) << ' ' << own_keyframes.size() << ' '
-                                            << core.rtdos().transitions() << ' ' << (alive ? 1 : 0) << '\n';
-        std::rename(tmp.c_str(), now_path.c_str());
-      }
+      write_now(alive);
     }
   }
   dds::ShutdownSignal::remove_guard(&stop);
@@ -408,6 +422,7 @@ int run_peer(const PeerNodeOptions& o) {
                      {"resent_keyframes", resent_keyframes},
                      {"resent_loops", resent_loops},
                      {"forwarded_keyframes", forwarded_keyframes},
+                     {"withheld_keyframes", withheld_keyframes},
                      {"radio_cuts", domains.radio_cuts()},
                      {"corrections", corrections},
                      {"separator_messages", separators_sent},
