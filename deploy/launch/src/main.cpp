@@ -18,6 +18,7 @@
 #include <ctime>
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
 #include <iostream>
 #include <memory>
 #include <sstream>
@@ -90,7 +91,7 @@ class Launcher {
   uint32_t local_domain(uint32_t robot) const { return c_.local_domain_base + robot; }
   void apply_radio(double t_s);
   void apply_loopback_radio(double t_s);
-  void sample_traffic();
+  void sample_traffic(double t_s);
   void progress(double t_s, bool final_line);
   void stop_all();
   bool interrupted() const { return stop_signal() != 0; }
@@ -111,8 +112,10 @@ class Launcher {
   RunInfo info_;
   Clock::time_point t0_ = Clock::now();
   std::map<std::pair<uint32_t, uint32_t>, LinkBytes> last_counters_;
+  std::ofstream traffic_log_;  // traffic.csv: every sample's counted bytes per robot, link and mode
   std::map<uint32_t, bool> loopback_in_range_;  // loopback radio: robot -> in range of the central
   std::map<uint32_t, uint64_t> last_keyframes_;
+  std::map<uint32_t, std::string> interval_start_mode_;  // each robot's mode at the previous traffic sample
   double sim_total_s_ = 0;
   bool startup_ = false;  // traffic counted now belongs to start-up (discovery), not to a mode
   bool rendezvous_ = false;  // the mission is over: every link is up
@@ -240,30 +243,45 @@ void Launcher::apply_loopback_radio(double t_s) {
   }
 }
 
-void Launcher::sample_traffic() {
-  std::map<uint32_t, RobotNow> now;
+void Launcher::sample_traffic(double t_s) {
+  // The counters first, then each robot's mode: the bytes counted since the previous sample are
+  // charged to the mode the robot was in over that interval. An interval in which it switched is
+  // charged to CENTRALIZED: around a switch the link carries the centralized side's traffic
+  // (keyframes until the link is cut; the backlog re-sent right after a rejoin), while the
+  // distributed side of it has the link down, or up for the dwell before the rejoin.
+  std::map<std::pair<uint32_t, uint32_t>, LinkBytes> counters;
+  if (net_) counters = net_->counters();
+  const std::string fallback = info_.central ? "CENTRALIZED" : "DISTRIBUTED";
+  std::map<uint32_t, std::string> charged;
   for (uint32_t r : robots_) {
-    now[r] = read_now(run_ / ("robot_" + std::to_string(r)) / "modes.csv.now");
-    if (startup_) now[r].mode = "STARTUP";
-  }
-  for (uint32_t r : robots_) {
-    const std::string mode = now[r].mode == "-" ? (info_.central ? "CENTRALIZED" : "DISTRIBUTED") : now[r].mode;
+    const RobotNow now = read_now(run_ / ("robot_" + std::to_string(r)) / "modes.csv.now");
+    const std::string mode = startup_ ? "STARTUP" : now.mode == "-" ? fallback : now.mode;
+    auto it = interval_start_mode_.find(r);
+    const bool switched = it != interval_start_mode_.end() && it->second != mode && it->second != "STARTUP";
+    charged[r] = switched ? "CENTRALIZED" : mode;
+    interval_start_mode_[r] = mode;
     ModeTraffic& t = info_.traffic[r];
-    const uint64_t kf = now[r].keyframes;
-    t.keyframes[mode] += kf - std::min(kf, last_keyframes_[r]);
-    last_keyframes_[r] = std::max(kf, last_keyframes_[r]);
+    t.keyframes[charged[r]] += now.keyframes - std::min(now.keyframes, last_keyframes_[r]);
+    last_keyframes_[r] = std::max(now.keyframes, last_keyframes_[r]);
   }
-  if (!net_) return;
-  const auto counters = net_->counters();
   for (const auto& [key, b] : counters) {
     const auto [r, peer] = key;
-    const std::string mode = now[r].mode == "-" ? (info_.central ? "CENTRALIZED" : "DISTRIBUTED") : now[r].mode;
+    const std::string& mode = charged[r];
     LinkBytes& last = last_counters_[key];
+    const LinkBytes delta{b.sent - std::min(b.sent, last.sent), b.received - std::min(b.received, last.received),
+                          b.meta_sent - std::min(b.meta_sent, last.meta_sent),
+                          b.meta_received - std::min(b.meta_received, last.meta_received)};
     LinkBytes& acc = info_.traffic[r].bytes[mode][peer];
-    acc.sent += b.sent - std::min(b.sent, last.sent);
-    acc.received += b.received - std::min(b.received, last.received);
-    acc.meta_sent += b.meta_sent - std::min(b.meta_sent, last.meta_sent);
-    acc.meta_received += b.meta_received - std::min(b.meta_received, last.meta_received);
+    acc.sent += delta.sent;
+    acc.received += delta.received;
+    acc.meta_sent += delta.meta_sent;
+    acc.meta_received += delta.meta_received;
+    if (traffic_log_.is_open() && (delta.sent || delta.received || delta.meta_sent || delta.meta_received)) {
+      traffic_log_ << std::fixed << std::setprecision(3) << std::chrono::duration<double>(Clock::now() - t0_).count() << ','
+                   << t_s << ',' << node_name(r) << ',' << node_name(peer) << ',' << mode << ',' << delta.sent << ','
+                   << delta.received << ',' << delta.meta_sent << ',' << delta.meta_received << ','
+                   << (net_->link_up(r, peer) ? "up" : "down") << '\n';
+    }
     last = b;
   }
 }
@@ -381,6 +399,8 @@ int Launcher::run() {
       std::ofstream nf(run_ / "namespaces.txt");
       for (const auto& ns : net_->namespaces()) nf << ns << '\n';
     }
+    traffic_log_.open(run_ / "traffic.csv");
+    traffic_log_ << "wall_s,sim_s,robot,peer,mode,data_sent,data_received,discovery_sent,discovery_received,link\n";
     std::cout << "cdc-launch: network netns: " << nodes.size() << " namespaces on a private bridge (198.18.0.0/24); "
               << "the radio timeline cuts SLAM-domain traffic per pair with iptables" << std::endl;
   } else {
@@ -432,7 +452,7 @@ int Launcher::run() {
   const fs::path clock_file = run_ / "sim_clock";
   // Discovery and start-up traffic is reported apart from the modes.
   startup_ = true;
-  sample_traffic();
+  sample_traffic(0);
   startup_ = false;
   if (!interrupted()) {
     std::vector<std::string> play = {bin("sim/tools/cdc-sim"), "play", c_.dataset, "--domain", std::to_string(c_.sim_domain),
@@ -457,7 +477,7 @@ int Launcher::run() {
     if (cl >> stamp) t_s = static_cast<double>(stamp) * 1e-9;
     apply_radio(t_s);
     if (Clock::now() - last_sample > std::chrono::milliseconds(500)) {
-      sample_traffic();
+      sample_traffic(t_s);
       last_sample = Clock::now();
     }
     const auto period = isatty(STDOUT_FILENO) ? std::chrono::milliseconds(500) : std::chrono::milliseconds(10000);
@@ -489,7 +509,7 @@ int Launcher::run() {
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
-  sample_traffic();
+  sample_traffic(t_s);
   if (!o_.no_progress) progress(t_s, true);
   if (interrupted()) std::cout << "cdc-launch: interrupted (signal " << stop_signal() << "): stopping every process" << std::endl;
   else std::cout << "cdc-launch: stopping the swarm" << std::endl;

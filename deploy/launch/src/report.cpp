@@ -44,11 +44,6 @@ std::vector<Transition> read_modes(const fs::path& p) {
 }
 
 
-std::string node_name(uint32_t n) {
-  if (n == kCentralNode) return "central";
-  return "robot" + std::to_string(n);
-}
-
 // Position of the ground truth at the stamp nearest to t.
 Eigen::Vector3d gt_position(const geometry::Trajectory& gt, int64_t t) {
   auto it = std::lower_bound(gt.begin(), gt.end(), t, [](const geometry::StampedPose& p, int64_t v) { return p.stamp_ns < v; });
@@ -158,6 +153,11 @@ void write_png(const fs::path& svg) {
 }
 
 }  // namespace
+
+std::string node_name(uint32_t n) {
+  if (n == kCentralNode) return "central";
+  return "robot" + std::to_string(n);
+}
 
 std::string fixed(double v, int decimals) {
   std::ostringstream s;
@@ -293,7 +293,9 @@ json write_report(const RunInfo& info) {
       lf << fixed(e.wall_s, 3) << ',' << fixed(e.sim_s, 3) << ',' << e.a << ',' << e.b << ',' << (e.up ? "up" : "down") << '\n';
     }
   }
-  // Totals per mode and link, and the distributed traffic per keyframe per robot-to-robot link.
+  // Totals per mode and link, and the distributed traffic per keyframe on the worst link (robot to
+  // robot or robot to central: a DISTRIBUTED robot sends the central no keyframes, only the little a
+  // link that comes back carries before the robot rejoins).
   if (info.traffic_measured) {
     json per_link;
     double worst_dist_per_kf = 0, worst_dist_sent_per_kf = 0;
@@ -305,7 +307,7 @@ json write_report(const RunInfo& info) {
           per_link[link][mode]["received_bytes"] = b.received;
           per_link[link][mode]["discovery_bytes"] = b.meta_sent + b.meta_received;
           const uint64_t kfs = t.keyframes.count(mode) ? t.keyframes.at(mode) : 0;
-          if (mode == "DISTRIBUTED" && peer != kCentralNode && kfs > 0) {
+          if (mode == "DISTRIBUTED" && kfs > 0) {
             worst_dist_per_kf = std::max(worst_dist_per_kf, static_cast<double>(b.sent + b.received) / static_cast<double>(kfs));
             worst_dist_sent_per_kf = std::max(worst_dist_sent_per_kf, static_cast<double>(b.sent) / static_cast<double>(kfs));
           }
@@ -397,7 +399,9 @@ json write_report(const RunInfo& info) {
   if (info.traffic_measured) {
     md << "\n## Traffic on the emulated radio (SLAM domain, IP bytes, counted at each robot)\n\n"
        << "User data (samples with their heartbeats and acknowledgements) and discovery (SPDP/SEDP, which bursts\n"
-       << "whenever a link comes back) are counted apart. Each mode gets what was counted while the robot was in it.\n\n"
+       << "whenever a link comes back) are counted apart. Each mode gets what was counted while the robot was in it;\n"
+       << "a sample (about a second) in which the robot switched goes to CENTRALIZED, whose traffic it carries: the\n"
+       << "keyframes sent until the link was cut, or the backlog re-sent right after a rejoin.\n\n"
        << "Per keyframe: the robot's own keyframes made in the mode. A robot's keyframe costs what it sends on a\n"
        << "link (its descriptor, the clouds it serves, acknowledgements); what it receives is the other end's cost.\n\n"
        << "| link | mode | data sent | data received | discovery | keyframes in mode | sent per keyframe | sent + received per keyframe |\n"
@@ -414,7 +418,7 @@ json write_report(const RunInfo& info) {
         }
       }
     }
-    md << "\nLargest distributed-mode user data per own keyframe on a robot-to-robot link: "
+    md << "\nLargest distributed-mode user data per own keyframe on a link (to a robot or to the central): "
        << fixed(j["traffic"]["max_distributed_sent_bytes_per_own_keyframe_per_link"].get<double>(), 0) << " B sent ("
        << fixed(j["traffic"]["max_distributed_bytes_per_keyframe_per_link"].get<double>(), 0)
        << " B sent and received)\n"
@@ -430,7 +434,8 @@ json write_report(const RunInfo& info) {
      << "- `robot_K/keyframes.{tum,kitti}`: the robot's keyframes in the world frame as its peer optimiser last had them;\n"
      << "  `robot_K/keyframes_central.{tum,kitti}`: the same keyframes in the central's final graph (evaluated when present)\n"
      << "- `global_graph.g2o`: the central's graph; `map/map.pcd`, `map/map.bt`: the global map\n"
-     << "- `modes.csv`, `links.csv`: mode timeline and emulated link changes; `logs/`: one log per process\n"
+     << "- `modes.csv`, `links.csv`: mode timeline and emulated link changes; `traffic.csv` (netns): the bytes counted\n"
+     << "  per robot and link in every half-second sample, with the robot's mode; `logs/`: one log per process\n"
      << "- `trajectories.svg|png`, `modes.svg|png`: plots\n";
   std::ofstream(run / "report.md") << md.str();
   std::ofstream(run / "report.json") << j.dump(2) << '\n';

@@ -38,6 +38,9 @@ struct RunInfo {
   std::vector<std::string> notes;           // shown in the report (e.g. limits of the network mode)
 };
 
+// "central" or "robotN": how reports and traffic.csv name a node.
+std::string node_name(uint32_t node);
+
 // A number with a fixed count of decimals (tables of the reports).
 std::string fixed(double v, int decimals);
 
