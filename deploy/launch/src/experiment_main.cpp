@@ -63,7 +63,8 @@ int main(int argc, char** argv) {
                  "degrade the simulated LiDAR with a fixed per-beam elevation calibration error of this sigma [deg]\n"
                  "(datasets kittiNN_3robots_elevX; 0: the scenarios as they are). Unlevelled LiDAR odometry drifts\n"
                  "0.4-1.4 % at 0.2, about what real LiDAR odometry shows on KITTI; our front-end, levelled with the\n"
-                 "IMU's gravity, drifts 0.09-0.15 % at 0.2 and 0.32-0.38 % at 0.5 (KITTI 05 robots)")
+                 "IMU's gravity, drifts 0.09-0.15 % at 0.2 and 0.32-0.38 % at 0.5 (KITTI 05 robots), but at 0.5 it\n"
+                 "loses track on KITTI 06 robots 0 and 2 and KITTI 09 robot 0")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 2.0));
   app.add_flag("--reuse", reuse, "keep runs that already have a report.json in OUT (re-tabulate only)");
