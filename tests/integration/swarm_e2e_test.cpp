@@ -223,8 +223,12 @@ TEST_F(SwarmEndToEnd, LoopbackCutsRobotsWithDeafMuteAndTheySwitchOnLivelinessLap
     // the backlog when it rejoins (robot 1 comes back at 39 s).
     EXPECT_EQ(peer["forwarded_keyframes"].get<int>() + peer["withheld_keyframes"].get<int>(), fe["keyframes"].get<int>())
         << robot;
-    if (jr["switches_to_distributed"].get<int>() > 0) EXPECT_GT(peer["withheld_keyframes"].get<int>(), 0) << robot;
-    if (std::string(robot) == "1") EXPECT_GT(peer["resent_keyframes"].get<int>(), 0);
+    if (jr["switches_to_distributed"].get<int>() > 0) {
+      EXPECT_GT(peer["withheld_keyframes"].get<int>(), 0) << robot;
+    }
+    if (std::string(robot) == "1") {
+      EXPECT_GT(peer["resent_keyframes"].get<int>(), 0);
+    }
   }
   const std::string links = read_file(run / "links.csv");
   EXPECT_NE(links.find(",1,200,down"), std::string::npos) << links;
