@@ -223,7 +223,18 @@ int run_frontend(const FrontendNodeOptions& o) {
       if (!imu_covers && std::chrono::steady_clock::now() - scan.received < o.imu_wait) break;
       if (!imu_covers) ++imu_late;
       incarnation = scan.incarnation;
+      const FrontendStats before = core.stats();
       const ScanOut out = core.process(scan.stamp_ns, scan.points);
+      const uint64_t failures = core.stats().registration_failures;
+      if (failures > before.registration_failures && (failures <= 10 || failures % 100 == 0)) {
+        // Counted in the stats; logged the first ten times, then every hundredth.
+        spdlog::warn("sweep {}: registration {} ({} correspondences, rmse {:.3f} m); the prediction stands in "
+                     "({} so far)", scan.seq,
+                     core.stats().registration_rejected > before.registration_rejected
+                         ? "rejected: it landed implausibly far from the prediction"
+                         : "did not converge",
+                     out.registration.correspondences, out.registration.rmse, failures);
+      }
       cdc_msg_Odometry od{};
       od.robot_id = me;
       od.incarnation = incarnation;
