@@ -181,14 +181,15 @@ int run_peer(const PeerNodeOptions& o) {
                domains.split() ? ", own keyframes, loops and corrections on local domain " + std::to_string(o.local_domain)
                                : std::string());
 
-  auto publish_mode = [&](SwitchReason reason) {
+  // distance: the one the switch was decided on (the estimate can move within the same step).
+  auto publish_mode = [&](SwitchReason reason, std::optional<double> distance) {
     cdc_msg_ModeState m{};
     m.robot_id = me;
     m.incarnation = incarnation;
     m.stamp_ns = dds::now_ns();
     m.mode = core.mode() == Mode::kCentralized ? cdc_msg_MODE_CENTRALIZED : cdc_msg_MODE_DISTRIBUTED;
     m.reason = to_msg(reason);
-    m.distance_to_central = core.distance_to_central().value_or(-1.0);
+    m.distance_to_central = distance.value_or(-1.0);
     m.transition_count = core.rtdos().transitions();
     w_mode.write(m);
   };
@@ -310,7 +311,7 @@ int run_peer(const PeerNodeOptions& o) {
       spdlog::info("mode {} -> {} ({}), distance to central {}", to_string(out.transition->from),
                    to_string(out.transition->to), to_string(out.transition->reason),
                    out.transition->distance_m ? std::to_string(*out.transition->distance_m) + " m" : "unknown");
-      publish_mode(out.transition->reason);
+      publish_mode(out.transition->reason, out.transition->distance_m);
       last_mode = Clock::now();
       write_now(alive);
       if (mode_log.is_open()) {
@@ -321,7 +322,7 @@ int run_peer(const PeerNodeOptions& o) {
                  << std::flush;
       }
     } else if (Clock::now() - last_mode >= std::chrono::milliseconds(o.mode_period_ms)) {
-      publish_mode(core.rtdos().last_reason());
+      publish_mode(core.rtdos().last_reason(), core.distance_to_central());
       last_mode = Clock::now();
     }
     if (out.world_transform) {
