@@ -3,6 +3,7 @@
 // velodyne folder (*.bin, 10 Hz, optional ground-truth poses). Writes the odometry (TUM and KITTI
 // formats) and the keyframes, and reports drift and ATE when there is ground truth.
 #include "cdc/frontend/frontend_core.hpp"
+#include "frontend_config.hpp"
 #include "cdc/geometry/metrics.hpp"
 #include "cdc/geometry/se3.hpp"
 #include "cdc/geometry/trajectory.hpp"
@@ -79,7 +80,7 @@ int main(int argc, char** argv) {
       "cdc-odometry: runs the front-end core over a recorded dataset without DDS and writes its trajectory.\n"
       "  cdc-odometry DATASET [--robot K]               a cdc-sim dataset folder (robot_K/...)\n"
       "  cdc-odometry VELODYNE_DIR --kitti [--poses P]  a KITTI velodyne folder (no IMU, no per-point times)"};
-  std::string input, out_dir, poses, calib;
+  std::string input, out_dir, poses, calib, config_path;
   uint32_t robot = 0;
   size_t max_scans = 0;
   bool kitti = false, lidar_only = false, no_deskew = false, no_imu_window = false, imu_deskew = false, json = false;
@@ -89,6 +90,10 @@ int main(int argc, char** argv) {
   app.add_flag("--kitti", kitti, "DATASET is a KITTI velodyne folder");
   app.add_option("--poses", poses, "KITTI ground-truth poses (for --kitti)")->check(CLI::ExistingFile);
   app.add_option("--calib", calib, "KITTI calib_Tr.txt (for --kitti --poses)")->check(CLI::ExistingFile);
+  app.add_option("--config", config_path,
+                 "front-end configuration (services/frontend/config/frontend.yaml; default: its defaults); the flags "
+                 "below override it")
+      ->check(CLI::ExistingFile);
   app.add_flag("--lidar-only", lidar_only, "ignore the IMU");
   app.add_flag("--no-deskew", no_deskew, "do not deskew sweeps");
   app.add_flag("--no-imu-window", no_imu_window,
@@ -106,14 +111,15 @@ int main(int argc, char** argv) {
   try {
     if (kitti && !poses.empty() && calib.empty()) throw std::runtime_error("--poses needs --calib (calib_Tr.txt)");
     const Input in = kitti ? read_kitti(input, poses, calib, max_scans) : read_sim(input, robot, max_scans);
-    frontend::FrontendParams params;
-    params.deskew = !no_deskew;
-    params.imu_window = !no_imu_window;
-    params.imu_deskew = imu_deskew;
-    params.level_with_gravity = !no_level;
+    const frontend::FrontendNodeOptions options = frontend::load_frontend_options(config_path);
+    frontend::FrontendParams params = options.core;
+    if (no_deskew) params.deskew = false;
+    if (no_imu_window) params.imu_window = false;
+    if (imu_deskew) params.imu_deskew = true;
+    if (no_level) params.level_with_gravity = false;
     params.T_lidar_imu = in.T_lidar_imu;
     frontend::FrontendCore core(params);
-    const bool use_imu = !lidar_only && !in.imu.empty();
+    const bool use_imu = !lidar_only && options.use_imu && !in.imu.empty();
     size_t imu_next = 0;
     geometry::Trajectory odometry, keyframes;
     std::vector<frontend::ScanPoint> pts;

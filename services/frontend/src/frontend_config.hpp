@@ -1,0 +1,28 @@
+// The front-end's configuration (services/frontend/config/frontend.yaml), shared by the
+// cdc-frontend node and the offline cdc-odometry tool; no DDS here.
+#pragma once
+
+#include "cdc/frontend/frontend_core.hpp"
+
+#include <chrono>
+#include <string>
+
+namespace cdc::frontend {
+
+struct FrontendNodeOptions {
+  uint32_t robot = 0, robots = 3, domain = 0;
+  int sensor_domain = -1;           // >= 0: sweeps, IMU and progress on this domain (the simulator's)
+  std::string dds_config, stats_out, trajectory_out, log_level = "info";
+  std::string sensor_dds_config;    // configuration of the sensor domain; empty: as dds_config
+  FrontendParams core;
+  bool use_imu = true;
+  bool take_corrections = true;     // false: the back-end's corrections are ignored (an ablation)
+  double imu_gap_s = 0.05;          // a larger gap between IMU samples is reported and bridged by constant velocity
+  std::chrono::milliseconds imu_wait{100};  // a sweep waits this long at most for the IMU to reach its end
+  uint32_t max_scan_points = 500'000;
+};
+
+// Reads a frontend.yaml (empty path: the defaults); every invalid key is named in the exception.
+FrontendNodeOptions load_frontend_options(const std::string& path);
+
+}  // namespace cdc::frontend
