@@ -2,6 +2,7 @@
 // (KITTI 05 split, the first 60 s) in both network modes: network namespaces with iptables per pair,
 // and loopback with DDS deaf/mute per robot. Ctrl-C at any point leaves no process and no namespace
 // behind.
+#include "cdc/dds/topics.hpp"
 #include "child_process.hpp"
 
 #include <gtest/gtest.h>
@@ -189,6 +190,20 @@ TEST_F(SwarmEndToEnd, ThreeRobotsSwitchOnLivelinessLapsesAndStayAccurate) {
       << r["traffic"].dump();
   EXPECT_LE(r["traffic"]["max_robot_link_bytes_per_keyframe_whole_run"].get<double>(), 2048.0) << r["traffic"].dump();
   EXPECT_GT(r["traffic"]["max_robot_link_bytes_per_keyframe_whole_run"].get<double>(), 100.0) << "nothing measured?";
+  // Per topic: every robot published descriptors on the SLAM domain; the central took keyframes
+  // there, at most what the robots' peer optimisers wrote.
+  const std::string slam = std::to_string(r["domains"]["slam"].get<uint32_t>());
+  const json& per_topic = r["traffic_per_topic"];
+  uint64_t kf_written = 0;
+  for (const char* node : {"robot0", "robot1", "robot2"}) {
+    ASSERT_TRUE(per_topic.contains(node) && per_topic[node].contains(slam)) << per_topic.dump();
+    const json& topics = per_topic[node][slam];
+    EXPECT_GT(topics.value(cdc::dds::topics::kDescriptor, json::object()).value("bytes_written", 0), 0) << node;
+    kf_written += topics.value(cdc::dds::topics::kKeyframe, json::object()).value("bytes_written", uint64_t{0});
+  }
+  const uint64_t kf_taken = per_topic["central"][slam].value(cdc::dds::topics::kKeyframe, json::object()).value("bytes_taken", uint64_t{0});
+  EXPECT_GT(kf_taken, 0u);
+  EXPECT_LE(kf_taken, kf_written);
   for (const char* f : {"trajectories.svg", "modes.svg", "global_graph.g2o", "map/map.pcd", "map/map.bt", "report.md",
                         "links.csv", "modes.csv"}) {
     EXPECT_TRUE(fs::exists(run / f)) << f;

@@ -131,6 +131,27 @@ TEST(PubSub, KeyframeWithCloudRoundTripsThroughAWaitset) {
   EXPECT_FLOAT_EQ(back[10].intensity, 0.25f);
 }
 
+TEST(PubSub, PerTopicTrafficCountsSerialisedBytesWrittenAndTaken) {
+  Participant p(test_options());
+  Topic<cdc_msg_Keyframe> topic(p, unique_topic("traffic"));
+  Writer<cdc_msg_Keyframe> writer(p, topic, qos::event_stream());
+  Reader<cdc_msg_Keyframe> reader(p, topic, qos::event_stream());
+  ASSERT_TRUE(writer.wait_for_readers(1, 5s));
+  KeyframeSample small(1000), large(2000);
+  writer.write(small.msg);
+  const TopicTotals after_one = topic_traffic().at({topic.domain(), topic.name()});
+  writer.write(large.msg);
+  size_t taken = 0;
+  ASSERT_TRUE(wait_until([&] { return (taken += reader.take().size()) == 2; }, 5000ms));
+  const TopicTotals t = topic_traffic().at({topic.domain(), topic.name()});
+  EXPECT_EQ(t.samples_written, 2u);
+  EXPECT_EQ(t.samples_taken, 2u);
+  // 1000 more points of four floats each; what was taken is what was written.
+  EXPECT_EQ(t.bytes_written - 2 * after_one.bytes_written, 1000u * 16u);
+  EXPECT_GT(after_one.bytes_written, 1000u * 16u);
+  EXPECT_EQ(t.bytes_taken, t.bytes_written);
+}
+
 TEST(PubSub, MalformedSampleIsRejectedAtTheReaderBoundary) {
   Participant p(test_options());
   Topic<cdc_msg_Keyframe> topic(p, unique_topic("bad_keyframe"));

@@ -366,6 +366,8 @@ int Launcher::run() {
   info_.swarm_file = c_.path;
   info_.robots = robots_;
   info_.central = c_.variant == Variant::kSwitching;
+  info_.slam_domain = c_.slam_domain;
+  info_.sim_domain = c_.sim_domain;
 
   std::string why;
   netns_ = c_.network == NetworkMode::kNetns ||

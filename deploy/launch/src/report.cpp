@@ -167,6 +167,41 @@ std::string fixed(double v, int decimals) {
   return s.str();
 }
 
+// Per-topic payload of every node, summed over its services' --stats-out files ("topics": domain
+// -> topic -> counters, written by the DDS layer): node -> domain -> topic -> counters.
+json topic_traffic(const fs::path& run, const std::vector<uint32_t>& robots) {
+  std::vector<std::pair<std::string, std::vector<fs::path>>> nodes;
+  for (uint32_t r : robots) {
+    const fs::path rd = run / ("robot_" + std::to_string(r));
+    nodes.push_back({node_name(r), {rd / "frontend.stats.json", rd / "descriptor.stats.json", rd / "loop_closure.stats.json",
+                                    rd / "peer_optimiser.stats.json"}});
+  }
+  nodes.push_back({node_name(kCentralNode), {run / "central.stats.json", run / "map.stats.json"}});
+  json out = json::object();
+  for (const auto& [node, files] : nodes) {
+    for (const fs::path& f : files) {
+      if (!fs::exists(f)) continue;
+      json stats;
+      try {
+        std::ifstream in(f);
+        stats = json::parse(in);
+      } catch (const std::exception&) {
+        continue;  // reported unreadable with the robot's stats
+      }
+      if (!stats.contains("topics") || !stats["topics"].is_object()) continue;
+      for (const auto& [domain, topics] : stats["topics"].items()) {
+        for (const auto& [topic, c] : topics.items()) {
+          json& t = out[node][domain][topic];
+          for (const char* field : {"samples_written", "bytes_written", "samples_taken", "bytes_taken"}) {
+            t[field] = t.value(field, uint64_t{0}) + c.value(field, uint64_t{0});
+          }
+        }
+      }
+    }
+  }
+  return out;
+}
+
 json write_report(const RunInfo& info) {
   const fs::path run(info.run_dir), ds(info.dataset);
   json j;
@@ -179,6 +214,7 @@ json write_report(const RunInfo& info) {
   j["sim_s"] = info.sim_end_s;
   j["interrupted"] = info.interrupted;
   j["notes"] = info.notes;
+  j["domains"] = {{"slam", info.slam_domain}, {"sim", info.sim_domain}};
   std::vector<eval::Evaluation> kf_evals;
   std::vector<eval::SvgMarker> markers;
   std::map<uint32_t, std::vector<Transition>> modes;
@@ -285,6 +321,7 @@ json write_report(const RunInfo& info) {
     j["robots"][std::to_string(r)] = jr;
     ++k;
   }
+  j["traffic_per_topic"] = topic_traffic(run, info.robots);
   // Link timeline.
   {
     std::ofstream lf(run / "links.csv");
@@ -428,6 +465,25 @@ json write_report(const RunInfo& info) {
     for (const auto& [link, l] : j["traffic"]["robot_links_whole_run"].items()) {
       md << "| " << link << " | " << l["user_bytes"] << " | " << l["keyframes_both_ends"] << " | "
          << (l.contains("bytes_per_keyframe") ? fixed(l["bytes_per_keyframe"].get<double>(), 0) : std::string("-")) << " |\n";
+    }
+  }
+  {
+    const std::string slam = std::to_string(info.slam_domain), sim = std::to_string(info.sim_domain);
+    md << "\n## Traffic per topic (serialised payload, written and taken by each node's services)\n\n"
+       << "Counted by the DDS layer of every service: a sample written once counts once however many readers\n"
+       << "it reaches (on the radio it crosses every link to a matched reader, see above). Domain " << slam
+       << " is the SLAM domain, the only one on the emulated radio; " << sim << " is the simulator's (sensors, lock-step);\n"
+       << "the others are each robot's own (front-end to its peer optimiser, never on the radio).\n\n"
+       << "| node | domain | topic | samples written | bytes written | samples taken | bytes taken |\n"
+       << "|---|---|---|---|---|---|---|\n";
+    for (const auto& [node, domains] : j["traffic_per_topic"].items()) {
+      for (const auto& [domain, topics] : domains.items()) {
+        const std::string label = domain == slam ? domain + " (SLAM)" : domain == sim ? domain + " (sim)" : domain + " (robot)";
+        for (const auto& [topic, c] : topics.items()) {
+          md << "| " << node << " | " << label << " | `" << topic << "` | " << c["samples_written"] << " | " << c["bytes_written"]
+             << " | " << c["samples_taken"] << " | " << c["bytes_taken"] << " |\n";
+        }
+      }
     }
   }
   md << "\n## Files\n\n- `robot_K/odometry.{tum,kitti}`: the front-end's real-time odometry (fused pose)\n"

@@ -30,6 +30,7 @@ struct RunInfo {
   std::string name, variant, network, dataset, run_dir, swarm_file;
   std::vector<uint32_t> robots;
   bool central = true;
+  uint32_t slam_domain = 0, sim_domain = 0;  // how the per-topic table names the domains
   double wall_s = 0, sim_end_s = 0;
   bool interrupted = false;
   bool traffic_measured = false;   // per-link counters exist only in netns mode

@@ -6,6 +6,7 @@
 #include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/shutdown.hpp"
 #include "cdc/dds/topics.hpp"
+#include "cdc/dds/traffic_json.hpp"
 #include "cdc/dds/validate.hpp"
 #include "cdc/dds/waitset.hpp"
 #include "cdc/graph/g2o.hpp"
@@ -267,6 +268,7 @@ int run_central(const CentralNodeOptions& o) {
                       {"keyframes_held", core.keyframes_held(a.robot, a.incarnation)}});
     }
     j["sessions"] = acks;
+    j["topics"] = dds::topic_traffic_json();
     std::ofstream(o.stats_out) << j.dump(2) << '\n';
   }
   return 0;

@@ -10,9 +10,9 @@
 #include "cdc/dds/robot_domains.hpp"
 #include "cdc/dds/shutdown.hpp"
 #include "cdc/dds/topics.hpp"
+#include "cdc/dds/traffic_json.hpp"
 #include "cdc/dds/validate.hpp"
 #include "cdc/dds/waitset.hpp"
-#include "cdc/dds/wire_size.hpp"
 #include "cdc/lidar/scan_context.hpp"
 #include "cdc/runtime/logging.hpp"
 
@@ -130,7 +130,7 @@ int run(const Options& o) {
            it != store.end() && it->first <= m.last_keyframe_id && n < o.max_per_sync; ++it, ++n) {
         w_resend[m.requester_robot_id]->write(it->second.msg);
         ++resent;
-        resent_bytes += dds::wire_size(it->second.msg);
+        resent_bytes += dds::serialized_size(it->second.msg);
       }
       spdlog::debug("robot {} asked for descriptors {}..{}: {} sent", m.requester_robot_id, m.first_keyframe_id,
                     m.last_keyframe_id, n);
@@ -162,7 +162,7 @@ int run(const Options& o) {
       w_desc.write(d);
       if (w_desc_local) w_desc_local->write(d);
       ++published;
-      bytes += dds::wire_size(d);
+      bytes += dds::serialized_size(d);
       if (m.incarnation != incarnation) {  // a restarted front-end numbers its keyframes afresh
         store.clear();
         incarnation = m.incarnation;
@@ -188,6 +188,7 @@ int run(const Options& o) {
                      {"radio_cuts", domains.radio_cuts()},
                      {"rejected", rejected.by_topic()},
                      {"rejected_samples", rejected.total()}};
+    j["topics"] = dds::topic_traffic_json();
     std::ofstream(o.stats_out) << j.dump(2) << '\n';
   }
   spdlog::info("stopped after {} descriptors ({} bytes)", published, bytes);

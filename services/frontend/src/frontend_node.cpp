@@ -5,6 +5,7 @@
 #include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/shutdown.hpp"
 #include "cdc/dds/topics.hpp"
+#include "cdc/dds/traffic_json.hpp"
 #include "cdc/dds/validate.hpp"
 #include "cdc/dds/waitset.hpp"
 #include "cdc/geometry/se3.hpp"
@@ -232,6 +233,7 @@ int run_frontend(const FrontendNodeOptions& o) {
                      {"imu_late", imu_late},
                      {"rejected", rejected.by_topic()},
                      {"rejected_samples", rejected.total()}};
+    j["topics"] = dds::topic_traffic_json();
     std::ofstream(o.stats_out) << j.dump(2) << '\n';
   }
   spdlog::info("stopped after {} sweeps, {} keyframes, {} rejected samples", odometry_sent, keyframes_sent, rejected.total());

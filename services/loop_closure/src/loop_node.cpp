@@ -9,10 +9,10 @@
 #include "cdc/dds/robot_domains.hpp"
 #include "cdc/dds/shutdown.hpp"
 #include "cdc/dds/topics.hpp"
+#include "cdc/dds/traffic_json.hpp"
 #include "cdc/dds/validate.hpp"
 #include "cdc/dds/waitset.hpp"
 #include "cdc/runtime/logging.hpp"
-#include "cdc/dds/wire_size.hpp"
 
 #include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
@@ -28,17 +28,12 @@ namespace {
 using Clock = std::chrono::steady_clock;
 namespace topics = dds::topics;
 
-struct Traffic {
-  std::map<std::string, uint64_t> sent, received;                       // per topic
-  std::map<uint32_t, std::pair<uint64_t, uint64_t>> peer;               // robot -> (sent to, received from)
-  void out(const std::string& topic, size_t bytes, std::optional<uint32_t> to = std::nullopt) {
-    sent[topic] += bytes;
-    if (to) peer[*to].first += bytes;
-  }
-  void in(const std::string& topic, size_t bytes, uint32_t from) {
-    received[topic] += bytes;
-    peer[from].second += bytes;
-  }
+// Bytes exchanged with each peer robot (its serialised samples); per-topic totals are counted
+// by the DDS layer (cdc/dds/traffic.hpp).
+struct PeerTraffic {
+  std::map<uint32_t, std::pair<uint64_t, uint64_t>> peer;  // robot -> (sent to, received from)
+  void out(size_t bytes, uint32_t to) { peer[to].first += bytes; }
+  void in(size_t bytes, uint32_t from) { peer[from].second += bytes; }
 };
 
 }  // namespace
@@ -182,7 +177,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
   core.set_reachable(in_reach);
   uint64_t next_request = 1, duplicate_replies = 0, requests_served = 0, requests_unknown = 0, loops_sent = 0, points_served = 0;
   uint32_t incarnation = 0, loop_seq = 0;
-  Traffic traffic;
+  PeerTraffic traffic;
   spdlog::info("loop-closure service of robot {} up: {} robots, PCM chi2 {}, domain {}{}", me, o.robots,
                o.core.pcm.chi2_threshold, o.domain,
                domains.split() ? ", own keyframes, descriptors and loops on local domain " + std::to_string(o.local_domain)
@@ -199,7 +194,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
       q.stamp_ns = dds::now_ns();
       w_req.write(q);
       spdlog::debug("requested cloud {}/{} (request {})", c.robot, c.id, q.request_id);
-      traffic.out(topics::kCloudRequest, dds::wire_size(q), c.robot);
+      traffic.out(dds::serialized_size(q), c.robot);
     }
     for (const Verification& v : ev.verifications) {
       spdlog::debug("verified {}/{} against {}/{}: {}, fitness {:.3f} m^2, overlap {:.2f}, guess {:.1f} m, moved {:.2f} m",
@@ -223,7 +218,6 @@ int run_loop_closure(const LoopNodeOptions& o) {
       m.fitness = static_cast<float>(l.fitness);
       w_loop.write(m);
       if (w_loop_local) w_loop_local->write(m);
-      traffic.out(topics::kLoopClosure, dds::wire_size(m));
       ++loops_sent;
       spdlog::info("{} loop {}/{} - {}/{} (fitness {:.3f})", l.withdrawn ? "withdrew" : "published", l.robot_a,
                    l.keyframe_a, l.robot_b, l.keyframe_b, l.fitness);
@@ -243,7 +237,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
         spdlog::warn("rejected cloud request: {}", rejected.last_reason());
         return;
       }
-      traffic.in(topics::kCloudRequest, dds::wire_size(m), m.requester_robot_id);
+      traffic.in(dds::serialized_size(m), m.requester_robot_id);
       last_heard[m.requester_robot_id] = Clock::now();
       cdc_msg_CloudReply rep{};
       rep.requester_robot_id = m.requester_robot_id;
@@ -267,7 +261,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
       dds::borrow(rep.packed_points, packed.bytes);
       if (m.requester_robot_id >= w_rep_to.size() || !w_rep_to[m.requester_robot_id]) return;  // validated above
       w_rep_to[m.requester_robot_id]->write(rep);
-      traffic.out(topics::kCloudReply, dds::wire_size(rep), m.requester_robot_id);
+      traffic.out(dds::serialized_size(rep), m.requester_robot_id);
       spdlog::debug("served cloud {}/{} to robot {}: {} points in {} B, request {} ms old", me, m.keyframe_id,
                     m.requester_robot_id, packed.count, packed.bytes.size(), (dds::now_ns() - m.stamp_ns) / 1'000'000);
     });
@@ -293,7 +287,6 @@ int run_loop_closure(const LoopNodeOptions& o) {
       handle(core.add_keyframe_data(std::move(kf), now));
     });
     auto on_descriptor = [&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
-      const size_t bytes = dds::wire_size(m);
       dds::Validation v = dds::validate(m, limits);
       if (v && (m.rings != o.core.scan_context.rings || m.sectors != o.core.scan_context.sectors ||
                 std::abs(m.max_range - o.core.scan_context.max_range_m) > 1e-3)) {
@@ -308,7 +301,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
         return;
       }
       if (m.robot_id != me) {
-        traffic.in(topics::kDescriptor, bytes, m.robot_id);
+        traffic.in(dds::serialized_size(m), m.robot_id);
         last_heard[m.robot_id] = Clock::now();
       }
       for (DescriptorIn& d : sequencer.add(DescriptorIn{m.robot_id, m.keyframe_id, dds::descriptor_from_msg(m),
@@ -340,7 +333,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
         q.last_keyframe_id = w.last;
         q.stamp_ns = dds::now_ns();
         w_sync.write(q);
-        traffic.out(topics::kDescriptorSync, dds::wire_size(q), w.robot);
+        traffic.out(dds::serialized_size(q), w.robot);
         spdlog::debug("asked robot {} for its descriptors {}..{}", w.robot, w.first, w.last);
       }
       for (DescriptorIn& d : released) {
@@ -355,7 +348,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
         spdlog::warn("rejected cloud reply: {}", rejected.last_reason());
         return;
       }
-      traffic.in(topics::kCloudReply, dds::wire_size(m), m.owner_robot_id);
+      traffic.in(dds::serialized_size(m), m.owner_robot_id);
       // Answered is what the core still waits for (pending, or parked to be asked again: a late answer
       // to an earlier attempt is as good as the awaited one); the request id itself is informational.
       if (!core.is_wanted(m.owner_robot_id, m.keyframe_id)) {
@@ -416,12 +409,11 @@ int run_loop_closure(const LoopNodeOptions& o) {
                      {"descriptor_ids_skipped", sequencer.stats().ids_skipped},
                      {"points_served", points_served},
                      {"requests_unknown_keyframe", requests_unknown},
-                     {"bytes_sent", traffic.sent},
-                     {"bytes_received", traffic.received},
                      {"bytes_per_peer", peers},
                      {"radio_cuts", domains.radio_cuts()},
                      {"rejected", rejected.by_topic()},
                      {"rejected_samples", rejected.total()}};
+    j["topics"] = dds::topic_traffic_json();
     std::ofstream(o.stats_out) << j.dump(2) << '\n';
   }
   spdlog::info("stopped: {} loop messages, {} rejected samples", loops_sent, rejected.total());

@@ -7,6 +7,7 @@
 #include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/shutdown.hpp"
 #include "cdc/dds/topics.hpp"
+#include "cdc/dds/traffic_json.hpp"
 #include "cdc/dds/validate.hpp"
 #include "cdc/dds/waitset.hpp"
 #include "cdc/map/map_core.hpp"
@@ -120,6 +121,7 @@ int run(const Options& o) {
     nlohmann::json j{{"keyframes", s.keyframes},     {"placed", core.placed_keyframes()}, {"placements", s.placements},
                      {"pose_updates", s.pose_updates}, {"octree_rebuilds", s.octree_rebuilds}, {"writes", writes},
                      {"rejected", rejected.by_topic()}};
+    j["topics"] = dds::topic_traffic_json();
     std::ofstream(o.stats_out) << j.dump(2) << '\n';
   }
   return 0;

@@ -8,6 +8,7 @@
 #include "cdc/dds/robot_domains.hpp"
 #include "cdc/dds/shutdown.hpp"
 #include "cdc/dds/topics.hpp"
+#include "cdc/dds/traffic_json.hpp"
 #include "cdc/dds/validate.hpp"
 #include "cdc/dds/waitset.hpp"
 #include "cdc/runtime/logging.hpp"
@@ -429,6 +430,7 @@ int run_peer(const PeerNodeOptions& o) {
                      {"separator_messages", separators_sent},
                      {"distributed_rounds", core.distributed_rounds()},
                      {"rejected_samples", rejected.total()}};
+    j["topics"] = dds::topic_traffic_json();
     std::ofstream(o.stats_out) << j.dump(2) << '\n';
   }
   spdlog::info("stopped (signal {})", dds::ShutdownSignal::signal_number());

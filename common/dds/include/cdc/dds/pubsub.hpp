@@ -5,6 +5,7 @@
 #include "cdc/dds/error.hpp"
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/qos.hpp"
+#include "cdc/dds/traffic.hpp"
 #include "cdc/dds/types.hpp"
 
 #include <algorithm>
@@ -42,15 +43,18 @@ class Topic {
  public:
   Topic(const Participant& participant, const std::string& name)
       : name_(name),
+        domain_(participant.domain_id()),
         topic_(check(dds_create_topic(participant.handle(), TypeSupport<T>::descriptor(),
                                       name.c_str(), nullptr, nullptr),
                      "create topic '" + name + "'")) {}
 
   dds_entity_t handle() const noexcept { return topic_.handle(); }
   const std::string& name() const noexcept { return name_; }
+  uint32_t domain() const noexcept { return domain_; }
 
  private:
   std::string name_;
+  uint32_t domain_;
   Entity topic_;
 };
 
@@ -59,6 +63,7 @@ class Writer {
  public:
   Writer(const Participant& participant, const Topic<T>& topic, const Qos& qos)
       : topic_name_(topic.name()),
+        counters_(&topic_counters(topic.domain(), topic.name())),
         publisher_(detail::make_group(participant, qos, true)),
         writer_(check(dds_create_writer(publisher_ ? publisher_.handle() : participant.handle(), topic.handle(),
                                         qos.get(), nullptr),
@@ -67,6 +72,8 @@ class Writer {
   void write(const T& sample) {
     check(dds_write(writer_.handle(), &sample), "write on '" + topic_name_ + "'");
     samples_written_.fetch_add(1, std::memory_order_relaxed);
+    counters_->samples_written.fetch_add(1, std::memory_order_relaxed);
+    counters_->bytes_written.fetch_add(serialized_size(sample), std::memory_order_relaxed);
   }
 
   // Disposes the instance the sample's key fields name.
@@ -97,6 +104,7 @@ class Writer {
 
  private:
   std::string topic_name_;
+  TopicCounters* counters_;  // this process's counters of the topic (traffic.hpp)
   Entity publisher_;  // own publisher when the QoS names partitions (deleted after the writer)
   Entity writer_;
   std::atomic<uint64_t> samples_written_{0};
@@ -149,6 +157,7 @@ class Reader {
  public:
   Reader(const Participant& participant, const Topic<T>& topic, const Qos& qos)
       : topic_name_(topic.name()),
+        counters_(&topic_counters(topic.domain(), topic.name())),
         subscriber_(detail::make_group(participant, qos, false)),
         reader_(check(dds_create_reader(subscriber_ ? subscriber_.handle() : participant.handle(), topic.handle(),
                                         qos.get(), nullptr),
@@ -165,6 +174,14 @@ class Reader {
                                  "take on '" + topic_name_ + "'");
     s.count_ = static_cast<size_t>(n);
     samples_taken_.fetch_add(s.count_, std::memory_order_relaxed);
+    uint64_t valid = 0, bytes = 0;
+    for (size_t i = 0; i < s.count_; ++i) {
+      if (!s.infos_[i].valid_data) continue;
+      ++valid;
+      bytes += serialized_size(*static_cast<const T*>(s.ptrs_[i]));
+    }
+    counters_->samples_taken.fetch_add(valid, std::memory_order_relaxed);
+    counters_->bytes_taken.fetch_add(bytes, std::memory_order_relaxed);
     return s;
   }
 
@@ -184,6 +201,7 @@ class Reader {
 
  private:
   std::string topic_name_;
+  TopicCounters* counters_;  // this process's counters of the topic (traffic.hpp)
   Entity subscriber_;  // own subscriber when the QoS names partitions (deleted after the reader)
   Entity reader_;
   size_t loan_capacity_ = 0;  // the largest take so far: the size of Cyclone's loan on this reader
