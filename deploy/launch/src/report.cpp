@@ -10,6 +10,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <tuple>
 #include <sstream>
 
 namespace cdc::launch {
@@ -167,36 +168,27 @@ std::string fixed(double v, int decimals) {
   return s.str();
 }
 
-// Per-topic payload of every node, summed over its services' --stats-out files ("topics": domain
-// -> topic -> counters, written by the DDS layer): node -> domain -> topic -> counters.
+// Per-topic payload of every service, from its --stats-out file ("topics": domain -> topic ->
+// counters, written by the DDS layer): node -> service -> domain -> topic -> counters.
 json topic_traffic(const fs::path& run, const std::vector<uint32_t>& robots) {
-  std::vector<std::pair<std::string, std::vector<fs::path>>> nodes;
+  std::vector<std::tuple<std::string, std::string, fs::path>> services;  // node, service, stats file
   for (uint32_t r : robots) {
     const fs::path rd = run / ("robot_" + std::to_string(r));
-    nodes.push_back({node_name(r), {rd / "frontend.stats.json", rd / "descriptor.stats.json", rd / "loop_closure.stats.json",
-                                    rd / "peer_optimiser.stats.json"}});
+    for (const char* svc : {"frontend", "descriptor", "loop_closure", "peer_optimiser"}) {
+      services.emplace_back(node_name(r), svc, rd / (std::string(svc) + ".stats.json"));
+    }
   }
-  nodes.push_back({node_name(kCentralNode), {run / "central.stats.json", run / "map.stats.json"}});
+  services.emplace_back(node_name(kCentralNode), "central_optimiser", run / "central.stats.json");
+  services.emplace_back(node_name(kCentralNode), "map", run / "map.stats.json");
   json out = json::object();
-  for (const auto& [node, files] : nodes) {
-    for (const fs::path& f : files) {
-      if (!fs::exists(f)) continue;
-      json stats;
-      try {
-        std::ifstream in(f);
-        stats = json::parse(in);
-      } catch (const std::exception&) {
-        continue;  // reported unreadable with the robot's stats
-      }
-      if (!stats.contains("topics") || !stats["topics"].is_object()) continue;
-      for (const auto& [domain, topics] : stats["topics"].items()) {
-        for (const auto& [topic, c] : topics.items()) {
-          json& t = out[node][domain][topic];
-          for (const char* field : {"samples_written", "bytes_written", "samples_taken", "bytes_taken"}) {
-            t[field] = t.value(field, uint64_t{0}) + c.value(field, uint64_t{0});
-          }
-        }
-      }
+  for (const auto& [node, service, file] : services) {
+    if (!fs::exists(file)) continue;
+    try {
+      std::ifstream in(file);
+      const json stats = json::parse(in);
+      if (stats.contains("topics") && stats["topics"].is_object()) out[node][service] = stats["topics"];
+    } catch (const std::exception&) {
+      // an unreadable stats file is reported with the robot's stats
     }
   }
   return out;
@@ -469,19 +461,21 @@ json write_report(const RunInfo& info) {
   }
   {
     const std::string slam = std::to_string(info.slam_domain), sim = std::to_string(info.sim_domain);
-    md << "\n## Traffic per topic (serialised payload, written and taken by each node's services)\n\n"
+    md << "\n## Traffic per topic (serialised payload, written and taken by each service)\n\n"
        << "Counted by the DDS layer of every service: a sample written once counts once however many readers\n"
        << "it reaches (on the radio it crosses every link to a matched reader, see above). Domain " << slam
        << " is the SLAM domain, the only one on the emulated radio; " << sim << " is the simulator's (sensors, lock-step);\n"
        << "the others are each robot's own (front-end to its peer optimiser, never on the radio).\n\n"
-       << "| node | domain | topic | samples written | bytes written | samples taken | bytes taken |\n"
-       << "|---|---|---|---|---|---|---|\n";
-    for (const auto& [node, domains] : j["traffic_per_topic"].items()) {
-      for (const auto& [domain, topics] : domains.items()) {
-        const std::string label = domain == slam ? domain + " (SLAM)" : domain == sim ? domain + " (sim)" : domain + " (robot)";
-        for (const auto& [topic, c] : topics.items()) {
-          md << "| " << node << " | " << label << " | `" << topic << "` | " << c["samples_written"] << " | " << c["bytes_written"]
-             << " | " << c["samples_taken"] << " | " << c["bytes_taken"] << " |\n";
+       << "| node | service | domain | topic | samples written | bytes written | samples taken | bytes taken |\n"
+       << "|---|---|---|---|---|---|---|---|\n";
+    for (const auto& [node, services] : j["traffic_per_topic"].items()) {
+      for (const auto& [service, domains] : services.items()) {
+        for (const auto& [domain, topics] : domains.items()) {
+          const std::string label = domain == slam ? domain + " (SLAM)" : domain == sim ? domain + " (sim)" : domain + " (robot)";
+          for (const auto& [topic, c] : topics.items()) {
+            md << "| " << node << " | " << service << " | " << label << " | `" << topic << "` | " << c["samples_written"] << " | "
+               << c["bytes_written"] << " | " << c["samples_taken"] << " | " << c["bytes_taken"] << " |\n";
+          }
         }
       }
     }
