@@ -207,6 +207,14 @@ TEST_F(SwarmEndToEnd, ThreeRobotsSwitchOnLivelinessLapsesAndStayAccurate) {
   const uint64_t kf_taken = counter("central", "central_optimiser", cdc::dds::topics::kKeyframe, "bytes_taken");
   EXPECT_GT(kf_taken, 0u);
   EXPECT_LE(kf_taken, kf_written);
+  // The central's results reach only the robot they are for: the robots together take no more than it wrote.
+  uint64_t results_taken = 0;
+  for (const char* node : {"robot0", "robot1", "robot2"}) {
+    results_taken += counter(node, "peer_optimiser", cdc::dds::topics::kCentralOptimized, "samples_taken");
+  }
+  const uint64_t results_written = counter("central", "central_optimiser", cdc::dds::topics::kCentralOptimized, "samples_written");
+  EXPECT_GT(results_taken, 0u);
+  EXPECT_LE(results_taken, results_written);
   for (const char* f : {"trajectories.svg", "modes.svg", "global_graph.g2o", "map/map.pcd", "map/map.bt", "report.md",
                         "links.csv", "modes.csv"}) {
     EXPECT_TRUE(fs::exists(run / f)) << f;

@@ -16,6 +16,7 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
+#include <deque>
 #include <fstream>
 #include <random>
 
@@ -119,8 +120,15 @@ int run_central(const CentralNodeOptions& o) {
   dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
   dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop, dds::qos::event_stream(4096));
   dds::Reader<cdc_msg_WorldTransform> r_world(participant, t_world, dds::qos::keyed_state());
+  // The optimiser's liveliness, asserted from the loop below (a hung optimiser lapses too): every
+  // robot's monitor reads it in the default partition. It carries no data: each robot's results go
+  // in the robot's own partition, so that a robot receives only its own poses (the map reads all).
   dds::Writer<cdc_msg_OptimizedPoses> w_opt(participant, t_opt,
                                             dds::qos::monitored_writer(std::chrono::milliseconds(o.lease_ms)));
+  std::deque<dds::Writer<cdc_msg_OptimizedPoses>> w_results;
+  for (uint32_t k = 0; k < o.core.robot_count; ++k) {
+    w_results.emplace_back(participant, t_opt, dds::qos::keyed_state(1).partitions({dds::partitions::robot(k)}));
+  }
   dds::Writer<cdc_msg_Acknowledgement> w_ack(participant, t_ack, dds::qos::keyed_state());
   dds::Writer<cdc_msg_RobotStatus> w_status(participant, t_status, dds::qos::keyed_state());
 
@@ -198,7 +206,7 @@ int run_central(const CentralNodeOptions& o) {
         msg.source = cdc_msg_SOURCE_CENTRAL;
         msg.T_world_robot = dds::to_msg(e.T_world_robot);
         dds::borrow(msg.poses, pose_storage);
-        w_opt.write(msg);
+        w_results.at(e.robot).write(msg);
         if (!e.poses.empty()) {
           const Eigen::Vector3d t = e.poses.back().second.translation();
           spdlog::debug("graph version {}: robot {} newest keyframe {} at ({:.3f}, {:.3f}, {:.3f})", core.version(), e.robot,

@@ -60,7 +60,7 @@ int run(const Options& o) {
   dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
   dds::Topic<cdc_msg_OptimizedPoses> t_opt(participant, dds::topics::kCentralOptimized);
   dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
-  dds::Reader<cdc_msg_OptimizedPoses> r_opt(participant, t_opt, dds::qos::monitored_reader());
+  dds::Reader<cdc_msg_OptimizedPoses> r_opt(participant, t_opt, dds::qos::monitored_reader().partitions(dds::partitions::all_robots_reader()));
   dds::GuardCondition stop(participant);
   dds::ShutdownSignal::add_guard(&stop);
   dds::ReadCondition rc_kf(r_kf.handle()), rc_opt(r_opt.handle());

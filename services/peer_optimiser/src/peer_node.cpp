@@ -122,7 +122,9 @@ int run_peer(const PeerNodeOptions& o) {
   const dds::Topic<cdc_msg_OptimizedPoses>& t_corr_own = t_corr_local ? *t_corr_local : t_corr;
   dds::Reader<cdc_msg_Keyframe> r_kf(local, t_kf_own, dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(me)));
   dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop, dds::qos::event_stream(4096));
-  dds::Reader<cdc_msg_OptimizedPoses> r_central(participant, t_central, dds::qos::monitored_reader());
+  // The central's results for this robot only (its partition); liveliness is watched below.
+  dds::Reader<cdc_msg_OptimizedPoses> r_central(participant, t_central,
+                                                dds::qos::monitored_reader().partitions({dds::partitions::robot(me)}));
   dds::Reader<cdc_msg_Acknowledgement> r_ack(participant, t_ack, dds::qos::keyed_state());
   dds::Reader<cdc_msg_SeparatorPoses> r_sep(participant, t_sep, dds::qos::event_stream(256));
   dds::Reader<cdc_msg_RobotStatus> r_status(participant, t_status, dds::qos::keyed_state());
