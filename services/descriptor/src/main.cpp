@@ -180,7 +180,7 @@ int run(const Options& o) {
     nlohmann::json j{{"robot", o.robot},
                      {"descriptors", published},
                      {"repeated_keyframes", repeated},
-                     {"bytes", {{dds::topics::kDescriptor, bytes}}},
+                     {"first_send_bytes", bytes},  // every write, re-sends too: "topics"
                      {"sync_requests", syncs},
                      {"resent", resent},
                      {"resent_bytes", resent_bytes},
