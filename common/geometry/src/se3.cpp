@@ -124,6 +124,14 @@ Eigen::Isometry3d interpolate(const Eigen::Isometry3d& a, const Eigen::Isometry3
   return T;
 }
 
+Eigen::Quaterniond twist_about(const Eigen::Quaterniond& q, const Eigen::Vector3d& axis) {
+  const double along = q.vec().dot(axis);
+  const Eigen::Vector4d t(q.w(), along * axis.x(), along * axis.y(), along * axis.z());
+  const double n = t.norm();
+  if (n < 1e-12) return Eigen::Quaterniond::Identity();
+  return Eigen::Quaterniond(t[0] / n, t[1] / n, t[2] / n, t[3] / n);
+}
+
 Eigen::Matrix3d project_to_so3(const Eigen::Matrix3d& M) {
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
   Eigen::Matrix3d D = Eigen::Matrix3d::Identity();

@@ -117,5 +117,25 @@ TEST(Se3, RotationAngleAndProjection) {
   EXPECT_LT((P - R).norm(), 1e-4);
 }
 
+TEST(Se3, TwistAboutAnAxisKeepsOnlyTheTurnAboutIt) {
+  const Eigen::Vector3d z = Eigen::Vector3d::UnitZ();
+  // Yaw 0.7 after a tilt of 0.2 about x: the twist about z is the yaw, the swing turns z.
+  const Eigen::Quaterniond yaw(Eigen::AngleAxisd(0.7, z)), tilt(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitX()));
+  const Eigen::Quaterniond q = tilt * yaw;
+  const Eigen::Quaterniond tw = twist_about(q, z);
+  EXPECT_NEAR(tw.angularDistance(yaw), 0.0, 1e-12);
+  const Eigen::Quaterniond swing = q * tw.conjugate();
+  EXPECT_NEAR(swing.angularDistance(tilt), 0.0, 1e-12);
+  // A pure tilt has no twist; a pure turn about the axis is its own twist (either sign of q).
+  EXPECT_NEAR(twist_about(tilt, z).angularDistance(Eigen::Quaterniond::Identity()), 0.0, 1e-12);
+  const Eigen::Quaterniond minus_yaw(-yaw.w(), -yaw.x(), -yaw.y(), -yaw.z());
+  EXPECT_NEAR(twist_about(minus_yaw, z).angularDistance(yaw), 0.0, 1e-12);
+  // About another axis: the twist about x of the tilt is the tilt.
+  EXPECT_NEAR(twist_about(tilt, Eigen::Vector3d::UnitX()).angularDistance(tilt), 0.0, 1e-12);
+  // Half a turn about x maps z to -z: no twist about z is defined, identity is returned.
+  const Eigen::Quaterniond flip(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()));
+  EXPECT_NEAR(twist_about(flip, z).angularDistance(Eigen::Quaterniond::Identity()), 0.0, 1e-12);
+}
+
 }  // namespace
 }  // namespace cdc::geometry

@@ -32,6 +32,7 @@ FrontendNodeOptions load_frontend_options(const std::string& path) {
   r.get<double>("imu.window.information_scale", p.information_scale, positive, "> 0");
   r.get<double>("fusion.pos_max_m", p.fusion.pos_max, positive, "> 0");
   r.get<double>("fusion.rot_max_deg", rot_deg, positive, "> 0");
+  r.get<bool>("fusion.hold_tilt", p.correction_holds_tilt);
   r.get<bool>("imu.use", o.use_imu);
   r.get<double>("imu.gap_s", o.imu_gap_s, positive, "> 0");
   r.get<bool>("imu.window.enabled", p.imu_window);

@@ -389,7 +389,16 @@ bool FrontendCore::set_correction(uint32_t keyframe_id, const Eigen::Isometry3d&
   if (it == keyframe_poses_.end()) return false;
   // The keyframe's corrected pose in the odometry frame, and the map from raw to corrected odometry.
   const Eigen::Isometry3d corrected = T_world_robot.inverse() * T_world_keyframe;
-  correction_ = corrected * it->second.inverse();
+  Eigen::Isometry3d C = corrected * it->second.inverse();
+  if (p_.correction_holds_tilt && gravity_reference_) {
+    // Levelled: keep the correction's turn about the vertical, and move the keyframe to its
+    // corrected position with it (correction_holds_tilt in frontend_core.hpp).
+    const Eigen::Quaterniond yaw = geometry::twist_about(Eigen::Quaterniond(C.rotation()), Eigen::Vector3d::UnitZ());
+    C.linear() = yaw.toRotationMatrix();
+    C.translation() = corrected.translation() - yaw * it->second.translation();
+    ++stats_.corrections_levelled;
+  }
+  correction_ = C;
   T_world_robot_ = T_world_robot;
   ++stats_.corrections;
   return true;

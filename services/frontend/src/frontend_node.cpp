@@ -227,6 +227,7 @@ int run_frontend(const FrontendNodeOptions& o) {
                      {"level_deg", s.level_deg},
                      {"max_level_deg", s.max_level_deg},
                      {"corrections", s.corrections},
+                     {"corrections_levelled", s.corrections_levelled},
                      {"corrections_for_unknown_keyframes", corrections_unknown},
                      {"imu_samples", s.imu_samples},
                      {"imu_gaps", imu_gaps},

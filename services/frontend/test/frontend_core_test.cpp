@@ -184,6 +184,60 @@ TEST(Frontend, ACorrectionIsTakenInSmoothlyAndReached) {
   EXPECT_FALSE(core.set_correction(9999, Eigen::Isometry3d::Identity(), Eigen::Isometry3d::Identity()));
 }
 
+TEST(Frontend, ALevelledOdometryTakesACorrectionsTurnAboutTheVerticalOnly) {
+  // Levelled with gravity, the odometry's roll and pitch are observed; a back-end correction that
+  // also tilts (a loop's weakest part) turns the odometry about its vertical only and moves the
+  // keyframe to its corrected position. Unlevelled (hold_tilt off), the whole correction is taken.
+  struct Result {
+    double gap_t, gap_r_deg, tilt_deg;  // published against the expected pose; its tilt against the raw odometry's
+    uint64_t levelled;
+  };
+  auto run = [](bool hold) {
+    Drive d(8.0, 0.3, 20.0);
+    auto imu = sim::simulate_imu(d.traj, Eigen::Isometry3d::Identity(), 0.0, 19.5, 200.0, sim::ImuNoise{}, 5);
+    FrontendParams p;
+    p.correction_holds_tilt = hold;
+    FrontendCore core(p);
+    ImuFeed feed{d, imu, core};
+    Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();  // the back-end: keyframe at offset * raw
+    offset.translation() = Eigen::Vector3d(0.5, -0.3, 0.4);
+    offset.linear() = (Eigen::AngleAxisd(4.0 * M_PI / 180, Eigen::Vector3d::UnitZ()) *
+                       Eigen::AngleAxisd(3.0 * M_PI / 180, Eigen::Vector3d::UnitY()))
+                          .toRotationMatrix();
+    std::optional<Eigen::Isometry3d> kf_raw;
+    for (int k = 0; k < 180; ++k) {
+      feed.scan(k);
+      if (!kf_raw && k >= 80 && feed.last.keyframe) {
+        kf_raw = feed.last.keyframe->T_odom_keyframe;
+        EXPECT_TRUE(core.set_correction(feed.last.keyframe->id, offset * *kf_raw, Eigen::Isometry3d::Identity()));
+      }
+    }
+    EXPECT_TRUE(kf_raw.has_value());
+    // What the published pose converges to: C * raw, with C the correction as taken in.
+    Eigen::Isometry3d C = offset;
+    if (hold) {
+      C.linear() = Eigen::AngleAxisd(4.0 * M_PI / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      C.translation() = (offset * *kf_raw).translation() - C.linear() * kf_raw->translation();
+    }
+    const Eigen::Isometry3d gap = (C * feed.last.T_odom_raw).inverse() * feed.last.T_odom_base;
+    const Eigen::Vector3d up_pub = feed.last.T_odom_base.rotation().transpose() * Eigen::Vector3d::UnitZ();
+    const Eigen::Vector3d up_raw = feed.last.T_odom_raw.rotation().transpose() * Eigen::Vector3d::UnitZ();
+    return Result{gap.translation().norm(), geometry::rotation_angle(gap.rotation()) * 180 / M_PI,
+                  std::acos(std::clamp(up_pub.dot(up_raw), -1.0, 1.0)) * 180 / M_PI, core.stats().corrections_levelled};
+  };
+  const Result held = run(true), whole = run(false);
+  std::printf("held: gap %.4f m %.4f deg, tilt %.3f deg; whole: gap %.4f m %.4f deg, tilt %.3f deg\n", held.gap_t,
+              held.gap_r_deg, held.tilt_deg, whole.gap_t, whole.gap_r_deg, whole.tilt_deg);
+  EXPECT_EQ(held.levelled, 1u);
+  EXPECT_LT(held.gap_t, 0.01);
+  EXPECT_LT(held.gap_r_deg, 0.01);
+  EXPECT_LT(held.tilt_deg, 0.01) << "the published roll and pitch stay the odometry's";
+  EXPECT_EQ(whole.levelled, 0u);
+  EXPECT_LT(whole.gap_t, 0.01);
+  EXPECT_LT(whole.gap_r_deg, 0.01);
+  EXPECT_NEAR(whole.tilt_deg, 3.0, 0.2) << "unlevelled corrections tilt the odometry";
+}
+
 TEST(Frontend, TheImuWindowPredictsTheSweepsAndFindsTheGyroBias) {
   Drive d(10.0, 0.5, 14.0);
   const Eigen::Vector3d bg(0.004, -0.003, 0.006), ba(0.05, -0.03, 0.04);

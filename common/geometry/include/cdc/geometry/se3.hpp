@@ -39,6 +39,10 @@ Eigen::Quaterniond slerp(const Eigen::Quaterniond& a, const Eigen::Quaterniond& 
 // Pose between a (t=0) and b (t=1): slerp for rotation, linear for translation.
 Eigen::Isometry3d interpolate(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double t);
 
+// Twist of q about a unit axis (swing-twist decomposition q = swing * twist): the rotation about
+// `axis` alone that is closest to q; identity when q turns the axis by 180 deg (no twist defined).
+Eigen::Quaterniond twist_about(const Eigen::Quaterniond& q, const Eigen::Vector3d& axis);
+
 // Nearest rotation matrix to M (projects a drifted matrix back onto SO(3)).
 Eigen::Matrix3d project_to_so3(const Eigen::Matrix3d& M);
 
