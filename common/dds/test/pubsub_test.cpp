@@ -214,9 +214,9 @@ TEST(PubSub, TransientLocalStateReachesALateJoiner) {
   EXPECT_EQ(seen, std::vector<uint32_t>{4});
 }
 
-// Cyclone lends each reader one buffer, sized by its largest take so far, and points into all of
-// it on every take: a small take after a large one must still get every sample once, in order, and
-// stay within the wrapper's arrays (the asan preset checks the latter).
+// A reader reuses one set of sample buffers, grown by its largest take so far: a small take after
+// a large one must still get every sample once, in order, and stay within the wrapper's arrays (the
+// asan preset checks the latter).
 TEST(PubSub, TakesOfDifferentSizesOnOneReaderGetEverySampleOnce) {
   Participant p(test_options());
   Topic<cdc_msg_ModeState> topic(p, unique_topic("take_sizes"));
@@ -251,6 +251,49 @@ TEST(PubSub, TakesOfDifferentSizesOnOneReaderGetEverySampleOnce) {
   std::vector<uint32_t> want(80);
   for (uint32_t i = 0; i < 80; ++i) want[i] = i;
   EXPECT_EQ(seen, want);
+}
+
+// Samples stay valid while held: a second take while the first is still out fills other buffers,
+// and the buffers handed back are reused, sequences and all, by the next take.
+TEST(PubSub, SamplesStillHeldKeepTheirDataWhenTheReaderTakesAgain) {
+  Participant p(test_options());
+  Topic<cdc_msg_Keyframe> topic(p, unique_topic("held"));
+  Writer<cdc_msg_Keyframe> writer(p, topic, qos::event_stream(16));
+  Reader<cdc_msg_Keyframe> reader(p, topic, qos::event_stream(16));
+  ASSERT_TRUE(writer.wait_for_readers(1, 5s));
+  KeyframeSample big(3000), small(10), medium(200);
+  big.msg.keyframe_id = 1;
+  small.msg.keyframe_id = 2;
+  medium.msg.keyframe_id = 3;
+  writer.write(big.msg);
+  writer.write(small.msg);
+  std::vector<Samples<cdc_msg_Keyframe>> held;
+  ASSERT_TRUE(wait_until([&] {
+    Samples<cdc_msg_Keyframe> s = reader.take(1);
+    if (!s.empty()) held.push_back(std::move(s));
+    return held.size() == 2;
+  }, 5000ms));
+  ASSERT_TRUE(held[0].valid(0) && held[1].valid(0));
+  EXPECT_EQ(held[0][0].keyframe_id, 1u);
+  EXPECT_EQ(held[0][0].cloud._length, 3000u);
+  EXPECT_EQ(held[1][0].keyframe_id, 2u);
+  EXPECT_EQ(held[1][0].cloud._length, 10u);
+  held.clear();  // both sets go back; one is kept for reuse
+  writer.write(medium.msg);
+  std::vector<uint32_t> ids, lengths;
+  std::vector<float> last_x;
+  ASSERT_TRUE(wait_until([&] {
+    reader.take().for_each_valid([&](const cdc_msg_Keyframe& k, const dds_sample_info_t&) {
+      ids.push_back(k.keyframe_id);
+      lengths.push_back(k.cloud._length);
+      last_x.push_back(k.cloud._buffer[k.cloud._length - 1].x);
+    });
+    return !ids.empty();
+  }, 5000ms));
+  EXPECT_EQ(ids, std::vector<uint32_t>{3});
+  EXPECT_EQ(lengths, std::vector<uint32_t>{200});
+  EXPECT_EQ(last_x, std::vector<float>{199.0f});
+  EXPECT_EQ(topic_traffic().at({topic.domain(), topic.name()}).samples_taken, 3u);
 }
 
 // A robot's partition keeps its data from other robots' readers; the central's wildcard reader and

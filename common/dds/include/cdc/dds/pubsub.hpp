@@ -1,10 +1,11 @@
-// Typed topics, writers, readers and loaned samples over the Cyclone C API.
+// Typed topics, writers, readers and taken samples over the Cyclone C API.
 #pragma once
 
 #include "cdc/dds/entity.hpp"
 #include "cdc/dds/error.hpp"
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/qos.hpp"
+#include "cdc/dds/sample_buffers.hpp"
 #include "cdc/dds/traffic.hpp"
 #include "cdc/dds/types.hpp"
 
@@ -13,6 +14,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <thread>
 #include <utility>
@@ -110,28 +112,30 @@ class Writer {
   std::atomic<uint64_t> samples_written_{0};
 };
 
-// Samples lent by the reader: valid until this object is destroyed (the loan is returned then).
+template <class>
+class Reader;
+
+// Samples taken by a reader, deserialised into the reader's reusable buffers: valid until this
+// object is destroyed (the buffers go back to the reader then). The reader must outlive it.
 template <class T>
 class Samples {
  public:
-  Samples(dds_entity_t reader, size_t max) : reader_(reader), ptrs_(max, nullptr), infos_(max) {}
   ~Samples() {
-    if (count_ > 0) {
-      dds_return_loan(reader_, ptrs_.data(), static_cast<int32_t>(count_));
-    }
+    if (home_ != nullptr && buffers_ && !*home_) *home_ = std::move(buffers_);
   }
   Samples(const Samples&) = delete;
   Samples& operator=(const Samples&) = delete;
   Samples(Samples&& other) noexcept
-      : reader_(other.reader_), ptrs_(std::move(other.ptrs_)), infos_(std::move(other.infos_)),
-        count_(std::exchange(other.count_, 0)) {}
+      : home_(std::exchange(other.home_, nullptr)), buffers_(std::move(other.buffers_)),
+        infos_(std::move(other.infos_)), count_(std::exchange(other.count_, 0)) {}
   Samples& operator=(Samples&&) = delete;
 
   size_t size() const noexcept { return count_; }
   bool empty() const noexcept { return count_ == 0; }
-  // False for samples that only carry an instance state change (dispose, no writers).
+  // False for samples that only carry an instance state change (dispose, no writers): their
+  // data is unspecified, their info(i) holds what changed.
   bool valid(size_t i) const noexcept { return infos_[i].valid_data; }
-  const T& operator[](size_t i) const noexcept { return *static_cast<const T*>(ptrs_[i]); }
+  const T& operator[](size_t i) const noexcept { return *static_cast<const T*>((*buffers_)[i]); }
   const dds_sample_info_t& info(size_t i) const noexcept { return infos_[i]; }
 
   template <class F>
@@ -144,10 +148,11 @@ class Samples {
   }
 
  private:
-  template <class>
-  friend class Reader;
-  dds_entity_t reader_;
-  std::vector<void*> ptrs_;
+  friend class Reader<T>;
+  Samples(std::unique_ptr<detail::SampleBuffers>* home, std::unique_ptr<detail::SampleBuffers> buffers)
+      : home_(home), buffers_(std::move(buffers)) {}
+  std::unique_ptr<detail::SampleBuffers>* home_;  // the reader's spare slot
+  std::unique_ptr<detail::SampleBuffers> buffers_;
   std::vector<dds_sample_info_t> infos_;
   size_t count_ = 0;
 };
@@ -163,25 +168,18 @@ class Reader {
                                         qos.get(), nullptr),
                       "create reader on '" + topic.name() + "'")) {}
 
-  // Takes up to max samples (removing them from the reader's cache).
+  // Takes up to max samples (removing them from the reader's cache). Each is deserialised once
+  // and its serialised size counted as it came (traffic.hpp), without serialising it again.
   Samples<T> take(size_t max = 64) {
-    // Cyclone lends each reader one buffer, as large as its largest take so far, and fills in a
-    // pointer for every sample of that buffer whatever `max` is: the pointer array must be as long.
-    loan_capacity_ = std::max(loan_capacity_, max);
-    Samples<T> s(reader_.handle(), loan_capacity_);
-    const dds_return_t n = check(dds_take(reader_.handle(), s.ptrs_.data(), s.infos_.data(), loan_capacity_,
-                                          static_cast<uint32_t>(max)),
-                                 "take on '" + topic_name_ + "'");
-    s.count_ = static_cast<size_t>(n);
+    auto buffers = spare_ ? std::move(spare_)
+                          : std::make_unique<detail::SampleBuffers>(TypeSupport<T>::descriptor());
+    Samples<T> s(&spare_, std::move(buffers));
+    uint64_t valid = 0, bytes = 0, failed = 0;
+    s.count_ = s.buffers_->take(reader_.handle(), max, s.infos_, valid, bytes, failed, topic_name_.c_str());
     samples_taken_.fetch_add(s.count_, std::memory_order_relaxed);
-    uint64_t valid = 0, bytes = 0;
-    for (size_t i = 0; i < s.count_; ++i) {
-      if (!s.infos_[i].valid_data) continue;
-      ++valid;
-      bytes += serialized_size(*static_cast<const T*>(s.ptrs_[i]));
-    }
     counters_->samples_taken.fetch_add(valid, std::memory_order_relaxed);
     counters_->bytes_taken.fetch_add(bytes, std::memory_order_relaxed);
+    counters_->undecodable.fetch_add(failed, std::memory_order_relaxed);
     return s;
   }
 
@@ -204,7 +202,7 @@ class Reader {
   TopicCounters* counters_;  // this process's counters of the topic (traffic.hpp)
   Entity subscriber_;  // own subscriber when the QoS names partitions (deleted after the reader)
   Entity reader_;
-  size_t loan_capacity_ = 0;  // the largest take so far: the size of Cyclone's loan on this reader
+  std::unique_ptr<detail::SampleBuffers> spare_;  // buffers not lent out, reused by the next take
   std::atomic<uint64_t> samples_taken_{0};
 };
 

@@ -1,5 +1,6 @@
 // This process's per-topic traffic (traffic.hpp) as JSON for the services' --stats-out files:
-// {"<domain>": {"<topic>": {"samples_written", "bytes_written", "samples_taken", "bytes_taken"}}}.
+// {"<domain>": {"<topic>": {"samples_written", "bytes_written", "samples_taken", "bytes_taken",
+// "undecodable"}}}.
 #pragma once
 
 #include "cdc/dds/traffic.hpp"
@@ -16,7 +17,8 @@ inline nlohmann::json topic_traffic_json() {
     j[std::to_string(key.first)][key.second] = {{"samples_written", t.samples_written},
                                                 {"bytes_written", t.bytes_written},
                                                 {"samples_taken", t.samples_taken},
-                                                {"bytes_taken", t.bytes_taken}};
+                                                {"bytes_taken", t.bytes_taken},
+                                                {"undecodable", t.undecodable}};
   }
   return j;
 }
