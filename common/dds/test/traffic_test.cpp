@@ -77,43 +77,32 @@ TEST(Traffic, SweepsOfEveryLengthAroundTheAlignmentAreWalkedExactly) {
   expect_same_size(&cdc_msg_LidarScan_desc, &scan, "LidarScan of 28,800 points");
 }
 
+// A message of type Msg whose sequence `member` holds n (zeroed) elements.
+template <class Elem, class Msg, class Seq>
+void expect_same_size_with(const dds_topic_descriptor_t* descriptor, Seq Msg::*member, uint32_t n, const char* name) {
+  std::vector<Elem> storage(n);
+  Msg msg{};
+  point_at(msg.*member, storage);
+  expect_same_size(descriptor, &msg, std::string(name) + " of " + std::to_string(n));
+}
+
 TEST(Traffic, MessagesWithSequencesAreWalkedExactly) {
   for (uint32_t n : {0u, 1u, 2u, 3u, 5u, 7u, 64u}) {
-    const std::string of = " of " + std::to_string(n);
-    std::vector<cdc_msg_ImuSample> imu(n);
-    cdc_msg_ImuBatch batch{};
-    point_at(batch.samples, imu);
-    expect_same_size(&cdc_msg_ImuBatch_desc, &batch, "ImuBatch" + of);
-
-    std::vector<cdc_msg_RadioLink> links(n);
-    cdc_msg_RadioState radio{};
-    point_at(radio.links, links);
-    expect_same_size(&cdc_msg_RadioState_desc, &radio, "RadioState" + of);
-
-    std::vector<cdc_msg_PointXYZI> cloud(n);
-    cdc_msg_Keyframe keyframe{};
-    point_at(keyframe.cloud, cloud);
-    expect_same_size(&cdc_msg_Keyframe_desc, &keyframe, "Keyframe" + of);
-
+    expect_same_size_with<cdc_msg_ImuSample>(&cdc_msg_ImuBatch_desc, &cdc_msg_ImuBatch::samples, n, "ImuBatch");
+    expect_same_size_with<cdc_msg_RadioLink>(&cdc_msg_RadioState_desc, &cdc_msg_RadioState::links, n, "RadioState");
+    expect_same_size_with<cdc_msg_PointXYZI>(&cdc_msg_Keyframe_desc, &cdc_msg_Keyframe::cloud, n, "Keyframe");
+    expect_same_size_with<uint8_t>(&cdc_msg_CloudReply_desc, &cdc_msg_CloudReply::packed_points, n, "CloudReply");
+    expect_same_size_with<cdc_msg_KeyframePose>(&cdc_msg_OptimizedPoses_desc, &cdc_msg_OptimizedPoses::poses, n,
+                                                "OptimizedPoses");
+    expect_same_size_with<cdc_msg_KeyframePose>(&cdc_msg_SeparatorPoses_desc, &cdc_msg_SeparatorPoses::poses, n,
+                                                "SeparatorPoses");
+    // Two sequences, of floats then of bytes whose odd length needs the payload padded.
     std::vector<float> ring(n);
     std::vector<uint8_t> cells(n * 3 + 1);
     cdc_msg_Descriptor descriptor{};
     point_at(descriptor.ring_key, ring);
     point_at(descriptor.packed_cells, cells);
-    expect_same_size(&cdc_msg_Descriptor_desc, &descriptor, "Descriptor" + of);
-
-    std::vector<uint8_t> packed(n);
-    cdc_msg_CloudReply reply{};
-    point_at(reply.packed_points, packed);
-    expect_same_size(&cdc_msg_CloudReply_desc, &reply, "CloudReply" + of);
-
-    std::vector<cdc_msg_KeyframePose> poses(n);
-    cdc_msg_OptimizedPoses optimized{};
-    point_at(optimized.poses, poses);
-    expect_same_size(&cdc_msg_OptimizedPoses_desc, &optimized, "OptimizedPoses" + of);
-    cdc_msg_SeparatorPoses separators{};
-    point_at(separators.poses, poses);
-    expect_same_size(&cdc_msg_SeparatorPoses_desc, &separators, "SeparatorPoses" + of);
+    expect_same_size(&cdc_msg_Descriptor_desc, &descriptor, "Descriptor of " + std::to_string(n));
   }
 }
 
