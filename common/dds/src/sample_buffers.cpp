@@ -4,12 +4,20 @@
 
 #include <dds/ddsi/ddsi_serdata.h>
 
+#include <cstring>
 #include <string>
 
 namespace cdc::dds::detail {
 
 SampleBuffers::~SampleBuffers() {
   for (void* s : samples_) dds_sample_free(s, descriptor_, DDS_FREE_ALL);
+}
+
+void SampleBuffers::recycle(size_t used) {
+  for (size_t i = kKeptContents; i < used && i < samples_.size(); ++i) {
+    dds_sample_free(samples_[i], descriptor_, DDS_FREE_CONTENTS);
+    std::memset(samples_[i], 0, descriptor_->m_size);
+  }
 }
 
 size_t SampleBuffers::take(dds_entity_t reader, size_t max, std::vector<dds_sample_info_t>& infos, uint64_t& valid,

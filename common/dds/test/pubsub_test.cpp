@@ -296,6 +296,33 @@ TEST(PubSub, SamplesStillHeldKeepTheirDataWhenTheReaderTakesAgain) {
   EXPECT_EQ(topic_traffic().at({topic.domain(), topic.name()}).samples_taken, 3u);
 }
 
+// A backlog taken at once: the samples beyond the first few give their clouds back when the set is
+// returned (a backlog must not pin its memory), and the recycled buffers read the next backlog right.
+TEST(PubSub, RecycledBuffersReadTheNextBacklogExactly) {
+  Participant p(test_options());
+  Topic<cdc_msg_Keyframe> topic(p, unique_topic("backlog"));
+  Writer<cdc_msg_Keyframe> writer(p, topic, qos::event_stream(64));
+  Reader<cdc_msg_Keyframe> reader(p, topic, qos::event_stream(64));
+  ASSERT_TRUE(writer.wait_for_readers(1, 5s));
+  for (const size_t base : {100u, 7u}) {
+    std::vector<uint32_t> want, got;
+    for (uint32_t i = 0; i < 8; ++i) {
+      KeyframeSample k(base * (i + 1) + i);
+      k.msg.keyframe_id = i;
+      writer.write(k.msg);
+      want.push_back(static_cast<uint32_t>(base * (i + 1) + i));
+    }
+    ASSERT_TRUE(wait_until([&] {
+      reader.take().for_each_valid([&](const cdc_msg_Keyframe& m, const dds_sample_info_t&) {
+        EXPECT_EQ(m.cloud._buffer[m.cloud._length - 1].x, static_cast<float>(m.cloud._length - 1));
+        got.push_back(m.cloud._length);
+      });
+      return got.size() >= want.size();
+    }, 5000ms));
+    EXPECT_EQ(got, want) << "clouds of " << base << " points and up";
+  }
+}
+
 // A robot's partition keeps its data from other robots' readers; the central's wildcard reader and
 // tools on the default partition still see it.
 TEST(PubSub, PartitionsKeepRobotDataFromOtherRobots) {

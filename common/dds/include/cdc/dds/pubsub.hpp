@@ -121,7 +121,10 @@ template <class T>
 class Samples {
  public:
   ~Samples() {
-    if (home_ != nullptr && buffers_ && !*home_) *home_ = std::move(buffers_);
+    if (home_ != nullptr && buffers_ && !*home_) {
+      buffers_->recycle(count_);
+      *home_ = std::move(buffers_);
+    }
   }
   Samples(const Samples&) = delete;
   Samples& operator=(const Samples&) = delete;

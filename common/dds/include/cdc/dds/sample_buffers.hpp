@@ -1,8 +1,10 @@
 // Deserialised samples a Reader hands out, and the take that fills them. The reader takes each
 // sample in its serialised form (dds_takecdr), so the payload size it counts comes with the data
 // instead of from serialising the sample a second time, and deserialises it once into these
-// buffers. A reader keeps one set and reuses it from take to take (sequences keep their storage,
-// as Cyclone's own loan does); a take while an earlier set is still out gets a fresh set.
+// buffers. A reader keeps one set and reuses it from take to take; the first kKeptContents samples
+// keep their sequences' storage (a sweep a take costs no allocation), the others give it back when
+// the set is returned, so a take of a large backlog does not pin its memory. A take while an
+// earlier set is still out gets a fresh set.
 #pragma once
 
 #include "cdc/dds/types.hpp"
@@ -30,6 +32,10 @@ class SampleBuffers {
               uint64_t& bytes, uint64_t& failed, const char* what);
 
   const void* operator[](size_t i) const noexcept { return samples_[i]; }
+
+  // Frees what samples [kKeptContents, used) hold and empties them (before the set is reused).
+  void recycle(size_t used);
+  static constexpr size_t kKeptContents = 4;
 
  private:
   const dds_topic_descriptor_t* descriptor_;
