@@ -27,7 +27,7 @@ class SampleBuffers {
   // data and to `bytes` their serialised size (encapsulation header, XCDR body and the padding to
   // 4 bytes, as on the wire). The buffer of an invalid sample (an instance state change) is left
   // as it was. A sample Cyclone cannot deserialise comes back marked as invalid and is counted in
-  // `failed`. Throws Error (naming `what`) when the take itself fails.
+  // `failed`. Throws DdsError (naming `what`) when the take itself fails.
   size_t take(dds_entity_t reader, size_t max, std::vector<dds_sample_info_t>& infos, uint64_t& valid,
               uint64_t& bytes, uint64_t& failed, const char* what);
 
