@@ -1,6 +1,7 @@
 // Test helper: a DDS process whose writer offers MANUAL_BY_TOPIC liveliness with a lease and
-// asserts it from its work loop, like the central optimiser's result writer. Exits 0 on
-// SIGINT/SIGTERM through the shutdown guard condition.
+// asserts it from its work loop, like the central optimiser's liveliness writer: by writing a
+// sample every period, or (--data-every N) by asserting and writing only every Nth period (0:
+// never, assertions alone). Exits 0 on SIGINT/SIGTERM through the shutdown guard condition.
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/shutdown.hpp"
@@ -18,7 +19,10 @@ int main(int argc, char** argv) {
   int lease_ms = 1000;
   int period_ms = 100;
   uint32_t domain = 0;
+  int data_every = 1;
   app.add_option("--topic", topic_name, "topic name")->required();
+  app.add_option("--data-every", data_every, "write a sample every this many periods, assert in the others (0: never write)")
+      ->check(CLI::Range(0, 1000000));
   app.add_option("--lease-ms", lease_ms, "liveliness lease [ms]")->check(CLI::Range(10, 60000));
   app.add_option("--period-ms", period_ms, "assertion period [ms]")->check(CLI::Range(1, 60000));
   app.add_option("--domain", domain, "DDS domain id")->check(CLI::Range(0, 232));
@@ -42,8 +46,12 @@ int main(int argc, char** argv) {
     status.last_keyframe_id = -1;
     std::printf("writer ready\n");
     std::fflush(stdout);
-    while (!cdc::dds::ShutdownSignal::requested()) {
-      writer.write(status);  // a write asserts liveliness
+    for (long period = 0; !cdc::dds::ShutdownSignal::requested(); ++period) {
+      if (data_every > 0 && period % data_every == 0) {
+        writer.write(status);  // a write asserts liveliness
+      } else {
+        writer.assert_liveliness();
+      }
       ws.wait(std::chrono::milliseconds(period_ms));
     }
     cdc::dds::ShutdownSignal::remove_guard(&stop);

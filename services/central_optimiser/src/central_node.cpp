@@ -120,11 +120,15 @@ int run_central(const CentralNodeOptions& o) {
   dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
   dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop, dds::qos::event_stream(4096));
   dds::Reader<cdc_msg_WorldTransform> r_world(participant, t_world, dds::qos::keyed_state());
-  // The optimiser's liveliness, asserted from the loop below (a hung optimiser lapses too): every
-  // robot's monitor reads it in the default partition. It carries no data: each robot's results go
-  // in the robot's own partition, so that a robot receives only its own poses (the map reads all).
-  dds::Writer<cdc_msg_OptimizedPoses> w_opt(participant, t_opt,
-                                            dds::qos::monitored_writer(std::chrono::milliseconds(o.lease_ms)));
+  // The optimiser's liveliness, asserted from the loop below (a hung optimiser lapses too), on a
+  // topic of its own that every robot's monitor reads. It also carries the central's status, written
+  // every status period: a robot's Cyclone brings a writer whose lease lapsed back to life on data,
+  // not on assertions, so without data a robot cut off for less than the participant lease (10 s)
+  // never saw the central alive again when the link returned. Each robot's results go in the
+  // robot's own partition, so that a robot receives only its own poses (the map reads all).
+  dds::Topic<cdc_msg_RobotStatus> t_alive(participant, topics::kCentralAlive);
+  dds::Writer<cdc_msg_RobotStatus> w_alive(participant, t_alive,
+                                           dds::qos::monitored_writer(std::chrono::milliseconds(o.lease_ms)));
   std::deque<dds::Writer<cdc_msg_OptimizedPoses>> w_results;
   for (uint32_t k = 0; k < o.core.robot_count; ++k) {
     w_results.emplace_back(participant, t_opt, dds::qos::keyed_state(1).partitions({dds::partitions::robot(k)}));
@@ -158,7 +162,7 @@ int run_central(const CentralNodeOptions& o) {
 
   while (!dds::ShutdownSignal::requested()) {
     ws.wait(tick);
-    w_opt.assert_liveliness();
+    w_alive.assert_liveliness();
     r_kf.take(1024).for_each_valid([&](const cdc_msg_Keyframe& m, const dds_sample_info_t&) {
       if (rejected.record(topics::kKeyframe, dds::validate(m, limits))) {
         spdlog::warn("rejected keyframe: {}", rejected.last_reason());
@@ -190,7 +194,7 @@ int run_central(const CentralNodeOptions& o) {
     const auto now = Clock::now();
     if (core.dirty() && now - last_update >= std::chrono::milliseconds(o.update_period_ms)) {
       core.optimise();
-      w_opt.assert_liveliness();
+      w_alive.assert_liveliness();
       last_update = now;
       for (const RobotEstimate& e : core.estimates()) {
         pose_storage.clear();
@@ -243,6 +247,7 @@ int run_central(const CentralNodeOptions& o) {
       s.mode = cdc_msg_MODE_CENTRALIZED;
       s.is_central = true;
       w_status.write(s);
+      w_alive.write(s);
       last_status = now;
     }
   }

@@ -135,7 +135,8 @@ int run_peer(const PeerNodeOptions& o) {
   dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096).partitions({dds::partitions::robot(me)}));
   dds::Writer<cdc_msg_LoopClosure> w_loop(participant, t_loop, dds::qos::event_stream(4096));
   dds::Writer<cdc_msg_RobotStatus> w_status(participant, t_status, dds::qos::keyed_state());
-  dds::LivelinessMonitor central_liveliness(participant, t_central.handle(), "central optimiser");
+  dds::Topic<cdc_msg_RobotStatus> t_alive(participant, topics::kCentralAlive);
+  dds::LivelinessMonitor central_liveliness(participant, t_alive.handle(), "central optimiser");
 
   dds::GuardCondition stop, liveliness_changed;  // in a waitset spanning both domains
   dds::ShutdownSignal::add_guard(&stop);

@@ -14,6 +14,8 @@ inline constexpr const char* kCloudRequest = "cdc/loop/cloud_request";
 inline constexpr const char* kCloudReply = "cdc/loop/cloud_reply";
 inline constexpr const char* kCentralOptimized = "cdc/central/optimized";
 inline constexpr const char* kCentralAck = "cdc/central/ack";
+// The central optimiser's liveliness (MANUAL_BY_TOPIC) with its status: what the robots' mode switch watches.
+inline constexpr const char* kCentralAlive = "cdc/central/alive";
 inline constexpr const char* kCorrection = "cdc/backend/correction";
 inline constexpr const char* kMode = "cdc/backend/mode";
 inline constexpr const char* kSeparator = "cdc/peer/separator";
