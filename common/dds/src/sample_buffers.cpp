@@ -26,10 +26,11 @@ size_t SampleBuffers::take(dds_entity_t reader, size_t max, std::vector<dds_samp
     samples_.push_back(dds_alloc(descriptor_->m_size));  // zero-filled: an empty sample
   }
   infos.resize(max);
-  std::vector<ddsi_serdata*> data(max, nullptr);
-  const auto n = static_cast<size_t>(check(
-      dds_takecdr(reader, data.data(), static_cast<uint32_t>(max), infos.data(), DDS_ANY_STATE),
-      std::string("take on '") + what + "'"));
+  serdata_.assign(max, nullptr);
+  const dds_return_t rc = dds_takecdr(reader, serdata_.data(), static_cast<uint32_t>(max), infos.data(), DDS_ANY_STATE);
+  if (rc < 0) check(rc, std::string("take on '") + what + "'");  // the message only when it fails
+  const auto n = static_cast<size_t>(rc);
+  ddsi_serdata** data = serdata_.data();
   for (size_t i = 0; i < n; ++i) {
     // An invalid sample (an instance state change) brings a key-only serdata that may not name
     // its type: its buffer is left as it was, and only its info means anything.

@@ -13,6 +13,8 @@
 #include <cstdint>
 #include <vector>
 
+struct ddsi_serdata;
+
 namespace cdc::dds::detail {
 
 class SampleBuffers {
@@ -40,6 +42,7 @@ class SampleBuffers {
  private:
   const dds_topic_descriptor_t* descriptor_;
   std::vector<void*> samples_;  // dds_alloc'ed, zero-initialised, owned
+  std::vector<ddsi_serdata*> serdata_;  // what dds_takecdr hands over, kept to spare an allocation per take
 };
 
 }  // namespace cdc::dds::detail
