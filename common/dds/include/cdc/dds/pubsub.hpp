@@ -25,6 +25,26 @@ namespace cdc::dds {
 namespace detail {
 // A publisher (or subscriber) carrying the partitions `qos` names; an empty Entity when it names none.
 Entity make_group(const Participant& participant, const Qos& qos, bool publisher);
+
+// Deletes writers on threads of their own. Cyclone lets a deleted writer linger until its readers
+// have acknowledged what it holds, up to WriterLingerDuration (1 s by default): a reader out of
+// reach would stall the caller that long. The destructor waits for every deletion.
+class WriterRetirement {
+ public:
+  WriterRetirement() = default;
+  ~WriterRetirement();
+  WriterRetirement(const WriterRetirement&) = delete;
+  WriterRetirement& operator=(const WriterRetirement&) = delete;
+
+  // Deletes the writer, then its publisher (empty when it has none).
+  void retire(Entity publisher, Entity writer);
+  // True once every writer retired so far is deleted, false if that takes longer than timeout.
+  bool wait(std::chrono::milliseconds timeout) const;
+
+ private:
+  std::vector<std::thread> threads_;
+  std::shared_ptr<std::atomic<int>> pending_ = std::make_shared<std::atomic<int>>(0);
+};
 }  // namespace detail
 
 // Polls until pred() holds or timeout passes; returns pred()'s last value.
@@ -64,12 +84,28 @@ template <class T>
 class Writer {
  public:
   Writer(const Participant& participant, const Topic<T>& topic, const Qos& qos)
-      : topic_name_(topic.name()),
+      : participant_(&participant),
+        topic_handle_(topic.handle()),
+        qos_(qos),
+        topic_name_(topic.name()),
         counters_(&topic_counters(topic.domain(), topic.name())),
         publisher_(detail::make_group(participant, qos, true)),
-        writer_(check(dds_create_writer(publisher_ ? publisher_.handle() : participant.handle(), topic.handle(),
-                                        qos.get(), nullptr),
-                      "create writer on '" + topic.name() + "'")) {}
+        writer_(create()) {}
+
+  // Drops every sample the writer still holds for readers that have not acknowledged it, so that
+  // none is sent again when such a reader comes back in reach: the DDS writer is replaced by a
+  // fresh one with the same QoS (matched anew by the readers; a volatile writer then delivers only
+  // what is written from now on) and the old one deleted in the background (WriterRetirement).
+  // For data that an application-level acknowledgement re-sends anyway, such as keyframes a
+  // robot sent the central just before the radio link was cut.
+  void discard_unacknowledged() {
+    Entity fresh_publisher = detail::make_group(*participant_, qos_, true);
+    Entity fresh_writer(create(fresh_publisher));
+    retirement_.retire(std::exchange(publisher_, std::move(fresh_publisher)), std::exchange(writer_, std::move(fresh_writer)));
+  }
+
+  // True once every writer replaced by discard_unacknowledged() is deleted (for tests).
+  bool wait_discarded(std::chrono::milliseconds timeout) const { return retirement_.wait(timeout); }
 
   void write(const T& sample) {
     check(dds_write(writer_.handle(), &sample), "write on '" + topic_name_ + "'");
@@ -105,8 +141,18 @@ class Writer {
   const std::string& topic_name() const noexcept { return topic_name_; }
 
  private:
+  dds_entity_t create() const { return create(publisher_); }
+  dds_entity_t create(const Entity& publisher) const {
+    return check(dds_create_writer(publisher ? publisher.handle() : participant_->handle(), topic_handle_, qos_.get(), nullptr),
+                 "create writer on '" + topic_name_ + "'");
+  }
+
+  const Participant* participant_;  // outlives the writer, as every DDS entity's parent must
+  dds_entity_t topic_handle_;
+  Qos qos_;
   std::string topic_name_;
   TopicCounters* counters_;  // this process's counters of the topic (traffic.hpp)
+  detail::WriterRetirement retirement_;  // declared before the entities: destroyed after them
   Entity publisher_;  // own publisher when the QoS names partitions (deleted after the writer)
   Entity writer_;
   std::atomic<uint64_t> samples_written_{0};
