@@ -259,11 +259,21 @@ StepOutput PeerCore::step(Nanos now, bool central_alive) {
     if (target_) {
       out.world_transform = target_;  // the central starts from the distributed estimate
     }
+    // The central's estimate of this robot is current once it holds every keyframe made so far:
+    // until then its last result is from before the cut (or a graph still taking in the re-sent
+    // backlog), and relaying it would pull the front-end back to where the robot was then.
+    frontier_.reset();
+    if (!keyframes_.empty()) frontier_ = keyframes_.rbegin()->first;
   }
+  if (frontier_ && central_ &&
+      std::any_of(central_->poses.begin(), central_->poses.end(), [&](const auto& p) { return p.first >= *frontier_; })) {
+    frontier_.reset();
+  }
+  const bool central_current = central_.has_value() && !frontier_;
 
   const bool round_due = now - last_round_ >= config_.round_period;
   if (mode == Mode::kCentralized) {
-    if (central_) {
+    if (central_current) {
       target_ = central_->T_world_robot;
     }
     if (central_alive && (rejoining_ || now - last_resend_ >= config_.resend_period)) {
@@ -348,8 +358,8 @@ StepOutput PeerCore::step(Nanos now, bool central_alive) {
       c.lambda = f.lambda;
     }
     c.T_world_robot = *published_;
-    c.from_central = mode == Mode::kCentralized;
-    if (c.from_central && central_) {
+    c.from_central = mode == Mode::kCentralized && central_current;
+    if (c.from_central) {
       c.poses = central_->poses;
     } else {
       c.poses.assign(estimate_.begin(), estimate_.end());

@@ -167,7 +167,7 @@ int run_peer(const PeerNodeOptions& o) {
   std::map<uint32_t, cdc_msg_LoopClosure> own_loops;
   uint32_t incarnation = 0;
   uint64_t resent_keyframes = 0, resent_loops = 0, corrections = 0, separators_sent = 0, forwarded_keyframes = 0,
-           withheld_keyframes = 0;
+           withheld_keyframes = 0, kf_writer_discards = 0;
   auto last_status = Clock::now() - std::chrono::hours(1);
   auto last_mode = last_status;
   std::vector<cdc_msg_KeyframePose> pose_storage;
@@ -318,6 +318,13 @@ int run_peer(const PeerNodeOptions& o) {
       publish_mode(out.transition->reason, out.transition->distance_m);
       last_mode = Clock::now();
       write_now(alive);
+      if (out.transition->to == Mode::kDistributed && domains.split()) {
+        // Keyframes forwarded since the link to the central was cut (until its lease lapsed) are
+        // unacknowledged: dropped here, they reach the central as the backlog re-sent on rejoining,
+        // not by DDS as soon as the link returns while this robot is still DISTRIBUTED.
+        w_kf.discard_unacknowledged();
+        ++kf_writer_discards;
+      }
       if (mode_log.is_open()) {
         mode_log << dds::now_ns() << ',' << sim_stamp_ns << ',' << me << ',' << to_string(out.transition->from) << ','
                  << to_string(out.transition->to) << ',' << to_string(out.transition->reason) << ','
@@ -428,6 +435,7 @@ int run_peer(const PeerNodeOptions& o) {
                      {"resent_loops", resent_loops},
                      {"forwarded_keyframes", forwarded_keyframes},
                      {"withheld_keyframes", withheld_keyframes},
+                     {"keyframe_writer_discards", kf_writer_discards},
                      {"radio_cuts", domains.radio_cuts()},
                      {"corrections", corrections},
                      {"separator_messages", separators_sent},

@@ -139,6 +139,56 @@ TEST(PeerCore, LivelinessLossSwitchesToDistributedAndKeepsCorrectingFromTheCentr
   EXPECT_LT((it->second.translation() - T_world_59.translation()).norm(), 0.05);
 }
 
+// Back from DISTRIBUTED, the central's results are relayed only once the central holds every
+// keyframe made before the rejoin: its last result from before the cut, or one from a graph still
+// taking in the re-sent backlog, would pull the front-end back to where the robot was then (in a
+// demo run, 0.4 m of height for 2 s).
+TEST(PeerCore, AfterARejoinTheCentralIsRelayedOnlyOnceItHoldsTheNewKeyframes) {
+  const auto s = test::make_swarm_stream({});
+  PeerCore core(config(1));
+  for (uint32_t id = 0; id < 60; ++id) {
+    core.add_keyframe(kf_from(s.keyframes[1][id]), 0s);
+  }
+  core.on_central_result(central_for(s, 1, 59, Eigen::Isometry3d::Identity()));
+  Nanos t = 0s;
+  for (; t <= 1500ms; t += 50ms) {
+    core.step(t, true);
+  }
+  ASSERT_EQ(core.mode(), Mode::kCentralized);
+  ASSERT_TRUE(core.step(t += 50ms, false).transition);  // the central's lease lapsed
+  for (uint32_t id = 60; id < 80; ++id) {
+    core.add_keyframe(kf_from(s.keyframes[1][id]), t);
+    core.step(t += 100ms, false);
+  }
+  bool rejoined = false;
+  for (int i = 0; i < 40 && !rejoined; ++i) {
+    const auto out = core.step(t += 50ms, true);
+    rejoined = out.transition && out.transition->to == Mode::kCentralized;
+  }
+  ASSERT_TRUE(rejoined);
+  // Back in reach: the central's results hold keyframes up to 59, then a partial backlog (up to
+  // 70), 1 m higher than the truth; they must not be relayed.
+  Eigen::Isometry3d up = Eigen::Isometry3d::Identity();
+  up.translation().z() = 1.0;
+  const Eigen::Isometry3d before = core.step(t += 50ms, true).correction->T_world_robot;
+  for (int i = 0; i < 40; ++i) {
+    if (i == 0) core.on_central_result(central_for(s, 1, 59, up));
+    if (i == 20) core.on_central_result(central_for(s, 1, 70, up));
+    const auto out = core.step(t += 50ms, true);
+    ASSERT_TRUE(out.correction);
+    EXPECT_FALSE(out.correction->from_central) << "step " << i;
+    EXPECT_EQ(out.correction->poses.back().first, 79u) << "step " << i << ": not the distributed estimate";
+    EXPECT_LT(std::abs(out.correction->T_world_robot.translation().z() - before.translation().z()), 0.05) << "step " << i;
+  }
+  // Once a result holds keyframe 79, it is relayed (and followed in bounded steps).
+  core.on_central_result(central_for(s, 1, 79, up));
+  const auto out = core.step(t += 50ms, true);
+  ASSERT_TRUE(out.correction);
+  EXPECT_TRUE(out.correction->from_central);
+  EXPECT_EQ(out.correction->poses.size(), 80u);
+  EXPECT_GT(out.correction->T_world_robot.translation().z() - before.translation().z(), 0.05);
+}
+
 TEST(PeerCore, ResendsWhatTheCentralHasNotAcknowledged) {
   const auto s = test::make_swarm_stream({});
   PeerCore core(config(2));

@@ -142,6 +142,9 @@ class PeerCore {
   Nanos last_round_{0};
   Nanos last_resend_{0};
   bool rejoining_ = false;
+  // Set on joining the central: the newest own keyframe then. The central's results are relayed
+  // only once one holds it; until then the corrections stay the distributed estimate's.
+  std::optional<uint32_t> frontier_;
   bool placed_by_peers_ = false;  // estimate_ moved into the group's frame through a separator
   uint64_t rounds_ = 0;
 };
