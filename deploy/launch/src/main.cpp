@@ -471,7 +471,10 @@ int Launcher::run() {
   }
   double t_s = 0;
   auto last_sample = Clock::now(), last_progress = Clock::now() - std::chrono::seconds(10);
-  std::optional<Clock::time_point> settle_until;
+  std::optional<Clock::time_point> settle_until, rendezvous_until;
+  bool all_central = false;  // in the rendezvous: every robot CENTRALIZED since all_central_at
+  Clock::time_point all_central_at{};
+  const auto seconds = [](double s) { return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s)); };
   std::string failure;
   while (!interrupted()) {
     std::istringstream cl(read_file(clock_file));
@@ -496,13 +499,40 @@ int Launcher::run() {
         failure = "the player failed (exit " + std::to_string(player_->exit_status().value_or(-1)) + "): see " + player_->spec().log_path;
         break;
       }
-      double settle = c_.settle_s;
       if (c_.rendezvous_s > 0 && c_.variant != Variant::kSingle) {
         rendezvous_ = true;  // applied by apply_radio on the next pass
-        settle = std::max(settle, c_.rendezvous_s);
-        std::cout << "cdc-launch: last sweep played; rendezvous: every robot back in range for " << settle << " s" << std::endl;
+        rendezvous_until = Clock::now() + seconds(c_.rendezvous_s + c_.settle_s);
+        std::cout << "cdc-launch: last sweep played; rendezvous: every robot back in range, up to " << c_.rendezvous_s
+                  << " s for all to rejoin the central, then " << c_.settle_s << " s" << std::endl;
+      } else {
+        settle_until = Clock::now() + seconds(c_.settle_s);
       }
-      settle_until = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(settle));
+    }
+    if (rendezvous_until && !settle_until) {
+      // The rendezvous ends once every robot has been CENTRALIZED for settle_s (a robot cut just
+      // before the last sweep still reads CENTRALIZED until the central's lease lapses), or after
+      // rendezvous_s + settle_s.
+      std::vector<uint32_t> out;
+      for (uint32_t r : robots_) {
+        if (read_now(run_ / ("robot_" + std::to_string(r)) / "modes.csv.now").mode != "CENTRALIZED") out.push_back(r);
+      }
+      if (out.empty() && !all_central) all_central_at = Clock::now();
+      all_central = out.empty();
+      const bool settled = all_central && Clock::now() - all_central_at >= seconds(c_.settle_s);
+      if (settled || Clock::now() >= *rendezvous_until) {
+        const auto started = *rendezvous_until - seconds(c_.rendezvous_s + c_.settle_s);
+        info_.rendezvous_s = std::chrono::duration<double>((all_central ? all_central_at : Clock::now()) - started).count();
+        info_.not_rejoined = out;
+        if (out.empty()) {
+          std::cout << "cdc-launch: rendezvous: every robot CENTRALIZED " << std::fixed << std::setprecision(1)
+                    << *info_.rendezvous_s << " s after the last sweep" << std::endl;
+        } else {
+          std::cout << "cdc-launch: rendezvous: robot(s)";
+          for (uint32_t r : out) std::cout << ' ' << r;
+          std::cout << " still not CENTRALIZED " << c_.rendezvous_s + c_.settle_s << " s after the last sweep" << std::endl;
+        }
+        settle_until = Clock::now();
+      }
     }
     if (settle_until && Clock::now() >= *settle_until) break;
     if (o_.stop_after_s > 0 && t_s >= o_.stop_after_s) {

@@ -206,6 +206,7 @@ json write_report(const RunInfo& info) {
   j["sim_s"] = info.sim_end_s;
   j["interrupted"] = info.interrupted;
   j["notes"] = info.notes;
+  if (info.rendezvous_s) j["rendezvous"] = {{"waited_s", *info.rendezvous_s}, {"not_rejoined", info.not_rejoined}};
   j["domains"] = {{"slam", info.slam_domain}, {"sim", info.sim_domain}};
   std::vector<eval::Evaluation> kf_evals;
   std::vector<eval::SvgMarker> markers;
@@ -396,6 +397,16 @@ json write_report(const RunInfo& info) {
      << "- dataset: `" << info.dataset << "`\n- wall time: " << fixed(info.wall_s, 1) << " s for " << fixed(info.sim_end_s, 1)
      << " s of sim time" << (info.interrupted ? " (interrupted)" : "") << "\n";
   for (const auto& n : info.notes) md << "- note: " << n << "\n";
+  if (info.rendezvous_s) {
+    md << "- final rendezvous: ";
+    if (info.not_rejoined.empty()) {
+      md << "every robot CENTRALIZED " << fixed(*info.rendezvous_s, 1) << " s after the last sweep\n";
+    } else {
+      md << "**robot";
+      for (uint32_t r : info.not_rejoined) md << ' ' << r;
+      md << " still not CENTRALIZED after " << fixed(*info.rendezvous_s, 1) << " s**\n";
+    }
+  }
   md << "\n## Accuracy (SE(3)-aligned per robot)\n\n"
      << "| robot | trajectory | length m | ATE rmse m | ATE % of length | RPE 1-step m | RPE 100 m (m) |\n"
      << "|---|---|---|---|---|---|---|\n";

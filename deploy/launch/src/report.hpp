@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,8 @@ struct RunInfo {
   std::vector<LinkEvent> links;
   std::map<uint32_t, ModeTraffic> traffic;  // per robot
   std::vector<std::string> notes;           // shown in the report (e.g. limits of the network mode)
+  std::optional<double> rendezvous_s;       // how long the final rendezvous waited for the rejoins
+  std::vector<uint32_t> not_rejoined;       // robots still not CENTRALIZED when it ended
 };
 
 // "central" or "robotN": how reports and traffic.csv name a node.
