@@ -56,6 +56,20 @@ CentralResult central_for(const test::SwarmStream& s, uint32_t robot, uint32_t u
   return r;
 }
 
+// A robot with keyframes 0..count-1, joined to a central that holds them all (its estimate the
+// truth): steps until CENTRALIZED and returns the time reached.
+Nanos join_central(PeerCore& core, const test::SwarmStream& s, uint32_t robot, uint32_t count, Nanos until) {
+  for (uint32_t id = 0; id < count; ++id) {
+    core.add_keyframe(kf_from(s.keyframes[robot][id]), 0s);
+  }
+  core.on_central_result(central_for(s, robot, count - 1, Eigen::Isometry3d::Identity()));
+  Nanos t = 0s;
+  for (; t <= until; t += 50ms) {
+    core.step(t, true);
+  }
+  return t;
+}
+
 // Keyframes without a corrected pose follow their odometry from the nearest corrected one before
 // them (the first corrected one when none is before them).
 TEST(PeerCore, CompletesWorldPosesFromTheNearestCorrectedKeyframe) {
@@ -76,14 +90,7 @@ TEST(PeerCore, CompletesWorldPosesFromTheNearestCorrectedKeyframe) {
 TEST(PeerCore, RelaysTheCentralWithBoundedStepsAndConverges) {
   const auto s = test::make_swarm_stream({});
   PeerCore core(config(1));
-  for (uint32_t id = 0; id < 50; ++id) {
-    core.add_keyframe(kf_from(s.keyframes[1][id]), 0s);
-  }
-  core.on_central_result(central_for(s, 1, 49, Eigen::Isometry3d::Identity()));
-  Nanos t = 0s;
-  for (; t <= 1s; t += 50ms) {
-    core.step(t, true);
-  }
+  Nanos t = join_central(core, s, 1, 50, 1s);
   ASSERT_EQ(core.mode(), Mode::kCentralized);
   // The central's estimate moves by 2 m and 5 deg: the published correction follows in bounded steps.
   Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();
@@ -110,14 +117,7 @@ TEST(PeerCore, RelaysTheCentralWithBoundedStepsAndConverges) {
 TEST(PeerCore, LivelinessLossSwitchesToDistributedAndKeepsCorrectingFromTheCentralEstimate) {
   const auto s = test::make_swarm_stream({});
   PeerCore core(config(1));
-  for (uint32_t id = 0; id < 60; ++id) {
-    core.add_keyframe(kf_from(s.keyframes[1][id]), 0s);
-  }
-  core.on_central_result(central_for(s, 1, 59, Eigen::Isometry3d::Identity()));
-  Nanos t = 0s;
-  for (; t <= 1500ms; t += 50ms) {
-    core.step(t, true);
-  }
+  Nanos t = join_central(core, s, 1, 60, 1500ms);
   ASSERT_EQ(core.mode(), Mode::kCentralized);
   const auto out = core.step(t += 50ms, false);
   ASSERT_TRUE(out.transition);
@@ -146,14 +146,7 @@ TEST(PeerCore, LivelinessLossSwitchesToDistributedAndKeepsCorrectingFromTheCentr
 TEST(PeerCore, AfterARejoinTheCentralIsRelayedOnlyOnceItHoldsTheNewKeyframes) {
   const auto s = test::make_swarm_stream({});
   PeerCore core(config(1));
-  for (uint32_t id = 0; id < 60; ++id) {
-    core.add_keyframe(kf_from(s.keyframes[1][id]), 0s);
-  }
-  core.on_central_result(central_for(s, 1, 59, Eigen::Isometry3d::Identity()));
-  Nanos t = 0s;
-  for (; t <= 1500ms; t += 50ms) {
-    core.step(t, true);
-  }
+  Nanos t = join_central(core, s, 1, 60, 1500ms);
   ASSERT_EQ(core.mode(), Mode::kCentralized);
   ASSERT_TRUE(core.step(t += 50ms, false).transition);  // the central's lease lapsed
   for (uint32_t id = 60; id < 80; ++id) {
