@@ -48,14 +48,17 @@ struct RobotNow {
   std::string mode = "-";
   uint64_t keyframes = 0;
   bool central_alive = false;
+  uint64_t acknowledged = 0;  // keyframes the central holds (all up to this id - 1)
 };
 
+// A peer optimiser's MODE_OUT.now (services/peer_optimiser/src/peer_node.cpp).
 RobotNow read_now(const fs::path& p) {
   RobotNow r;
   std::istringstream in(read_file(p));
   uint64_t transitions = 0;
   int alive = 0;
   if (in >> r.mode >> r.keyframes >> transitions >> alive) r.central_alive = alive != 0;
+  if (!(in >> r.acknowledged)) r.acknowledged = 0;
   return r;
 }
 
@@ -509,12 +512,13 @@ int Launcher::run() {
       }
     }
     if (rendezvous_until && !settle_until) {
-      // The rendezvous ends once every robot has been CENTRALIZED for settle_s (a robot cut just
-      // before the last sweep still reads CENTRALIZED until the central's lease lapses), or after
-      // rendezvous_s + settle_s.
+      // The rendezvous ends once every robot has been CENTRALIZED, with all its keyframes held by
+      // the central, for settle_s (a robot cut just before the last sweep still reads CENTRALIZED
+      // until the central's lease lapses), or after rendezvous_s + settle_s.
       std::vector<uint32_t> out;
       for (uint32_t r : robots_) {
-        if (read_now(run_ / ("robot_" + std::to_string(r)) / "modes.csv.now").mode != "CENTRALIZED") out.push_back(r);
+        const RobotNow n = read_now(run_ / ("robot_" + std::to_string(r)) / "modes.csv.now");
+        if (n.mode != "CENTRALIZED" || n.acknowledged < n.keyframes) out.push_back(r);
       }
       if (out.empty() && !all_central) all_central_at = Clock::now();
       all_central = out.empty();
@@ -524,12 +528,13 @@ int Launcher::run() {
         info_.rendezvous_s = std::chrono::duration<double>((all_central ? all_central_at : Clock::now()) - started).count();
         info_.not_rejoined = out;
         if (out.empty()) {
-          std::cout << "cdc-launch: rendezvous: every robot CENTRALIZED " << std::fixed << std::setprecision(1)
-                    << *info_.rendezvous_s << " s after the last sweep" << std::endl;
+          std::cout << "cdc-launch: rendezvous: every robot CENTRALIZED and all keyframes with the central "
+                    << std::fixed << std::setprecision(1) << *info_.rendezvous_s << " s after the last sweep" << std::endl;
         } else {
           std::cout << "cdc-launch: rendezvous: robot(s)";
           for (uint32_t r : out) std::cout << ' ' << r;
-          std::cout << " still not CENTRALIZED " << c_.rendezvous_s + c_.settle_s << " s after the last sweep" << std::endl;
+          std::cout << " not CENTRALIZED, or some keyframes not with the central, " << c_.rendezvous_s + c_.settle_s
+                    << " s after the last sweep" << std::endl;
         }
         settle_until = Clock::now();
       }

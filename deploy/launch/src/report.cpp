@@ -400,11 +400,13 @@ json write_report(const RunInfo& info) {
   if (info.rendezvous_s) {
     md << "- final rendezvous: ";
     if (info.not_rejoined.empty()) {
-      md << "every robot CENTRALIZED " << fixed(*info.rendezvous_s, 1) << " s after the last sweep\n";
+      md << "every robot CENTRALIZED, the central holding all its keyframes, " << fixed(*info.rendezvous_s, 1)
+         << " s after the last sweep\n";
     } else {
       md << "**robot";
       for (uint32_t r : info.not_rejoined) md << ' ' << r;
-      md << " still not CENTRALIZED after " << fixed(*info.rendezvous_s, 1) << " s**\n";
+      md << " not CENTRALIZED, or some of its keyframes not with the central, after " << fixed(*info.rendezvous_s, 1)
+         << " s**\n";
     }
   }
   md << "\n## Accuracy (SE(3)-aligned per robot)\n\n"

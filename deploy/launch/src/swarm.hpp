@@ -34,8 +34,8 @@ struct SwarmConfig {
   bool frontend_correction = true;  // (d) with, (c) without
   double settle_s = 5.0;     // after the last sweep: time for the back-ends before shutdown
   double rendezvous_s = 0;   // > 0: after the last sweep every robot comes back in range (the end of the
-                             // mission); the run ends once all are CENTRALIZED for settle_s, at most
-                             // rendezvous_s + settle_s later
+                             // mission); the run ends once all are CENTRALIZED, the central holding
+                             // all their keyframes, for settle_s; at most rendezvous_s + settle_s later
   std::string frontend_config = "services/frontend/config/frontend.yaml";
   std::string descriptor_config = "services/descriptor/config/descriptor.yaml";
   std::string loop_closure_config = "services/loop_closure/config/loop_closure.yaml";

@@ -198,14 +198,16 @@ int run_peer(const PeerNodeOptions& o) {
     w_mode.write(m);
   };
 
-  // MODE_OUT.now: "<mode> <keyframes> <transitions> <central alive 0|1>", replaced atomically, for a
-  // launcher that charges traffic to the mode it reads there (so it is written at once on a switch,
-  // before the re-sends that follow one).
+  // MODE_OUT.now: "<mode> <keyframes> <transitions> <central alive 0|1> <keyframes acknowledged>",
+  // replaced atomically, for a launcher that charges traffic to the mode it reads there (so it is
+  // written at once on a switch, before the re-sends that follow one) and ends a rendezvous once the
+  // central holds every keyframe (acknowledged: the central's highest contiguous keyframe id + 1).
   auto write_now = [&](bool alive) {
     if (o.mode_out.empty()) return;
     const std::string now_path = o.mode_out + ".now", tmp = now_path + ".tmp";
     std::ofstream(tmp, std::ios::trunc) << to_string(core.mode()) << ' ' << own_keyframes.size() << ' '
-                                        << core.rtdos().transitions() << ' ' << (alive ? 1 : 0) << '\n';
+                                        << core.rtdos().transitions() << ' ' << (alive ? 1 : 0) << ' '
+                                        << core.central_acknowledged_keyframe() + 1 << '\n';
     std::rename(tmp.c_str(), now_path.c_str());
   };
 

@@ -116,6 +116,8 @@ class PeerCore {
   std::optional<Eigen::Isometry3d> world_pose() const;
   std::optional<double> distance_to_central() const;
   int64_t last_keyframe_id() const;
+  // The highest keyframe id up to which the current central has acknowledged every keyframe (-1: none).
+  int64_t central_acknowledged_keyframe() const noexcept { return ack_.keyframe; }
   uint64_t distributed_rounds() const noexcept { return rounds_; }
 
  private:
