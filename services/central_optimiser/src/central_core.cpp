@@ -212,6 +212,7 @@ UpdateStats CentralCore::solve_with(const graph::SolverOptions& options) {
     r = graph::solve(graph_, options);
   }
   st.solved = true;
+  st.converged = r.converged;
   st.iterations = r.iterations;
   st.time_s = r.time_s;
   st.cost = r.final_cost;
@@ -220,6 +221,7 @@ UpdateStats CentralCore::solve_with(const graph::SolverOptions& options) {
   touched_.clear();
   updates_since_full_ = 0;
   need_full_ = false;
+  settled_ = r.converged;
   st.full = true;
   return st;
 }
@@ -269,6 +271,7 @@ UpdateStats CentralCore::solve_local(const graph::SolverOptions& options) {
       graph_.poses[k] = local.poses.at(k);
     }
     st.solved = true;
+    st.converged = r.converged;
     st.iterations = r.iterations;
     st.time_s = r.time_s;
   }
@@ -277,6 +280,7 @@ UpdateStats CentralCore::solve_local(const graph::SolverOptions& options) {
   ++updates_since_full_;
   dirty_ = false;
   touched_.clear();
+  settled_ = st.converged;
   return st;
 }
 
@@ -286,7 +290,7 @@ UpdateStats CentralCore::optimise() {
   o.max_time_s = config_.max_time_per_update_s;
   o.function_tolerance = 1e-8;
   o.robust_loss_scale = config_.loop_robust_scale;
-  if (need_full_ || updates_since_full_ + 1 >= config_.full_every) {
+  if (need_full_ || !settled_ || updates_since_full_ + 1 >= config_.full_every) {
     // A full pass is warm-started and bounded: successive passes converge, and the work loop
     // (which asserts the central's liveliness) is never blocked for long.
     o.max_iterations = std::min(o.max_iterations, config_.full_pass_iterations);

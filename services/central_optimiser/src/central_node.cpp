@@ -82,6 +82,7 @@ CentralNodeOptions load_options(const std::string& path) {
   r.get<int>("lease_ms", o.lease_ms, [](const int& v) { return v >= 50 && v <= 60000; }, "50..60000");
   r.get<int>("update_period_ms", o.update_period_ms, positive, "> 0");
   r.get<int>("status_period_ms", o.status_period_ms, positive, "> 0");
+  r.get<int>("max_result_age_ms", o.max_result_age_ms, positive, "> 0");
   r.get<int>("optimiser.max_iterations", o.core.max_iterations_per_update, positive, "> 0");
   double max_time_ms = o.core.max_time_per_update_s * 1e3;
   r.get<double>("optimiser.max_time_ms", max_time_ms, [](const double& v) { return v > 0; }, "> 0");
@@ -153,7 +154,8 @@ int run_central(const CentralNodeOptions& o) {
                o.core.robot_count, o.lease_ms, o.domain);
 
   auto last_update = Clock::now() - std::chrono::hours(1);
-  auto last_status = last_update;
+  auto last_status = last_update, last_results = last_update;
+  uint64_t updates = 0, unsettled_updates = 0, results_held = 0;
   Eigen::Vector3d central_position = o.central_position;
   // The results writer's liveliness is asserted from this loop: a hung optimiser lapses too.
   const auto tick = std::chrono::milliseconds(std::max(10, o.lease_ms / 5));
@@ -192,11 +194,19 @@ int run_central(const CentralNodeOptions& o) {
     });
 
     const auto now = Clock::now();
-    if (core.dirty() && now - last_update >= std::chrono::milliseconds(o.update_period_ms)) {
+    if ((core.dirty() || !core.settled()) && now - last_update >= std::chrono::milliseconds(o.update_period_ms)) {
       core.optimise();
       w_alive.assert_liveliness();
       last_update = now;
-      for (const RobotEstimate& e : core.estimates()) {
+      ++updates;
+      // A graph that has not settled (a bounded pass after a large change, such as a robot's
+      // re-sent backlog) is a partial solution: its results are held back, so that the robots'
+      // front-ends never follow it and then turn back, unless the last results are getting old.
+      const bool publish = core.settled() || now - last_results >= std::chrono::milliseconds(o.max_result_age_ms);
+      if (!core.settled()) ++unsettled_updates;
+      if (!publish) ++results_held;
+      if (publish) last_results = now;
+      for (const RobotEstimate& e : publish ? core.estimates() : std::vector<RobotEstimate>{}) {
         pose_storage.clear();
         for (const auto& [id, T] : e.poses) {
           pose_storage.push_back(cdc_msg_KeyframePose{e.robot, id, dds::to_msg(T)});
@@ -271,6 +281,9 @@ int run_central(const CentralNodeOptions& o) {
                      {"rejected_samples", rejected.total()},
                      {"graph_poses", core.graph().poses.size()},
                      {"graph_factors", core.graph().factors.size()},
+                     {"updates", updates},
+                     {"unsettled_updates", unsettled_updates},
+                     {"results_held", results_held},
                      {"final_cost", final_stats.cost}};
     nlohmann::json acks = nlohmann::json::array();
     for (const Acknowledgement& a : core.acknowledgements()) {

@@ -21,6 +21,7 @@ struct CentralNodeOptions {
   Eigen::Vector3d central_position = Eigen::Vector3d::Zero();
   int lease_ms = 1000;        // liveliness lease of the results writer
   int update_period_ms = 100; // least time between optimisations
+  int max_result_age_ms = 2000; // results of an unsettled graph are held back at most this long
   int status_period_ms = 250;
   std::string graph_out;      // write the final graph (g2o) here at shutdown
   std::string stats_out;      // write counters (JSON) here at shutdown

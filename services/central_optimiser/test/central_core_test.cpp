@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <random>
 #include <unistd.h>
@@ -190,6 +191,43 @@ TEST(CentralCore, AWorldHintPlacesARobotBeforeAnyLoop) {
   ASSERT_EQ(est.size(), 1u);
   EXPECT_LT((est[0].T_world_robot.matrix() - s.T_world_odom[2].matrix()).norm(), 1e-12);
   EXPECT_EQ(est[0].poses.size(), 10u);
+}
+
+// A large change (here the whole swarm at once) does not converge within one bounded update: the
+// graph is not settled, so every following update is a full pass, until one converges; the
+// settled estimate is then the optimum's.
+TEST(CentralCore, AfterALargeChangeFullPassesFollowUntilTheGraphSettles) {
+  const auto s = test::make_swarm_stream(small());
+  CentralConfig c;
+  c.max_iterations_per_update = 2;
+  c.full_pass_iterations = 2;
+  c.full_every = 1000;
+  CentralCore core(c);
+  EXPECT_TRUE(core.settled());
+  feed_in_order(core, s);
+  CentralCore optimum = core;
+  optimum.optimise_fully();
+  UpdateStats st = core.optimise();
+  EXPECT_FALSE(st.converged);
+  EXPECT_FALSE(core.settled()) << "two iterations settled the whole swarm's graph";
+  int passes = 0;
+  while (!core.settled() && passes < 100) {
+    st = core.optimise();  // nothing new: only because the graph has not settled
+    EXPECT_TRUE(st.full);
+    ++passes;
+  }
+  ASSERT_TRUE(core.settled()) << "not settled after 100 full passes";
+  std::printf("settled after %d more full passes\n", passes);
+  double worst = 0;
+  const auto a = core.estimates(), b = optimum.estimates();
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t r = 0; r < a.size(); ++r) {
+    ASSERT_EQ(a[r].poses.size(), b[r].poses.size());
+    for (size_t i = 0; i < a[r].poses.size(); ++i) {
+      worst = std::max(worst, (a[r].poses[i].second.translation() - b[r].poses[i].second.translation()).norm());
+    }
+  }
+  EXPECT_LT(worst, 0.01) << "the settled estimate is not the optimum";
 }
 
 }  // namespace

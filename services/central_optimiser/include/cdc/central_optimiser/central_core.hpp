@@ -84,6 +84,7 @@ struct Acknowledgement {
 struct UpdateStats {
   bool solved = false;
   bool full = false;       // whole graph, or the changed part only
+  bool converged = true;   // the solver converged within the budget (or had nothing to solve)
   int iterations = 0;
   double time_s = 0;
   double cost = 0;  // full-information cost after the update
@@ -107,7 +108,8 @@ class CentralCore {
   void add_world_hint(uint32_t robot, uint32_t incarnation, const Eigen::Isometry3d& T_world_robot);
 
   // Incremental update, warm-started, within the configured budget: the changed part of the
-  // graph, or all of it every full_every updates.
+  // graph, or all of it every full_every updates, and at every update while the graph is not
+  // settled.
   UpdateStats optimise();
   // Solves to convergence (no budget), for final results.
   UpdateStats optimise_fully();
@@ -122,6 +124,10 @@ class CentralCore {
   // Keyframes held per robot incarnation (in the graph or waiting for a predecessor).
   size_t keyframes_held(uint32_t robot, uint32_t incarnation) const;
   bool dirty() const noexcept { return dirty_; }
+  // Whether the last update converged within its budget. A large change (a robot rejoining with
+  // its backlog and the loops it missed) takes several bounded passes; the estimates between them
+  // are partial solutions, which a robot's front-end must not follow (the node holds them back).
+  bool settled() const noexcept { return settled_; }
 
  private:
   struct Session {
@@ -161,6 +167,7 @@ class CentralCore {
   std::set<Key> touched_;        // keys changed since the last update
   uint32_t updates_since_full_ = 0;
   bool need_full_ = false;       // a robot joined the world
+  bool settled_ = true;          // the last update converged
   Counters counters_;
 };
 
