@@ -241,6 +241,8 @@ TEST_F(SwarmEndToEnd, LoopbackCutsRobotsWithDeafMuteAndTheySwitchOnLivelinessLap
   // writer at each switch to DISTRIBUTED; the backlog re-sent on rejoining brought them.
   ASSERT_TRUE(r.contains("rendezvous")) << r.dump();
   EXPECT_TRUE(r["rendezvous"]["not_rejoined"].empty()) << r["rendezvous"].dump();
+  EXPECT_GT(r["rendezvous"]["waited_s"].get<double>(), 0.0) << r["rendezvous"].dump();  // the rejoins take a dwell
+  EXPECT_LT(r["rendezvous"]["waited_s"].get<double>(), 30.0) << r["rendezvous"].dump();
   const json central = json::parse(read_file(run / "central.stats.json"));
   for (const json& session : central["sessions"]) {
     const std::string robot = std::to_string(session["robot"].get<uint32_t>());

@@ -474,7 +474,7 @@ int Launcher::run() {
   }
   double t_s = 0;
   auto last_sample = Clock::now(), last_progress = Clock::now() - std::chrono::seconds(10);
-  std::optional<Clock::time_point> settle_until, rendezvous_until;
+  std::optional<Clock::time_point> settle_until, rendezvous_start;
   bool all_central = false;  // in the rendezvous: every robot CENTRALIZED since all_central_at
   Clock::time_point all_central_at{};
   const auto seconds = [](double s) { return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s)); };
@@ -497,21 +497,21 @@ int Launcher::run() {
       if (!p->running()) failure = p->name() + " ended unexpectedly (exit " + std::to_string(p->exit_status().value_or(-1)) + "): see " + p->spec().log_path;
     }
     if (!failure.empty()) break;
-    if (!settle_until && player_ && !player_->running()) {
+    if (!settle_until && !rendezvous_start && player_ && !player_->running()) {
       if (player_->exit_status().value_or(-1) != 0) {
         failure = "the player failed (exit " + std::to_string(player_->exit_status().value_or(-1)) + "): see " + player_->spec().log_path;
         break;
       }
       if (c_.rendezvous_s > 0 && c_.variant != Variant::kSingle) {
         rendezvous_ = true;  // applied by apply_radio on the next pass
-        rendezvous_until = Clock::now() + seconds(c_.rendezvous_s + c_.settle_s);
+        rendezvous_start = Clock::now();
         std::cout << "cdc-launch: last sweep played; rendezvous: every robot back in range, up to " << c_.rendezvous_s
                   << " s for all to rejoin the central, then " << c_.settle_s << " s" << std::endl;
       } else {
         settle_until = Clock::now() + seconds(c_.settle_s);
       }
     }
-    if (rendezvous_until && !settle_until) {
+    if (rendezvous_start && !settle_until) {
       // The rendezvous ends once every robot has been CENTRALIZED, with all its keyframes held by
       // the central, for settle_s (a robot cut just before the last sweep still reads CENTRALIZED
       // until the central's lease lapses), or after rendezvous_s + settle_s.
@@ -523,9 +523,8 @@ int Launcher::run() {
       if (out.empty() && !all_central) all_central_at = Clock::now();
       all_central = out.empty();
       const bool settled = all_central && Clock::now() - all_central_at >= seconds(c_.settle_s);
-      if (settled || Clock::now() >= *rendezvous_until) {
-        const auto started = *rendezvous_until - seconds(c_.rendezvous_s + c_.settle_s);
-        info_.rendezvous_s = std::chrono::duration<double>((all_central ? all_central_at : Clock::now()) - started).count();
+      if (settled || Clock::now() >= *rendezvous_start + seconds(c_.rendezvous_s + c_.settle_s)) {
+        info_.rendezvous_s = std::chrono::duration<double>((all_central ? all_central_at : Clock::now()) - *rendezvous_start).count();
         info_.not_rejoined = out;
         if (out.empty()) {
           std::cout << "cdc-launch: rendezvous: every robot CENTRALIZED and all keyframes with the central "
