@@ -60,7 +60,8 @@ struct CentralConfig {
   size_t max_pending_loops = 100'000;
   // Incremental updates re-optimise what changed (new keyframes, loop ends) plus this many
   // preceding keyframes of the same robot, the rest held fixed; every full_every updates (and
-  // whenever a robot joins the world) the whole graph is re-optimised.
+  // whenever a robot joins the world, and after any update that did not converge) the whole graph
+  // is re-optimised.
   uint32_t window = 30;
   uint32_t full_every = 20;
   int full_pass_iterations = 3;
