@@ -277,16 +277,20 @@ StepOutput PeerCore::step(Nanos now, bool central_alive) {
       target_ = central_->T_world_robot;
     }
     if (central_alive && (rejoining_ || now - last_resend_ >= config_.resend_period)) {
-      for (const auto& [id, seen] : keyframe_seen_) {
+      // At most max_resend_per_step a step, so that a long backlog goes out over several resend
+      // periods while the node's loop keeps running; what is sent waits resend_grace again.
+      for (auto& [id, seen] : keyframe_seen_) {
         if (static_cast<int64_t>(id) > ack_.keyframe && (rejoining_ || now - seen >= config_.resend_grace) &&
             out.resend_keyframes.size() < config_.max_resend_per_step) {
           out.resend_keyframes.push_back(id);
+          seen = now;
         }
       }
-      for (const auto& [seq, seen] : own_loop_seen_) {
+      for (auto& [seq, seen] : own_loop_seen_) {
         if (static_cast<int64_t>(seq) > ack_.loop_seq && (rejoining_ || now - seen >= config_.resend_grace) &&
             out.resend_loops.size() < config_.max_resend_per_step) {
           out.resend_loops.push_back(seq);
+          seen = now;
         }
       }
       rejoining_ = false;

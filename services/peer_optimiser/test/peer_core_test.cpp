@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <map>
 
 namespace cdc::peer {
 namespace {
@@ -231,6 +232,33 @@ TEST(PeerCore, ResendsWhatTheCentralHasNotAcknowledged) {
     }
   }
   EXPECT_EQ(again.size(), 10u);
+}
+
+// A long backlog goes out in chunks of max_resend_per_step, one per resend period, each keyframe
+// once until its grace has passed without an acknowledgement.
+TEST(PeerCore, ALongBacklogIsResentInChunksEachKeyframeOnce) {
+  const auto s = test::make_swarm_stream({});
+  PeerConfig c = config(2);
+  c.max_resend_per_step = 50;
+  PeerCore core(c);
+  for (uint32_t id = 0; id < 120; ++id) {
+    core.add_keyframe(kf_from(s.keyframes[2][id]), 0s);
+  }
+  std::map<uint32_t, int> sent;
+  std::vector<size_t> chunks;
+  Nanos t = 0s;
+  for (; t < 1900ms; t += 50ms) {  // joins after the 1 s dwell; nothing is acknowledged
+    const auto out = core.step(t, true);
+    if (!out.resend_keyframes.empty()) chunks.push_back(out.resend_keyframes.size());
+    for (uint32_t id : out.resend_keyframes) ++sent[id];
+  }
+  EXPECT_EQ(chunks, (std::vector<size_t>{50, 50, 20})) << "one chunk per resend period";
+  EXPECT_EQ(sent.size(), 120u);
+  for (const auto& [id, n] : sent) EXPECT_EQ(n, 1) << "keyframe " << id << " re-sent before its grace passed";
+  // Still unacknowledged a grace later: sent again.
+  size_t again = 0;
+  for (; t <= 2900ms; t += 50ms) again += core.step(t, true).resend_keyframes.size();
+  EXPECT_EQ(again, 120u);
 }
 
 TEST(PeerCore, RangeTriggerUsesTheEstimatedDistanceToTheCentral) {

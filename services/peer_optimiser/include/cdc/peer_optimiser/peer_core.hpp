@@ -34,7 +34,9 @@ struct PeerConfig {
   // Loops through one keyframe share its cloud's errors: each loop's information is divided by the
   // most loops either of its keyframes takes part in (graph::share_loop_information).
   bool share_loop_information = true;
-  size_t max_resend_per_step = 500;
+  // Keyframes (and loops) re-sent per step at most: a rejoin's backlog (hundreds of keyframes of
+  // ~110 KB) written at once blocked the node's loop for seconds under flow control.
+  size_t max_resend_per_step = 50;
 };
 
 struct OwnKeyframe {
