@@ -204,30 +204,33 @@ int run_central(const CentralNodeOptions& o) {
       // front-ends never follow it and then turn back, unless the last results are getting old.
       const bool publish = core.settled() || now - last_results >= std::chrono::milliseconds(o.max_result_age_ms);
       if (!core.settled()) ++unsettled_updates;
-      if (!publish) ++results_held;
-      if (publish) last_results = now;
-      for (const RobotEstimate& e : publish ? core.estimates() : std::vector<RobotEstimate>{}) {
-        pose_storage.clear();
-        for (const auto& [id, T] : e.poses) {
-          pose_storage.push_back(cdc_msg_KeyframePose{e.robot, id, dds::to_msg(T)});
-        }
-        cdc_msg_OptimizedPoses msg{};
-        msg.robot_id = e.robot;
-        msg.sender_robot_id = o.central_id;
-        msg.sender_incarnation = incarnation;
-        msg.graph_version = core.version();
-        msg.stamp_ns = dds::now_ns();
-        msg.source = cdc_msg_SOURCE_CENTRAL;
-        msg.T_world_robot = dds::to_msg(e.T_world_robot);
-        dds::borrow(msg.poses, pose_storage);
-        w_results.at(e.robot).write(msg);
-        if (!e.poses.empty()) {
-          const Eigen::Vector3d t = e.poses.back().second.translation();
-          spdlog::debug("graph version {}: robot {} newest keyframe {} at ({:.3f}, {:.3f}, {:.3f})", core.version(), e.robot,
-                        e.poses.back().first, t.x(), t.y(), t.z());
-        }
-        if (static_cast<int>(e.robot) == o.central_on_robot && !e.poses.empty()) {
-          central_position = e.poses.back().second.translation();
+      if (!publish) {
+        ++results_held;
+      } else {
+        last_results = now;
+        for (const RobotEstimate& e : core.estimates()) {
+          pose_storage.clear();
+          for (const auto& [id, T] : e.poses) {
+            pose_storage.push_back(cdc_msg_KeyframePose{e.robot, id, dds::to_msg(T)});
+          }
+          cdc_msg_OptimizedPoses msg{};
+          msg.robot_id = e.robot;
+          msg.sender_robot_id = o.central_id;
+          msg.sender_incarnation = incarnation;
+          msg.graph_version = core.version();
+          msg.stamp_ns = dds::now_ns();
+          msg.source = cdc_msg_SOURCE_CENTRAL;
+          msg.T_world_robot = dds::to_msg(e.T_world_robot);
+          dds::borrow(msg.poses, pose_storage);
+          w_results.at(e.robot).write(msg);
+          if (!e.poses.empty()) {
+            const Eigen::Vector3d t = e.poses.back().second.translation();
+            spdlog::debug("graph version {}: robot {} newest keyframe {} at ({:.3f}, {:.3f}, {:.3f})", core.version(), e.robot,
+                          e.poses.back().first, t.x(), t.y(), t.z());
+          }
+          if (static_cast<int>(e.robot) == o.central_on_robot && !e.poses.empty()) {
+            central_position = e.poses.back().second.translation();
+          }
         }
       }
     }
