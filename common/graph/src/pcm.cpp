@@ -196,62 +196,102 @@ OutlierDecision Pcm::decide(const PoseGraph& g) const {
   return out;
 }
 
-std::vector<size_t> maximum_clique(const std::vector<std::vector<bool>>& adj, size_t exact_limit) {
+namespace {
+
+// Greedy: grow a clique from every vertex, always adding the candidate of highest degree.
+std::vector<size_t> greedy_clique(const std::vector<std::vector<bool>>& adj, const std::vector<size_t>& degree) {
   const size_t n = adj.size();
   std::vector<size_t> best;
+  for (size_t s = 0; s < n; ++s) {
+    std::vector<size_t> clique{s};
+    std::vector<size_t> cand;
+    for (size_t v = 0; v < n; ++v) {
+      if (adj[s][v]) cand.push_back(v);
+    }
+    while (!cand.empty()) {
+      const size_t v = *std::max_element(cand.begin(), cand.end(), [&](size_t a, size_t b) { return degree[a] < degree[b]; });
+      clique.push_back(v);
+      std::vector<size_t> next;
+      for (size_t u : cand) {
+        if (u != v && adj[v][u]) next.push_back(u);
+      }
+      cand.swap(next);
+    }
+    if (clique.size() > best.size()) best = clique;
+  }
+  return best;
+}
+
+}  // namespace
+
+std::vector<size_t> maximum_clique(const std::vector<std::vector<bool>>& adj, size_t exact_limit, size_t max_steps,
+                                   bool* exact) {
+  const size_t n = adj.size();
+  if (exact != nullptr) *exact = n <= exact_limit;
   if (n == 0) {
-    return best;
+    return {};
   }
   std::vector<size_t> degree(n, 0);
   for (size_t i = 0; i < n; ++i) {
     degree[i] = static_cast<size_t>(std::count(adj[i].begin(), adj[i].end(), true));
   }
+  std::vector<size_t> best = greedy_clique(adj, degree);
   if (n > exact_limit) {
-    // Greedy: grow a clique from every vertex, always adding the candidate of highest degree.
-    for (size_t s = 0; s < n; ++s) {
-      std::vector<size_t> clique{s};
-      std::vector<size_t> cand;
-      for (size_t v = 0; v < n; ++v) {
-        if (adj[s][v]) cand.push_back(v);
-      }
-      while (!cand.empty()) {
-        const size_t v = *std::max_element(cand.begin(), cand.end(), [&](size_t a, size_t b) { return degree[a] < degree[b]; });
-        clique.push_back(v);
-        std::vector<size_t> next;
-        for (size_t u : cand) {
-          if (u != v && adj[v][u]) next.push_back(u);
-        }
-        cand.swap(next);
-      }
-      if (clique.size() > best.size()) best = clique;
-    }
     std::sort(best.begin(), best.end());
     return best;
   }
-  // Exact: branch and bound over candidates ordered by degree (Carraghan-Pardalos style).
+  // Exact: branch and bound with a greedy-colouring bound (Tomita and Seki's MCQ), starting from
+  // the greedy clique. A colour class holds pairwise non-adjacent vertices, so a candidate set
+  // coloured with k colours holds no clique larger than k. Past max_steps expansions the search
+  // stops with the largest clique found so far (still a clique, perhaps not the largest).
   std::vector<size_t> current;
-  std::function<void(std::vector<size_t>)> expand = [&](std::vector<size_t> cand) {
-    if (cand.empty()) {
-      if (current.size() > best.size()) best = current;
+  size_t steps = 0;
+  bool aborted = false;
+  std::function<void(const std::vector<size_t>&)> expand = [&](const std::vector<size_t>& cand) {
+    if (++steps > max_steps) {
+      aborted = true;
       return;
     }
-    while (!cand.empty()) {
-      if (current.size() + cand.size() <= best.size()) return;  // bound
-      const size_t v = cand.back();
-      cand.pop_back();
+    std::vector<std::vector<size_t>> classes;
+    for (size_t v : cand) {
+      auto k = std::find_if(classes.begin(), classes.end(), [&](const std::vector<size_t>& c) {
+        return std::none_of(c.begin(), c.end(), [&](size_t u) { return adj[v][u]; });
+      });
+      if (k == classes.end()) {
+        classes.emplace_back();
+        k = classes.end() - 1;
+      }
+      k->push_back(v);
+    }
+    std::vector<size_t> order, colour;
+    for (size_t k = 0; k < classes.size(); ++k) {
+      for (size_t v : classes[k]) {
+        order.push_back(v);
+        colour.push_back(k + 1);
+      }
+    }
+    for (size_t i = order.size(); i-- > 0;) {
+      if (current.size() + colour[i] <= best.size()) return;  // bound
+      const size_t v = order[i];
       std::vector<size_t> next;
-      for (size_t u : cand) {
-        if (adj[v][u]) next.push_back(u);
+      for (size_t j = 0; j < i; ++j) {
+        if (adj[v][order[j]]) next.push_back(order[j]);
       }
       current.push_back(v);
-      expand(next);
+      if (next.empty()) {
+        if (current.size() > best.size()) best = current;
+      } else {
+        expand(next);
+      }
       current.pop_back();
+      if (aborted) return;
     }
   };
   std::vector<size_t> all(n);
   for (size_t i = 0; i < n; ++i) all[i] = i;
-  std::sort(all.begin(), all.end(), [&](size_t a, size_t b) { return degree[a] < degree[b]; });  // high degree last
+  std::sort(all.begin(), all.end(), [&](size_t a, size_t b) { return degree[a] > degree[b]; });
   expand(all);
+  if (exact != nullptr) *exact = !aborted;
   std::sort(best.begin(), best.end());
   return best;
 }

@@ -39,6 +39,66 @@ TEST(MaximumClique, ExactOnASmallGraph) {
   EXPECT_EQ(maximum_clique(a, 2).size(), 3u);  // the greedy heuristic finds it too here
 }
 
+namespace {
+
+std::vector<std::vector<bool>> random_graph(size_t n, double density, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::bernoulli_distribution edge(density);
+  std::vector<std::vector<bool>> a(n, std::vector<bool>(n, false));
+  for (size_t i = 0; i < n; ++i) {
+    for (size_t j = i + 1; j < n; ++j) a[i][j] = a[j][i] = edge(rng);
+  }
+  return a;
+}
+
+bool is_clique(const std::vector<std::vector<bool>>& a, const std::vector<size_t>& c) {
+  for (size_t x = 0; x < c.size(); ++x) {
+    for (size_t y = x + 1; y < c.size(); ++y) {
+      if (!a[c[x]][c[y]]) return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+TEST(MaximumClique, MatchesExhaustiveSearchOnRandomGraphs) {
+  for (unsigned seed = 0; seed < 12; ++seed) {
+    const size_t n = 16;
+    const auto a = random_graph(n, 0.3 + 0.05 * seed, seed);
+    size_t largest = 0;
+    for (uint32_t m = 1; m < (1u << n); ++m) {
+      std::vector<size_t> c;
+      for (size_t i = 0; i < n; ++i) {
+        if ((m >> i) & 1u) c.push_back(i);
+      }
+      if (c.size() > largest && is_clique(a, c)) largest = c.size();
+    }
+    bool exact = false;
+    const std::vector<size_t> got = maximum_clique(a, 64, 20000, &exact);
+    EXPECT_TRUE(exact);
+    EXPECT_TRUE(is_clique(a, got)) << "seed " << seed;
+    EXPECT_EQ(got.size(), largest) << "seed " << seed;
+  }
+}
+
+TEST(MaximumClique, DenseGraphsAreSolvedWithinTheStepBudget) {
+  // 64 loops whose pairwise tests mostly pass: the plain size bound took minutes on such sets; the
+  // colouring bound settles them in about a thousand expansions, and a tighter budget still ends
+  // with a clique.
+  for (unsigned seed = 0; seed < 4; ++seed) {
+    const auto a = random_graph(64, 0.8, 100 + seed);
+    bool exact = true;
+    const std::vector<size_t> limited = maximum_clique(a, 64, 1, &exact);
+    EXPECT_FALSE(exact);
+    EXPECT_TRUE(is_clique(a, limited));
+    const std::vector<size_t> full = maximum_clique(a, 64, 20000, &exact);
+    EXPECT_TRUE(exact) << "seed " << seed;
+    EXPECT_TRUE(is_clique(a, full));
+    EXPECT_GE(full.size(), limited.size());
+  }
+}
+
 TEST(Pcm, RejectsEveryPlantedOutlier) {
   std::mt19937 rng(4);
   std::normal_distribution<double> n(0, 0.01);

@@ -48,8 +48,11 @@ class Pcm : public OutlierRejection {
   PcmOptions options_;
 };
 
-// Maximum clique of an undirected graph given as adjacency lists over 0..n-1: exact
-// (branch and bound) up to `exact_limit` vertices, a greedy heuristic above.
-std::vector<size_t> maximum_clique(const std::vector<std::vector<bool>>& adjacency, size_t exact_limit = 64);
+// Maximum clique of an undirected graph given as an adjacency matrix over 0..n-1: exact (branch and
+// bound from a greedy clique) up to `exact_limit` vertices and `max_steps` expansions, a greedy
+// heuristic above. Past either limit the result is a clique, perhaps not the largest; `exact`, when
+// given, says whether it is known to be the largest.
+std::vector<size_t> maximum_clique(const std::vector<std::vector<bool>>& adjacency, size_t exact_limit = 64,
+                                   size_t max_steps = 20000, bool* exact = nullptr);
 
 }  // namespace cdc::graph
