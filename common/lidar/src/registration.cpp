@@ -5,6 +5,8 @@
 #include "cdc/odometry/pair_registration.hpp"
 #include "cdc/odometry/voxel_map.hpp"
 
+#include <Eigen/Eigenvalues>
+
 #include <algorithm>
 
 namespace cdc::lidar {
@@ -61,11 +63,17 @@ RegistrationResult register_clouds(const std::vector<Eigen::Vector3f>& source, c
   }
   r.overlap = static_cast<double>(inliers) / static_cast<double>(src.size());
   r.fitness = inliers > 0 ? sum / static_cast<double>(inliers) : 1e9;
-  // Information: isotropic, from the residual spread (floored so that a perfect fit is not infinite).
-  const double sigma2 = std::max(r.fitness, 1e-3);
-  r.information = Eigen::Matrix<double, 6, 6>::Identity();
-  r.information.topLeftCorner<3, 3>() *= 1.0 / sigma2;
-  r.information.bottomRightCorner<3, 3>() *= 1.0 / (sigma2 * 1e-2);  // ~0.1 rad per metre of residual
+  // Information from the Hessian (right perturbation of T_target_source, both halves in the source's
+  // frame): the graph's residual takes the translation in the target's frame, so rotate that block.
+  Eigen::Matrix<double, 6, 6> J = Eigen::Matrix<double, 6, 6>::Identity();
+  J.topLeftCorner<3, 3>() = r.T_target_source.rotation();
+  const Eigen::Matrix<double, 6, 6> H = 0.5 * (g.hessian + g.hessian.transpose());
+  const Eigen::Matrix<double, 6, 6> info = p.information_scale * (J * H * J.transpose());
+  if (info.allFinite() && Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(info).eigenvalues()(0) > 0) {
+    r.information = 0.5 * (info + info.transpose());
+  } else {
+    r.converged = false;  // a degenerate fit (a corridor, a plane) does not constrain every direction
+  }
   return r;
 }
 

@@ -67,6 +67,8 @@ LoopNodeOptions load_loop_options(const std::string& path) {
                 [](const double& v) { return v >= 0 && v <= 1; }, "0..1");
   r.get<double>("verification.voxel_m", p.registration.voxel_m, [](const double& v) { return v >= 0; }, ">= 0");
   r.get<double>("verification.max_correspondence_m", p.registration.max_correspondence_m, positive_d, "> 0");
+  r.get<int>("verification.neighbours", p.registration.neighbours, [](const int& v) { return v >= 5 && v <= 100; }, "5..100");
+  r.get<double>("verification.information_scale", p.registration.information_scale, positive_d, "> 0");
   r.get<double>("pcm.chi2_threshold", p.pcm.chi2_threshold, positive_d, "> 0");
   r.get<int>("pcm.min_support", support, positive_i, "> 0");
   int timeout = static_cast<int>(p.request_timeout.count() / 1'000'000);

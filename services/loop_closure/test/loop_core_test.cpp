@@ -47,8 +47,12 @@ TEST(LoopCore, FindsTrueLoopsBetweenTwoRobotsOnTheSameBlock) {
 
   LoopParams params;
   LoopCore core(params);
+  LoopParams unlevelled = params;  // the same loops with the registration's information as it is
+  unlevelled.tilt_information_scale = 1.0;
+  LoopCore raw_core(unlevelled);
   std::map<std::pair<uint32_t, uint32_t>, Eigen::Isometry3d> truth;
   std::vector<LoopOut> published;
+  std::map<std::tuple<uint32_t, uint32_t, uint32_t, uint32_t>, graph::Matrix6d> raw_information;
   const size_t step = 10;  // 2 m at 2 m/s and 10 Hz
   for (size_t k = 0; k * step + 40 < lap.size(); ++k) {
     for (uint32_t r = 0; r < 2; ++r) {
@@ -62,27 +66,42 @@ TEST(LoopCore, FindsTrueLoopsBetweenTwoRobotsOnTheSameBlock) {
       kf.T_odom = T;  // a levelled odometry's tilt
       for (const auto& p : sim::sweep(world, lidar, [&](double) { return T; }, rng)) kf.cloud.emplace_back(p.x, p.y, p.z);
       truth[{r, kf.id}] = T;
+      for (const auto& l : raw_core.add_keyframe(kf)) {
+        raw_information[{l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b}] = l.information;
+      }
       for (const auto& l : core.add_keyframe(std::move(kf))) published.push_back(l);
     }
   }
   size_t inter = 0;
+  double chi2_t = 0;
   for (const auto& l : published) {
     ASSERT_FALSE(l.withdrawn);
     const Eigen::Isometry3d gt = truth.at({l.robot_a, l.keyframe_a}).inverse() * truth.at({l.robot_b, l.keyframe_b});
     const Eigen::Isometry3d e = gt.inverse() * l.T_a_b;
     EXPECT_LT(e.translation().norm(), 1.0) << l.robot_a << "/" << l.keyframe_a << " - " << l.robot_b << "/" << l.keyframe_b;
     EXPECT_LT(Eigen::AngleAxisd(e.rotation()).angle(), 5 * M_PI / 180);
-    // The registration's rotation information is isotropic; about the query keyframe's horizontal
-    // axes it is scaled by tilt_information_scale, about its vertical axis it is kept.
+    // The registration's information, levelled: about the query keyframe's horizontal axes the
+    // rotation information is scaled by tilt_information_scale, about its vertical axis it is kept.
+    const auto raw = raw_information.find({l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b});
+    ASSERT_NE(raw, raw_information.end()) << "the same loop without levelling";
     const Eigen::Vector3d up = truth.at({l.robot_b, l.keyframe_b}).linear().transpose() * Eigen::Vector3d::UnitZ();
     const Eigen::Vector3d side = up.cross(Eigen::Vector3d::UnitX()).normalized(), ahead = side.cross(up);
-    const Eigen::Matrix3d info_r = l.information.bottomRightCorner<3, 3>();
-    const double yaw_info = up.dot(info_r * up);
-    EXPECT_NEAR(side.dot(info_r * side), params.tilt_information_scale * yaw_info, 1e-9 * yaw_info);
-    EXPECT_NEAR(ahead.dot(info_r * ahead), params.tilt_information_scale * yaw_info, 1e-9 * yaw_info);
-    EXPECT_NEAR(l.information(0, 0), l.information(2, 2), 1e-9 * l.information(0, 0)) << "translation untouched";
+    const Eigen::Matrix3d info_r = l.information.bottomRightCorner<3, 3>(), raw_r = raw->second.bottomRightCorner<3, 3>();
+    EXPECT_NEAR(up.dot(info_r * up), up.dot(raw_r * up), 1e-6 * up.dot(raw_r * up));
+    EXPECT_NEAR(side.dot(info_r * side), params.tilt_information_scale * side.dot(raw_r * side), 1e-6 * side.dot(raw_r * side));
+    EXPECT_NEAR(ahead.dot(info_r * ahead), params.tilt_information_scale * ahead.dot(raw_r * ahead),
+                1e-6 * ahead.dot(raw_r * ahead));
+    EXPECT_TRUE((l.information.topLeftCorner<3, 3>().isApprox(raw->second.topLeftCorner<3, 3>(), 1e-9))) << "translation untouched";
+    // The translation information comes from the registration's Hessian (translation in a's frame).
+    const Eigen::Vector3d dt = l.T_a_b.translation() - gt.translation();
+    chi2_t += dt.dot(l.information.topLeftCorner<3, 3>() * dt);
     inter += l.robot_a != l.robot_b ? 1 : 0;
   }
+  const double mean_chi2_t = chi2_t / static_cast<double>(std::max<size_t>(published.size(), 1));
+  std::printf("translation error against its information: mean chi2 %.2f (3 DoF)\n", mean_chi2_t);
+  // Neither over- nor under-confident by more than 3x in variance (3 if exact).
+  EXPECT_GT(mean_chi2_t, 1.0);
+  EXPECT_LT(mean_chi2_t, 9.0);
   std::printf("%zu loops published (%zu inter-robot), %llu verified, %llu failed verification\n", published.size(), inter,
               static_cast<unsigned long long>(core.stats().verified),
               static_cast<unsigned long long>(core.stats().verification_failed));
