@@ -313,8 +313,9 @@ LoopEvents LoopCore::verify(const Job& job) {
   out.verifications.push_back(v);
   // The residual's rotation is taken in the query keyframe's frame (b): level it there.
   const auto up = up_.find(job.query);
-  const graph::Matrix6d information = graph::level_information(
-      r.information, up == up_.end() ? Eigen::Vector3d::UnitZ() : up->second, p_.tilt_information_scale);
+  const graph::Matrix6d information =
+      graph::level_information(p_.loop_information_scale * r.information, up == up_.end() ? Eigen::Vector3d::UnitZ() : up->second,
+                               p_.tilt_information_scale);
   LoopOut loop{robot_a, kf_a, robot_b, kf_b, r.T_target_source, information, r.fitness, false};
   graph::Factor f;
   f.kind = graph::FactorKind::kLoop;

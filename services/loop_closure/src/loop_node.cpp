@@ -69,6 +69,7 @@ LoopNodeOptions load_loop_options(const std::string& path) {
   r.get<double>("verification.max_correspondence_m", p.registration.max_correspondence_m, positive_d, "> 0");
   r.get<int>("verification.neighbours", p.registration.neighbours, [](const int& v) { return v >= 5 && v <= 100; }, "5..100");
   r.get<double>("verification.information_scale", p.registration.information_scale, positive_d, "> 0");
+  r.get<double>("verification.loop_information_scale", p.loop_information_scale, positive_d, "> 0");
   r.get<double>("pcm.chi2_threshold", p.pcm.chi2_threshold, positive_d, "> 0");
   r.get<int>("pcm.min_support", support, positive_i, "> 0");
   int timeout = static_cast<int>(p.request_timeout.count() / 1'000'000);

@@ -92,9 +92,9 @@ TEST(LoopCore, FindsTrueLoopsBetweenTwoRobotsOnTheSameBlock) {
     EXPECT_NEAR(ahead.dot(info_r * ahead), params.tilt_information_scale * ahead.dot(raw_r * ahead),
                 1e-6 * ahead.dot(raw_r * ahead));
     EXPECT_TRUE((l.information.topLeftCorner<3, 3>().isApprox(raw->second.topLeftCorner<3, 3>(), 1e-9))) << "translation untouched";
-    // The translation information comes from the registration's Hessian (translation in a's frame).
+    // The registration's translation information (the loop's / loop_information_scale) matches its error.
     const Eigen::Vector3d dt = l.T_a_b.translation() - gt.translation();
-    chi2_t += dt.dot(l.information.topLeftCorner<3, 3>() * dt);
+    chi2_t += dt.dot(l.information.topLeftCorner<3, 3>() * dt) / params.loop_information_scale;
     inter += l.robot_a != l.robot_b ? 1 : 0;
   }
   const double mean_chi2_t = chi2_t / static_cast<double>(std::max<size_t>(published.size(), 1));
