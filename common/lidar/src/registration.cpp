@@ -72,7 +72,7 @@ RegistrationResult register_clouds(const std::vector<Eigen::Vector3f>& source, c
   if (info.allFinite() && Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(info).eigenvalues()(0) > 0) {
     r.information = 0.5 * (info + info.transpose());
   } else {
-    r.converged = false;  // a degenerate fit (a corridor, a plane) does not constrain every direction
+    r.converged = false;  // a Hessian that is not positive definite leaves a direction unconstrained
   }
   return r;
 }

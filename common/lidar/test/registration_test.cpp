@@ -57,6 +57,32 @@ TEST_P(RegistrationRecovers, AKnownTransformForwardAndInverse) {
 
 INSTANTIATE_TEST_SUITE_P(SeededPerturbations, RegistrationRecovers, ::testing::Values(1, 2, 3));
 
+TEST(Registration, InformationIsInTheGraphsResidualFrames) {
+  // A corridor along the target's x (two long walls, the ground, one pole far down the corridor): the
+  // translation along it is the weakest direction. The source is turned 90 deg, so in the source's
+  // frame that direction is y; the information's translation block is in the target's frame.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1, 1);
+  std::vector<Eigen::Vector3f> target;
+  for (int i = 0; i < 4000; ++i) target.emplace_back(40 * u(rng), 3 * u(rng), -1.8f);
+  for (const float y : {-3.f, 3.f}) {
+    for (int i = 0; i < 4000; ++i) target.emplace_back(40 * u(rng), y, 2 * (u(rng) + 1) - 1.8f);
+  }
+  for (int i = 0; i < 100; ++i) target.emplace_back(30 + 0.1f * u(rng), 2 + 0.1f * u(rng), 2 * (u(rng) + 1) - 1.8f);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();  // T_target_source
+  T.linear() = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  T.translation() = Eigen::Vector3d(0.5, 0.2, 0);
+  std::vector<Eigen::Vector3f> source;
+  for (const auto& p : target) source.push_back(T.inverse().cast<float>() * p);
+  Eigen::Isometry3d guess = T;
+  guess.translation() += Eigen::Vector3d(0.1, -0.1, 0);
+  const RegistrationResult r = register_clouds(source, target, guess, RegistrationParams{});
+  ASSERT_TRUE(r.converged);
+  const Eigen::Matrix3d info_t = r.information.topLeftCorner<3, 3>();
+  EXPECT_LT(info_t(0, 0), 0.2 * info_t(1, 1)) << "weak along the corridor (target x)\n" << info_t;
+  EXPECT_LT(info_t(0, 0), 0.2 * info_t(2, 2)) << info_t;
+}
+
 TEST(Registration, DifferentPlacesDoNotOverlap) {
   const RegistrationResult r = register_clouds(scene(1), scene(2), Eigen::Isometry3d::Identity(), RegistrationParams{});
   EXPECT_LT(r.overlap, 0.6);  // the ground matches, the structure does not
