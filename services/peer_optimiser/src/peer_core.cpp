@@ -279,20 +279,17 @@ StepOutput PeerCore::step(Nanos now, bool central_alive) {
     if (central_alive && (rejoining_ || now - last_resend_ >= config_.resend_period)) {
       // At most max_resend_per_step a step, so that a long backlog goes out over several resend
       // periods while the node's loop keeps running; what is sent waits resend_grace again.
-      for (auto& [id, seen] : keyframe_seen_) {
-        if (static_cast<int64_t>(id) > ack_.keyframe && (rejoining_ || now - seen >= config_.resend_grace) &&
-            out.resend_keyframes.size() < config_.max_resend_per_step) {
-          out.resend_keyframes.push_back(id);
-          seen = now;
+      const auto pick = [&](std::map<uint32_t, Nanos>& seen_at, int64_t acked, std::vector<uint32_t>& resend) {
+        for (auto& [id, seen] : seen_at) {
+          if (resend.size() >= config_.max_resend_per_step) break;
+          if (static_cast<int64_t>(id) > acked && (rejoining_ || now - seen >= config_.resend_grace)) {
+            resend.push_back(id);
+            seen = now;
+          }
         }
-      }
-      for (auto& [seq, seen] : own_loop_seen_) {
-        if (static_cast<int64_t>(seq) > ack_.loop_seq && (rejoining_ || now - seen >= config_.resend_grace) &&
-            out.resend_loops.size() < config_.max_resend_per_step) {
-          out.resend_loops.push_back(seq);
-          seen = now;
-        }
-      }
+      };
+      pick(keyframe_seen_, ack_.keyframe, out.resend_keyframes);
+      pick(own_loop_seen_, ack_.loop_seq, out.resend_loops);
       rejoining_ = false;
       last_resend_ = now;
     }
