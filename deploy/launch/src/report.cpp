@@ -505,4 +505,21 @@ json write_report(const RunInfo& info) {
   return j;
 }
 
+std::optional<PositionDifference> position_difference(const std::string& tum_a, const std::string& tum_b) {
+  if (!fs::exists(tum_a) || !fs::exists(tum_b)) return std::nullopt;
+  const geometry::Trajectory a = geometry::read_tum(tum_a), b = geometry::read_tum(tum_b);
+  const auto pairs = geometry::associate(a, b, 5'000'000);
+  if (pairs.empty()) return std::nullopt;
+  PositionDifference d;
+  double sum = 0;
+  for (const auto& [i, j] : pairs) {
+    const double e = (a[i].pose.translation() - b[j].pose.translation()).norm();
+    sum += e * e;
+    d.max_m = std::max(d.max_m, e);
+  }
+  d.matched = pairs.size();
+  d.rms_m = std::sqrt(sum / static_cast<double>(pairs.size()));
+  return d;
+}
+
 }  // namespace cdc::launch

@@ -48,6 +48,15 @@ std::string node_name(uint32_t node);
 // A number with a fixed count of decimals (tables of the reports).
 std::string fixed(double v, int decimals);
 
+// How far trajectory b lies from trajectory a, both in the same frame (two runs of one robot):
+// RMS and largest distance between positions at matching stamps (within 5 ms); nullopt when a file
+// is missing or no stamps match.
+struct PositionDifference {
+  double rms_m = 0, max_m = 0;
+  size_t matched = 0;
+};
+std::optional<PositionDifference> position_difference(const std::string& tum_a, const std::string& tum_b);
+
 // Writes every result file into info.run_dir and returns report.json's content.
 nlohmann::json write_report(const RunInfo& info);
 
