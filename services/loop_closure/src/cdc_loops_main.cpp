@@ -4,6 +4,7 @@
 #include "cdc/loop_closure/evaluation.hpp"
 #include "cdc/loop_closure/loop_core.hpp"
 #include "dataset_reader.hpp"
+#include "loop_config.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -156,13 +157,24 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber)->capture_default_str();
   run->add_option("--seed", ro_run.seed, "noise seed")->capture_default_str();
   run->add_option("--max-scans", ro_run.max_scans, "scans per robot (0: all)")->capture_default_str();
-  run->add_option("--chi2", ro_run.params.pcm.chi2_threshold, "PCM threshold")->check(CLI::PositiveNumber)->capture_default_str();
-  run->add_option("--min-support", ro_run.params.min_inter_support, "inter-robot loops are published from a PCM-consistent set at least this large")
-      ->check(CLI::PositiveNumber)->capture_default_str();
+  std::string run_config;
+  double run_chi2 = ro_run.params.pcm.chi2_threshold;
+  size_t run_support = ro_run.params.min_inter_support;
+  run->add_option("--config", run_config,
+                  "the service's configuration (services/loop_closure/config/loop_closure.yaml) for the core's parameters;\n"
+                  "default: their built-in defaults. --chi2 and --min-support override it")
+      ->check(CLI::ExistingFile);
+  CLI::Option* chi2_opt = run->add_option("--chi2", run_chi2, "PCM threshold")->check(CLI::PositiveNumber)->capture_default_str();
+  CLI::Option* support_opt =
+      run->add_option("--min-support", run_support, "inter-robot loops are published from a PCM-consistent set at least this large")
+          ->check(CLI::PositiveNumber)->capture_default_str();
   run->add_flag("--json", ro_run.json, "print the report as one JSON object");
   CLI11_PARSE(app, argc, argv);
   if (run->parsed()) {
     try {
+      if (!run_config.empty()) ro_run.params = cdc::loops::load_loop_options(run_config).core;
+      if (chi2_opt->count() > 0 || run_config.empty()) ro_run.params.pcm.chi2_threshold = run_chi2;
+      if (support_opt->count() > 0 || run_config.empty()) ro_run.params.min_inter_support = run_support;
       return run_dataset(ro_run);
     } catch (const std::exception& e) {
       std::cerr << "cdc-loops: " << e.what() << '\n';

@@ -89,6 +89,17 @@ TEST(LoopsTool, NamesWhatIsWrongWithItsInput) {
   r = run(loops_bin() + " run " + (tmp / "nope").string());
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.out.find("nope"), std::string::npos) << r.out;
+  // The service's configuration: a bad value and an unknown key are named; a good file is taken (and
+  // the run then stops at the dataset).
+  std::ofstream(tmp / "bad.yaml") << "verification:\n  max_iterations: 0\n  neighbors: 20\n";
+  r = run(loops_bin() + " run " + tmp.string() + " --config " + (tmp / "bad.yaml").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("verification.max_iterations"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("verification.neighbors"), std::string::npos) << r.out;
+  std::ofstream(tmp / "good.yaml") << "verification:\n  max_iterations: 20\n";
+  r = run(loops_bin() + " run " + tmp.string() + " --config " + (tmp / "good.yaml").string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.out.find("robot_0: missing"), std::string::npos) << r.out;
   r = run(loops_bin() + " --help");
   EXPECT_EQ(r.code, 0);
   EXPECT_NE(r.out.find("run DATASET"), std::string::npos);

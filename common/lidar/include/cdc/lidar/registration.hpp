@@ -10,7 +10,10 @@ namespace cdc::lidar {
 
 struct RegistrationParams {
   double max_correspondence_m = 2.0;  // GICP correspondence distance
-  int max_iterations = 40;
+  // A true loop converges in 2-9 iterations from the verification's guess; a false candidate mostly runs
+  // to the limit and then fails on overlap. At 15 (was 40), cdc-loops run on the simulated KITTI 05 (900
+  // scans) and 06 splits keeps the same 330 / 313 loops with the same errors, in 22 % / 12 % less time.
+  int max_iterations = 15;
   int neighbours = 20;                // points per GICP covariance (10 leaves a sparse sweep's ground line-like: tilt errors)
   double inlier_distance_m = 0.5;     // for fitness and overlap after convergence
   double voxel_m = 0.4;               // downsampling of both clouds before registration (0: none)

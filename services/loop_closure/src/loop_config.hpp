@@ -1,0 +1,26 @@
+// The loop-closure service's configuration (services/loop_closure/config/loop_closure.yaml): the
+// core's parameters and the node's, read and checked in one place for the service and cdc-loops.
+#pragma once
+
+#include "cdc/loop_closure/descriptor_sequencer.hpp"
+#include "cdc/loop_closure/loop_core.hpp"
+
+#include <string>
+
+namespace cdc::loops {
+
+struct LoopNodeOptions {
+  uint32_t robot = 0, robots = 3, domain = 0;
+  int local_domain = -1;  // the robot's own domain (see cdc/dds/robot_domains.hpp); -1: none
+  std::string dds_config, local_dds_config, stats_out, log_level = "info";
+  LoopParams core;
+  int peer_timeout_ms = 3000;   // a peer unheard of this long is out of range: no cloud requests to it
+  int tick_ms = 100;
+  float reply_resolution_m = 0.01f;  // quantisation of the clouds sent in cloud replies
+  SequencerParams sequencer;         // asking for missed descriptors
+};
+
+// Reads a configuration file; throws config::ConfigError naming every bad or unknown key.
+LoopNodeOptions load_loop_options(const std::string& path);
+
+}  // namespace cdc::loops
