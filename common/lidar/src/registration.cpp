@@ -34,20 +34,28 @@ std::vector<Eigen::Vector3f> voxel_downsample(const std::vector<Eigen::Vector3f>
   return out;
 }
 
+PreparedCloud::PreparedCloud(const std::vector<Eigen::Vector3f>& points, const RegistrationParams& p)
+    : gicp_(std::make_shared<const odometry::GicpCloud>(reduced(points, p.voxel_m), p.neighbours)) {}
+
+size_t PreparedCloud::size() const { return gicp_->points().size(); }
+
 RegistrationResult register_clouds(const std::vector<Eigen::Vector3f>& source, const std::vector<Eigen::Vector3f>& target,
                                    const Eigen::Isometry3d& initial, const RegistrationParams& p) {
+  return register_clouds(PreparedCloud(source, p), PreparedCloud(target, p), initial, p);
+}
+
+RegistrationResult register_clouds(const PreparedCloud& source, const PreparedCloud& target, const Eigen::Isometry3d& initial,
+                                   const RegistrationParams& p) {
   RegistrationResult r;
-  const std::vector<Eigen::Vector3d> src = reduced(source, p.voxel_m), tgt = reduced(target, p.voxel_m);
-  if (src.size() < 20 || tgt.size() < 20) {
+  const std::vector<Eigen::Vector3d>& src = source.gicp().points();
+  if (src.size() < 20 || target.size() < 20) {
     return r;
   }
   odometry::PairRegistrationParams pp;
   pp.method = odometry::PairMethod::kGicp;
-  pp.gicp_voxel_m = 0;  // already reduced above
-  pp.gicp_neighbours = p.neighbours;
   pp.gicp_max_correspondence_m = p.max_correspondence_m;
   pp.gicp_max_iterations = p.max_iterations;
-  const odometry::RegistrationOutput g = odometry::register_pair(src, tgt, initial, pp);
+  const odometry::RegistrationOutput g = odometry::register_gicp(source.gicp(), target.gicp(), initial, pp);
   // Usable when it ran to the end with enough correspondences, converged or at the iteration limit;
   // fitness and overlap decide whether it is a loop.
   r.converged = g.correspondences >= 20;
@@ -55,7 +63,7 @@ RegistrationResult register_clouds(const std::vector<Eigen::Vector3f>& source, c
   // Fitness and overlap over inliers.
   double sum = 0;
   size_t inliers = 0;
-  for (const double d : odometry::nearest_distances(src, tgt, r.T_target_source)) {
+  for (const double d : target.gicp().nearest_distances(src, r.T_target_source)) {
     if (d <= p.inlier_distance_m) {
       sum += d * d;
       ++inliers;

@@ -135,8 +135,8 @@ std::vector<size_t> ScanContextDatabase::nearest(const std::vector<float>& key, 
   // Rebuild when the database grew by more than 10 % (a query between rebuilds also scans the
   // newest contexts linearly, so nothing added is ever missed).
   if (!index_->tree || contexts_.size() > index_->built_for + index_->built_for / 10 + 10) {
+    // nanoflann builds the index in the tree's constructor.
     index_->tree = std::make_unique<Index::Tree>(rings_, index_->adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
-    index_->tree->buildIndex();
     index_->built_for = contexts_.size();
   }
   std::vector<std::pair<float, size_t>> cand;

@@ -35,17 +35,60 @@ std::vector<Eigen::Matrix3d> plane_covariances(const std::vector<Eigen::Vector3d
   return out;
 }
 
+// For each source point moved by T, the distance to its nearest point in the tree's cloud (not empty).
+std::vector<double> distances_to(const detail::KdTree& tree, const std::vector<Eigen::Vector3d>& source, const Eigen::Isometry3d& T) {
+  std::vector<double> out(source.size(), std::numeric_limits<double>::infinity());
+  for (size_t i = 0; i < source.size(); ++i) {
+    const Eigen::Vector3d q = T * source[i];
+    size_t j = 0;
+    double d2 = 0;
+    if (tree.knnSearch(q.data(), 1, &j, &d2) == 1) out[i] = std::sqrt(d2);
+  }
+  return out;
+}
+
 RegistrationOutput gicp(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
                         const Eigen::Isometry3d& guess, const PairRegistrationParams& params) {
   const bool reduce = params.gicp_voxel_m > 0;
-  const std::vector<Eigen::Vector3d> src = reduce ? voxel_centroids(source, params.gicp_voxel_m) : source;
-  const std::vector<Eigen::Vector3d> tgt = reduce ? voxel_centroids(target, params.gicp_voxel_m) : target;
-  const detail::CloudAdaptor sa{&src}, ta{&tgt};
-  detail::KdTree stree(3, sa, nanoflann::KDTreeSingleIndexAdaptorParams(10)), ttree(3, ta, nanoflann::KDTreeSingleIndexAdaptorParams(10));
-  stree.buildIndex();
-  ttree.buildIndex();
-  const std::vector<Eigen::Matrix3d> cs = plane_covariances(src, stree, params.gicp_neighbours);
-  const std::vector<Eigen::Matrix3d> ct = plane_covariances(tgt, ttree, params.gicp_neighbours);
+  const GicpCloud src(reduce ? voxel_centroids(source, params.gicp_voxel_m) : source, params.gicp_neighbours);
+  const GicpCloud tgt(reduce ? voxel_centroids(target, params.gicp_voxel_m) : target, params.gicp_neighbours);
+  return register_gicp(src, tgt, guess, params);
+}
+
+}  // namespace
+
+struct GicpCloud::Impl {
+  std::vector<Eigen::Vector3d> points;
+  detail::CloudAdaptor adaptor{&points};
+  detail::KdTree tree{3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10)};
+  std::vector<Eigen::Matrix3d> covariances;
+  int neighbours = 0;
+  explicit Impl(std::vector<Eigen::Vector3d> p) : points(std::move(p)) {}
+};
+
+GicpCloud::GicpCloud(std::vector<Eigen::Vector3d> points, int neighbours) : impl_(std::make_unique<Impl>(std::move(points))) {
+  impl_->neighbours = neighbours;  // the tree was built when it was made (nanoflann builds in its constructor)
+  impl_->covariances = plane_covariances(impl_->points, impl_->tree, neighbours);
+}
+
+GicpCloud::~GicpCloud() = default;
+
+const std::vector<Eigen::Vector3d>& GicpCloud::points() const { return impl_->points; }
+
+int GicpCloud::neighbours() const { return impl_->neighbours; }
+
+std::vector<double> GicpCloud::nearest_distances(const std::vector<Eigen::Vector3d>& source, const Eigen::Isometry3d& T) const {
+  if (impl_->points.empty()) return std::vector<double>(source.size(), std::numeric_limits<double>::infinity());
+  return distances_to(impl_->tree, source, T);
+}
+
+RegistrationOutput register_gicp(const GicpCloud& source, const GicpCloud& target, const Eigen::Isometry3d& guess,
+                                 const PairRegistrationParams& params) {
+  const std::vector<Eigen::Vector3d>& src = source.points();
+  const std::vector<Eigen::Vector3d>& tgt = target.points();
+  const std::vector<Eigen::Matrix3d>& cs = source.impl().covariances;
+  const std::vector<Eigen::Matrix3d>& ct = target.impl().covariances;
+  const detail::KdTree& ttree = target.impl().tree;
   const double max2 = params.gicp_max_correspondence_m * params.gicp_max_correspondence_m;
   RegistrationOutput out;
   out.T_map_sensor = guess;
@@ -87,7 +130,6 @@ RegistrationOutput gicp(const std::vector<Eigen::Vector3d>& source, const std::v
   return out;
 }
 
-}  // namespace
 
 RegistrationOutput register_pair(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
                                  const Eigen::Isometry3d& guess, const PairRegistrationParams& params) {
@@ -109,18 +151,10 @@ RegistrationOutput register_pair(const std::vector<Eigen::Vector3d>& source, con
 
 std::vector<double> nearest_distances(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
                                       const Eigen::Isometry3d& T_target_source) {
-  std::vector<double> out(source.size(), std::numeric_limits<double>::infinity());
-  if (target.empty()) return out;
+  if (target.empty()) return std::vector<double>(source.size(), std::numeric_limits<double>::infinity());
   const detail::CloudAdaptor adaptor{&target};
-  detail::KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
-  tree.buildIndex();
-  for (size_t i = 0; i < source.size(); ++i) {
-    const Eigen::Vector3d q = T_target_source * source[i];
-    size_t j = 0;
-    double d2 = 0;
-    if (tree.knnSearch(q.data(), 1, &j, &d2) == 1) out[i] = std::sqrt(d2);
-  }
-  return out;
+  const detail::KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+  return distances_to(tree, source, T_target_source);
 }
 
 AlignmentScore score_alignment(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
@@ -128,8 +162,7 @@ AlignmentScore score_alignment(const std::vector<Eigen::Vector3d>& source, const
   const std::vector<Eigen::Vector3d> src = voxel_filter(source, voxel_m), tgt = voxel_filter(target, voxel_m);
   const std::vector<Eigen::Vector3d> normals = knn_normals(tgt, tgt, 10, 1.0);
   detail::CloudAdaptor adaptor{&tgt};
-  detail::KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
-  tree.buildIndex();
+  const detail::KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));  // built by its constructor
   AlignmentScore out;
   double sum2 = 0;
   for (const Eigen::Vector3d& p : src) {

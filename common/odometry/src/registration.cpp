@@ -129,8 +129,7 @@ std::vector<Eigen::Vector3d> knn_normals(const std::vector<Eigen::Vector3d>& que
   std::vector<Eigen::Vector3d> normals(queries.size(), Eigen::Vector3d::Zero());
   if (cloud.size() < static_cast<size_t>(k) || k < 3) return normals;
   detail::CloudAdaptor adaptor{&cloud};
-  detail::KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
-  tree.buildIndex();
+  const detail::KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));  // built by its constructor
   std::vector<size_t> idx(static_cast<size_t>(k));
   std::vector<double> d2(static_cast<size_t>(k));
   const double lim2 = max_neighbour_m * max_neighbour_m;

@@ -4,7 +4,12 @@
 
 #include <Eigen/Geometry>
 
+#include <memory>
 #include <vector>
+
+namespace cdc::odometry {
+class GicpCloud;
+}
 
 namespace cdc::lidar {
 
@@ -33,6 +38,24 @@ struct RegistrationResult {
 };
 
 RegistrationResult register_clouds(const std::vector<Eigen::Vector3f>& source, const std::vector<Eigen::Vector3f>& target,
+                                   const Eigen::Isometry3d& initial_T_target_source, const RegistrationParams& params);
+
+// A cloud reduced (params.voxel_m) and made ready for registration once (its k-d tree and GICP
+// covariances from params.neighbours points, ~1 MB for 8000 points), for a cloud that takes part in
+// several registrations. Immutable; share it by pointer.
+class PreparedCloud {
+ public:
+  PreparedCloud(const std::vector<Eigen::Vector3f>& points, const RegistrationParams& params);
+  size_t size() const;
+  const odometry::GicpCloud& gicp() const { return *gicp_; }
+
+ private:
+  std::shared_ptr<const odometry::GicpCloud> gicp_;
+};
+
+// The same registration between prepared clouds (the same result as the overload above on the same
+// points and parameters); voxel_m and neighbours are the preparation's, the rest come from params.
+RegistrationResult register_clouds(const PreparedCloud& source, const PreparedCloud& target,
                                    const Eigen::Isometry3d& initial_T_target_source, const RegistrationParams& params);
 
 // Voxel-grid downsampling (one point, the centroid, per occupied voxel).

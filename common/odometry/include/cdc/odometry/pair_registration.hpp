@@ -9,6 +9,7 @@
 
 #include <Eigen/Geometry>
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -45,6 +46,34 @@ RegistrationOutput register_pair(const std::vector<Eigen::Vector3d>& source, con
 // verification's fitness and overlap start from these).
 std::vector<double> nearest_distances(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
                                       const Eigen::Isometry3d& T_target_source);
+
+// A cloud made ready for GICP once: its points as given (no reduction), their k-d tree and plane
+// covariances from `neighbours` points, so that registering it against several others (loop
+// verification) computes them once. Not copyable or movable (the tree refers to the points).
+class GicpCloud {
+ public:
+  GicpCloud(std::vector<Eigen::Vector3d> points, int neighbours);
+  ~GicpCloud();
+  GicpCloud(const GicpCloud&) = delete;
+  GicpCloud& operator=(const GicpCloud&) = delete;
+
+  const std::vector<Eigen::Vector3d>& points() const;
+  int neighbours() const;
+  // For each source point moved by T_this_source, the distance to its nearest point here.
+  std::vector<double> nearest_distances(const std::vector<Eigen::Vector3d>& source, const Eigen::Isometry3d& T_this_source) const;
+
+  struct Impl;  // points, tree, covariances (pair_registration.cpp)
+  const Impl& impl() const { return *impl_; }
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+// GICP between two prepared clouds from `guess`; uses gicp_max_correspondence_m and
+// gicp_max_iterations of `params` (the clouds' preparation fixed the rest). The same result as
+// register_pair with kGicp on the same points with gicp_voxel_m 0.
+RegistrationOutput register_gicp(const GicpCloud& source, const GicpCloud& target, const Eigen::Isometry3d& guess,
+                                 const PairRegistrationParams& params);
 
 // How well T_target_source aligns two sweeps, independently of any registration's own cost: both
 // clouds reduced to voxel_m, each source point moved by T and matched to its nearest target point
