@@ -102,6 +102,8 @@ int run_dataset(const RunOptions& o) {
                         {"recall", ev.recall()},
                         {"verified", st.verified},
                         {"verification_failed", st.verification_failed},
+                        {"clouds_prepared", st.prepared},
+                        {"prepared_clouds_reused", st.prepared_reused},
                         {"intra_inconsistent", st.intra_inconsistent},
                         {"withdrawn", st.withdrawn},
                         {"run_s", run_s}};

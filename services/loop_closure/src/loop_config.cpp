@@ -43,6 +43,9 @@ LoopNodeOptions load_loop_options(const std::string& path) {
   int timeout = static_cast<int>(p.request_timeout.count() / 1'000'000);
   r.get<int>("cloud_request_timeout_ms", timeout, positive_i, "> 0");
   r.get<int>("cloud_cache", cache, positive_i, "> 0");
+  int prepared = static_cast<int>(p.prepared_clouds);
+  r.get<int>("verification.prepared_clouds", prepared, [](const int& v) { return v >= 0 && v <= 1024; }, "0..1024");
+  p.prepared_clouds = static_cast<size_t>(prepared);
   r.get<int>("cloud_request_attempts", p.request_attempts, positive_i, "> 0");
   int retry = static_cast<int>(p.request_retry.count() / 1'000'000);
   r.get<int>("cloud_request_retry_ms", retry, positive_i, "> 0");

@@ -35,7 +35,7 @@ LoopEvents LoopCore::add_keyframe_data(KeyframeIn kf, Nanos now) {
   }
   data_robots_.insert(kf.robot);
   up_[me] = kf.T_odom.linear().transpose() * Eigen::Vector3d::UnitZ();
-  clouds_[me] = lidar::voxel_downsample(kf.cloud, p_.registration.voxel_m);
+  set_cloud(me, lidar::voxel_downsample(kf.cloud, p_.registration.voxel_m));
   local_.insert(me);
   auto it = deferred_.find(me);
   if (it == deferred_.end()) {
@@ -213,10 +213,13 @@ LoopEvents LoopCore::on_cloud(uint32_t robot, uint32_t id, std::vector<Eigen::Ve
   const std::vector<Job> jobs = std::move(it->second.jobs);
   from.erase(it);
   if (local_.count(key) == 0) {
-    clouds_[key] = lidar::voxel_downsample(cloud, p_.registration.voxel_m);
+    set_cloud(key, lidar::voxel_downsample(cloud, p_.registration.voxel_m));
     cache_order_.push_back(key);
     while (cache_order_.size() > p_.cloud_cache) {
-      clouds_.erase(cache_order_.front());
+      const Id oldest = cache_order_.front();
+      clouds_.erase(oldest);
+      prepared_.erase(std::remove_if(prepared_.begin(), prepared_.end(), [&](const auto& e) { return e.first == oldest; }),
+                      prepared_.end());
       cache_order_.pop_front();
     }
   }
@@ -289,6 +292,32 @@ const std::vector<Eigen::Vector3f>* LoopCore::cloud(uint32_t robot, uint32_t id)
   return it == clouds_.end() ? nullptr : &it->second;
 }
 
+void LoopCore::set_cloud(const Id& id, std::vector<Eigen::Vector3f> cloud) {
+  clouds_[id] = std::move(cloud);
+  prepared_.erase(std::remove_if(prepared_.begin(), prepared_.end(), [&](const auto& e) { return e.first == id; }),
+                  prepared_.end());
+}
+
+std::shared_ptr<const lidar::PreparedCloud> LoopCore::prepared(const Id& id, const std::vector<Eigen::Vector3f>& cloud) {
+  const auto it = std::find_if(prepared_.begin(), prepared_.end(), [&](const auto& e) { return e.first == id; });
+  if (it != prepared_.end()) {
+    ++stats_.prepared_reused;
+    auto entry = *it;
+    prepared_.erase(it);
+    prepared_.push_front(entry);
+    return entry.second;
+  }
+  lidar::RegistrationParams rp = p_.registration;
+  rp.voxel_m = 0;  // the held clouds are downsampled already
+  auto ready = std::make_shared<const lidar::PreparedCloud>(cloud, rp);
+  ++stats_.prepared;
+  if (p_.prepared_clouds > 0) {
+    prepared_.emplace_front(id, ready);
+    while (prepared_.size() > p_.prepared_clouds) prepared_.pop_back();
+  }
+  return ready;
+}
+
 LoopEvents LoopCore::verify(const Job& job) {
   LoopEvents out;
   const auto src = clouds_.find(job.query), tgt = clouds_.find(job.candidate);
@@ -297,9 +326,8 @@ LoopEvents LoopCore::verify(const Job& job) {
   }
   const auto [robot_a, kf_a] = job.candidate;
   const auto [robot_b, kf_b] = job.query;
-  lidar::RegistrationParams rp = p_.registration;
-  rp.voxel_m = 0;  // already downsampled
-  const lidar::RegistrationResult r = lidar::register_clouds(src->second, tgt->second, job.guess, rp);
+  const lidar::RegistrationResult r =
+      lidar::register_clouds(*prepared(job.query, src->second), *prepared(job.candidate, tgt->second), job.guess, p_.registration);
   ++stats_.verified;
   Verification v{robot_b, kf_b, robot_a, kf_a, r.converged, false, r.fitness, r.overlap,
                  job.guess.translation().norm(), (job.guess.inverse() * r.T_target_source).translation().norm()};

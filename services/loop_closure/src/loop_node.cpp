@@ -328,6 +328,8 @@ int run_loop_closure(const LoopNodeOptions& o) {
                      {"intra_gated", s.intra_gated},
                      {"skipped_near_requested", s.skipped_near_requested},
                      {"verified_with_neighbour", s.verified_with_neighbour},
+                     {"clouds_prepared", s.prepared},
+                     {"prepared_clouds_reused", s.prepared_reused},
                      {"verified", s.verified},
                      {"verification_failed", s.verification_failed},
                      {"verification_failed_by", {{"not_converged", s.failed_not_converged},

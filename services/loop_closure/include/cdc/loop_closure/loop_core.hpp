@@ -27,6 +27,7 @@
 #include <deque>
 #include <functional>
 #include <map>
+#include <memory>
 #include <optional>
 #include <set>
 #include <vector>
@@ -70,6 +71,9 @@ struct LoopParams {
   int request_attempts = 3;
   Nanos request_retry = std::chrono::seconds(5);
   size_t cloud_cache = 256;        // peers' clouds kept after verification (least recently received dropped)
+  // Clouds kept ready for registration (k-d tree and GICP covariances, ~1 MB each), most recently used
+  // first: the verifications of one query, or against one requested cloud, come in bursts. 0: none.
+  size_t prepared_clouds = 8;
   // A peer's cloud is not requested when one within this many of that peer's keyframes was requested
   // already: neighbouring keyframes (1 m apart) close the same loop, and each request is a whole cloud
   // on the radio. The candidate is verified against that neighbour's cloud instead (held or on its
@@ -133,6 +137,7 @@ struct LoopStats {
   uint64_t intra_gated = 0;      // same-robot candidates too far by the robot's odometry (not verified)
   uint64_t skipped_near_requested = 0;  // candidates next to a peer keyframe whose cloud was requested
   uint64_t verified_with_neighbour = 0; // candidates sent to a neighbouring keyframe's cloud (held or requested)
+  uint64_t prepared = 0, prepared_reused = 0;  // clouds made ready for registration; registrations that found one ready
 };
 
 class LoopCore {
@@ -201,6 +206,10 @@ class LoopCore {
   std::map<Id, std::vector<Eigen::Vector3f>> clouds_;      // downsampled, local and cached
   std::set<Id> local_;                                     // keyframes whose data is held here
   std::deque<Id> cache_order_;                             // cached peer clouds, oldest first
+  // Clouds ready for registration, most recently used first (prepared_clouds of them).
+  std::deque<std::pair<Id, std::shared_ptr<const lidar::PreparedCloud>>> prepared_;
+  std::shared_ptr<const lidar::PreparedCloud> prepared(const Id& id, const std::vector<Eigen::Vector3f>& cloud);
+  void set_cloud(const Id& id, std::vector<Eigen::Vector3f> cloud);  // also drops a prepared one
   std::set<uint32_t> data_robots_;                         // robots with odometry from keyframe data
   struct Chained {
     Eigen::Isometry3d pose;  // in the robot's odometry frame (from its first keyframe here)
