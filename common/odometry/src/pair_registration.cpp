@@ -62,20 +62,17 @@ struct GicpCloud::Impl {
   detail::CloudAdaptor adaptor{&points};
   detail::KdTree tree{3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10)};
   std::vector<Eigen::Matrix3d> covariances;
-  int neighbours = 0;
   explicit Impl(std::vector<Eigen::Vector3d> p) : points(std::move(p)) {}
 };
 
 GicpCloud::GicpCloud(std::vector<Eigen::Vector3d> points, int neighbours) : impl_(std::make_unique<Impl>(std::move(points))) {
-  impl_->neighbours = neighbours;  // the tree was built when it was made (nanoflann builds in its constructor)
+  // The tree was built when it was made (nanoflann builds in its constructor).
   impl_->covariances = plane_covariances(impl_->points, impl_->tree, neighbours);
 }
 
 GicpCloud::~GicpCloud() = default;
 
 const std::vector<Eigen::Vector3d>& GicpCloud::points() const { return impl_->points; }
-
-int GicpCloud::neighbours() const { return impl_->neighbours; }
 
 std::vector<double> GicpCloud::nearest_distances(const std::vector<Eigen::Vector3d>& source, const Eigen::Isometry3d& T) const {
   if (impl_->points.empty()) return std::vector<double>(source.size(), std::numeric_limits<double>::infinity());
@@ -129,7 +126,6 @@ RegistrationOutput register_gicp(const GicpCloud& source, const GicpCloud& targe
   }
   return out;
 }
-
 
 RegistrationOutput register_pair(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
                                  const Eigen::Isometry3d& guess, const PairRegistrationParams& params) {

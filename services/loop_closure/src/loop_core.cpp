@@ -216,10 +216,8 @@ LoopEvents LoopCore::on_cloud(uint32_t robot, uint32_t id, std::vector<Eigen::Ve
     set_cloud(key, lidar::voxel_downsample(cloud, p_.registration.voxel_m));
     cache_order_.push_back(key);
     while (cache_order_.size() > p_.cloud_cache) {
-      const Id oldest = cache_order_.front();
-      clouds_.erase(oldest);
-      prepared_.erase(std::remove_if(prepared_.begin(), prepared_.end(), [&](const auto& e) { return e.first == oldest; }),
-                      prepared_.end());
+      clouds_.erase(cache_order_.front());
+      drop_prepared(cache_order_.front());
       cache_order_.pop_front();
     }
   }
@@ -294,6 +292,10 @@ const std::vector<Eigen::Vector3f>* LoopCore::cloud(uint32_t robot, uint32_t id)
 
 void LoopCore::set_cloud(const Id& id, std::vector<Eigen::Vector3f> cloud) {
   clouds_[id] = std::move(cloud);
+  drop_prepared(id);
+}
+
+void LoopCore::drop_prepared(const Id& id) {
   prepared_.erase(std::remove_if(prepared_.begin(), prepared_.end(), [&](const auto& e) { return e.first == id; }),
                   prepared_.end());
 }

@@ -58,7 +58,6 @@ class GicpCloud {
   GicpCloud& operator=(const GicpCloud&) = delete;
 
   const std::vector<Eigen::Vector3d>& points() const;
-  int neighbours() const;
   // For each source point moved by T_this_source, the distance to its nearest point here.
   std::vector<double> nearest_distances(const std::vector<Eigen::Vector3d>& source, const Eigen::Isometry3d& T_this_source) const;
 

@@ -137,7 +137,7 @@ struct LoopStats {
   uint64_t intra_gated = 0;      // same-robot candidates too far by the robot's odometry (not verified)
   uint64_t skipped_near_requested = 0;  // candidates next to a peer keyframe whose cloud was requested
   uint64_t verified_with_neighbour = 0; // candidates sent to a neighbouring keyframe's cloud (held or requested)
-  uint64_t prepared = 0, prepared_reused = 0;  // clouds made ready for registration; registrations that found one ready
+  uint64_t prepared = 0, prepared_reused = 0;  // clouds made ready for registration; look-ups (two per registration) that found one ready
 };
 
 class LoopCore {
@@ -210,6 +210,7 @@ class LoopCore {
   std::deque<std::pair<Id, std::shared_ptr<const lidar::PreparedCloud>>> prepared_;
   std::shared_ptr<const lidar::PreparedCloud> prepared(const Id& id, const std::vector<Eigen::Vector3f>& cloud);
   void set_cloud(const Id& id, std::vector<Eigen::Vector3f> cloud);  // also drops a prepared one
+  void drop_prepared(const Id& id);
   std::set<uint32_t> data_robots_;                         // robots with odometry from keyframe data
   struct Chained {
     Eigen::Isometry3d pose;  // in the robot's odometry frame (from its first keyframe here)
