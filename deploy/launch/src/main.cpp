@@ -251,20 +251,26 @@ void Launcher::sample_traffic(double t_s) {
   // charged to the mode the robot was in over that interval. An interval in which it switched is
   // charged to CENTRALIZED: around a switch the link carries the centralized side's traffic
   // (keyframes until the link is cut; the backlog re-sent right after a rejoin), while the
-  // distributed side of it has the link down, or up for the dwell before the rejoin.
+  // distributed side of it has the link down, or up for the dwell before the rejoin. Once the last
+  // sweep is played and the rendezvous has brought every link up, the catch-up (backlogs, loops that
+  // could not be closed out of range and the clouds they need) is charged to RENDEZVOUS, whatever the
+  // robot's mode: no keyframes are made then, and it is not the traffic of either mode at work.
   std::map<std::pair<uint32_t, uint32_t>, LinkBytes> counters;
   if (net_) counters = net_->counters();
   const std::string fallback = info_.central ? "CENTRALIZED" : "DISTRIBUTED";
   std::map<uint32_t, std::string> charged;
   for (uint32_t r : robots_) {
     const RobotNow now = read_now(run_ / ("robot_" + std::to_string(r)) / "modes.csv.now");
-    const std::string mode = startup_ ? "STARTUP" : now.mode == "-" ? fallback : now.mode;
+    const std::string mode = startup_ ? "STARTUP" : rendezvous_ ? "RENDEZVOUS" : now.mode == "-" ? fallback : now.mode;
     auto it = interval_start_mode_.find(r);
-    const bool switched = it != interval_start_mode_.end() && it->second != mode && it->second != "STARTUP";
+    const bool switched = it != interval_start_mode_.end() && it->second != mode && it->second != "STARTUP" &&
+                          mode != "RENDEZVOUS";
     charged[r] = switched ? "CENTRALIZED" : mode;
     interval_start_mode_[r] = mode;
     ModeTraffic& t = info_.traffic[r];
-    t.keyframes[charged[r]] += now.keyframes - std::min(now.keyframes, last_keyframes_[r]);
+    // Keyframes still coming out of the last sweeps in the rendezvous belong to the mode they were made in.
+    const std::string kf_mode = mode == "RENDEZVOUS" ? (now.mode == "-" ? fallback : now.mode) : charged[r];
+    t.keyframes[kf_mode] += now.keyframes - std::min(now.keyframes, last_keyframes_[r]);
     last_keyframes_[r] = std::max(now.keyframes, last_keyframes_[r]);
   }
   for (const auto& [key, b] : counters) {
