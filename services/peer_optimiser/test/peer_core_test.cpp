@@ -115,6 +115,38 @@ TEST(PeerCore, RelaysTheCentralWithBoundedStepsAndConverges) {
   EXPECT_GT(steps, 5) << "a 2 m / 5 deg change cannot be taken in a few bounded steps";
 }
 
+// While T_world_robot takes a new solution in bounded steps, the poses sent with it are in its frame:
+// the front-end's keyframe in its odometry frame (T_world_robot^-1 * pose) is the new solution's own
+// at every step, not a mix of the new poses and a frame still on its way.
+TEST(PeerCore, TheCorrectionsPosesAgreeWithItsWorldTransformAtEveryStep) {
+  const auto s = test::make_swarm_stream({});
+  PeerCore core(config(1));
+  Nanos t = join_central(core, s, 1, 50, 1s);
+  ASSERT_EQ(core.mode(), Mode::kCentralized);
+  // A new solution that turns the robot's whole trajectory by 0.5 deg of pitch about its newest
+  // keyframe (loops at its end, its far start swinging), and moves that keyframe up by 5 cm.
+  const Eigen::Isometry3d newest = s.keyframes[1][49].T_world_truth;
+  Eigen::Isometry3d turn = Eigen::Isometry3d::Identity();
+  turn.linear() = geometry::from_rpy(0, 0.5 * M_PI / 180, 0);
+  turn.translation().z() = 0.05;
+  const Eigen::Isometry3d offset = newest * turn * newest.inverse();
+  const CentralResult moved = central_for(s, 1, 49, offset);
+  const Eigen::Isometry3d want = moved.T_world_robot.inverse() * moved.poses.back().second;  // newest, odometry frame
+  core.on_central_result(moved);
+  int steps = 0;
+  for (; steps < 100; ++steps) {
+    const auto out = core.step(t += 50ms, true);
+    ASSERT_TRUE(out.correction);
+    ASSERT_EQ(out.correction->poses.back().first, 49u);
+    const Eigen::Isometry3d got = out.correction->T_world_robot.inverse() * out.correction->poses.back().second;
+    EXPECT_LT((got.translation() - want.translation()).norm(), 1e-6) << "step " << steps;
+    EXPECT_LT(geometry::rotation_angle(got.rotation().transpose() * want.rotation()), 1e-8) << "step " << steps;
+    if ((out.correction->T_world_robot.matrix() - moved.T_world_robot.matrix()).norm() < 1e-9) break;
+  }
+  EXPECT_GT(steps, 1) << "the world transform should have taken the change in more than one step";
+  EXPECT_LT(steps, 100);
+}
+
 TEST(PeerCore, LivelinessLossSwitchesToDistributedAndKeepsCorrectingFromTheCentralEstimate) {
   const auto s = test::make_swarm_stream({});
   PeerCore core(config(1));

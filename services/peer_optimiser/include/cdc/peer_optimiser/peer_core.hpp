@@ -73,7 +73,8 @@ struct Correction {
   Eigen::Isometry3d T_world_robot;            // limited by the fusion thresholds
   double lambda = 1.0;                        // the fusion factor applied
   bool from_central = true;
-  std::vector<std::pair<uint32_t, Eigen::Isometry3d>> poses;  // current estimate of own keyframes
+  // Current estimate of own keyframes, in the frame of T_world_robot above (the solution moved with it).
+  std::vector<std::pair<uint32_t, Eigen::Isometry3d>> poses;
 };
 
 struct SeparatorOut {
