@@ -215,6 +215,40 @@ TEST(PeerCore, AfterARejoinTheCentralIsRelayedOnlyOnceItHoldsTheNewKeyframes) {
   EXPECT_GT(out.correction->T_world_robot.translation().z() - before.translation().z(), 0.05);
 }
 
+// A central result that holds fewer of the robot's keyframes than one already relayed (the central
+// placing the robot anew, with a gap in the re-sent backlog) is not relayed until it catches up.
+TEST(PeerCore, ACentralResultThatFallsBehindOneRelayedIsNotRelayed) {
+  const auto s = test::make_swarm_stream({});
+  PeerCore core(config(1));
+  Nanos t = join_central(core, s, 1, 50, 1s);
+  ASSERT_EQ(core.mode(), Mode::kCentralized);
+  for (uint32_t id = 50; id < 80; ++id) core.add_keyframe(kf_from(s.keyframes[1][id]), t);
+  core.on_central_result(central_for(s, 1, 79, Eigen::Isometry3d::Identity()));
+  auto out = core.step(t += 50ms, true);
+  ASSERT_TRUE(out.correction);
+  ASSERT_TRUE(out.correction->from_central);
+  for (int i = 0; i < 200; ++i) {  // until the world transform has reached the central's
+    const Eigen::Isometry3d prev = out.correction->T_world_robot;
+    out = core.step(t += 50ms, true);
+    if ((out.correction->T_world_robot.matrix() - prev.matrix()).norm() < 1e-12) break;
+  }
+  const Eigen::Isometry3d before = out.correction->T_world_robot;
+  Eigen::Isometry3d up = Eigen::Isometry3d::Identity();
+  up.translation().z() = 1.0;
+  core.on_central_result(central_for(s, 1, 60, up));  // falls behind keyframe 79
+  for (int i = 0; i < 20; ++i) {
+    out = core.step(t += 50ms, true);
+    ASSERT_TRUE(out.correction);
+    EXPECT_FALSE(out.correction->from_central) << "step " << i;
+    EXPECT_LT((out.correction->T_world_robot.translation() - before.translation()).norm(), 1e-9) << "step " << i;
+  }
+  core.on_central_result(central_for(s, 1, 79, up));  // caught up: relayed, and followed in bounded steps
+  out = core.step(t += 50ms, true);
+  ASSERT_TRUE(out.correction);
+  EXPECT_TRUE(out.correction->from_central);
+  EXPECT_GT(out.correction->T_world_robot.translation().z() - before.translation().z(), 0.05);
+}
+
 TEST(PeerCore, ResendsWhatTheCentralHasNotAcknowledged) {
   const auto s = test::make_swarm_stream({});
   PeerCore core(config(2));

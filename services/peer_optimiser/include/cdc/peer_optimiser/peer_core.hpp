@@ -150,6 +150,7 @@ class PeerCore {
   // Set on joining the central: the newest own keyframe then. The central's results are relayed
   // only once one holds it; until then the corrections stay the distributed estimate's.
   std::optional<uint32_t> frontier_;
+  std::optional<uint32_t> relayed_newest_;  // newest own keyframe in a central result relayed (this central incarnation)
   bool placed_by_peers_ = false;  // estimate_ moved into the group's frame through a separator
   uint64_t rounds_ = 0;
 };
