@@ -270,21 +270,19 @@ StepOutput PeerCore::step(Nanos now, bool central_alive) {
   // central placing the robot anew (its first loop after a rejoin), with a gap in the re-sent backlog
   // it fills in order. Relaying it carried the correction back to an old keyframe and out again with a
   // different placement: robot 2 of the demo 0.3 m off for 0.8 s. Wait until it catches up.
-  const auto newest = [](const CentralResult& r) {
-    uint32_t n = 0;
-    for (const auto& p : r.poses) n = std::max(n, p.first);
-    return n;
-  };
-  if (!frontier_ && central_ && relayed_newest_ && !central_->poses.empty() && newest(*central_) < *relayed_newest_) {
+  std::optional<uint32_t> central_newest;  // the newest own keyframe the central's last result holds
+  if (central_) {
+    for (const auto& p : central_->poses) central_newest = std::max(central_newest.value_or(0), p.first);
+  }
+  if (!frontier_ && central_newest && relayed_newest_ && *central_newest < *relayed_newest_) {
     frontier_ = *relayed_newest_;
   }
-  if (frontier_ && central_ &&
-      std::any_of(central_->poses.begin(), central_->poses.end(), [&](const auto& p) { return p.first >= *frontier_; })) {
+  if (frontier_ && central_newest && *central_newest >= *frontier_) {
     frontier_.reset();
   }
   const bool central_current = central_.has_value() && !frontier_;
-  if (central_current && !central_->poses.empty()) {
-    relayed_newest_ = std::max(relayed_newest_.value_or(0), newest(*central_));
+  if (central_current && central_newest) {
+    relayed_newest_ = std::max(relayed_newest_.value_or(0), *central_newest);
   }
 
   const bool round_due = now - last_round_ >= config_.round_period;
