@@ -261,7 +261,8 @@ void Launcher::sample_traffic(double t_s) {
   std::map<uint32_t, std::string> charged;
   for (uint32_t r : robots_) {
     const RobotNow now = read_now(run_ / ("robot_" + std::to_string(r)) / "modes.csv.now");
-    const std::string mode = startup_ ? "STARTUP" : rendezvous_ ? "RENDEZVOUS" : now.mode == "-" ? fallback : now.mode;
+    const std::string own = now.mode == "-" ? fallback : now.mode;
+    const std::string mode = startup_ ? "STARTUP" : rendezvous_ ? "RENDEZVOUS" : own;
     auto it = interval_start_mode_.find(r);
     const bool switched = it != interval_start_mode_.end() && it->second != mode && it->second != "STARTUP" &&
                           mode != "RENDEZVOUS";
@@ -269,7 +270,7 @@ void Launcher::sample_traffic(double t_s) {
     interval_start_mode_[r] = mode;
     ModeTraffic& t = info_.traffic[r];
     // Keyframes still coming out of the last sweeps in the rendezvous belong to the mode they were made in.
-    const std::string kf_mode = mode == "RENDEZVOUS" ? (now.mode == "-" ? fallback : now.mode) : charged[r];
+    const std::string kf_mode = mode == "RENDEZVOUS" ? own : charged[r];
     t.keyframes[kf_mode] += now.keyframes - std::min(now.keyframes, last_keyframes_[r]);
     last_keyframes_[r] = std::max(now.keyframes, last_keyframes_[r]);
   }
