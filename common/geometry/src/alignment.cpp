@@ -55,4 +55,22 @@ Eigen::Isometry3d apply(const Alignment& a, const Eigen::Isometry3d& pose) {
   return out;
 }
 
+Alignment align_poses(const std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>>& a_b, double arm_m) {
+  if (a_b.empty() || !(arm_m > 0.0)) {
+    return Alignment{};
+  }
+  const Eigen::Index n = static_cast<Eigen::Index>(a_b.size()) * 4;
+  Eigen::Matrix3Xd src(3, n), dst(3, n);
+  Eigen::Index c = 0;
+  for (const auto& [a, b] : a_b) {
+    src.col(c) = a.translation();
+    dst.col(c++) = b.translation();
+    for (int axis = 0; axis < 3; ++axis) {
+      src.col(c) = a * (arm_m * Eigen::Vector3d::Unit(axis));
+      dst.col(c++) = b * (arm_m * Eigen::Vector3d::Unit(axis));
+    }
+  }
+  return align_umeyama(src, dst, false);
+}
+
 }  // namespace cdc::geometry

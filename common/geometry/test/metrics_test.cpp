@@ -70,6 +70,46 @@ TEST(Alignment, DegenerateInputIsReported) {
   EXPECT_FALSE(align_umeyama(Eigen::Matrix3Xd(3, 0), Eigen::Matrix3Xd(3, 0), false).ok);
 }
 
+TEST(Alignment, PosesOfAStraightTrajectoryGiveTheFullTransform) {
+  // Positions on a line leave the turn about it open; the orientations fix it.
+  const Eigen::Isometry3d T = Eigen::Translation3d(4, -2, 0.7) * Eigen::Isometry3d(from_rpy(0.05, -0.03, 1.2));
+  std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>> pairs;
+  for (int i = 0; i < 30; ++i) {
+    const Eigen::Isometry3d a = Eigen::Translation3d(2.0 * i, 0, 0) * Eigen::Isometry3d(from_rpy(0, 0, 0.01 * i));
+    pairs.emplace_back(a, T * a);
+  }
+  const Alignment al = align_poses(pairs, 1.0);
+  ASSERT_TRUE(al.ok);
+  EXPECT_LT((al.T_dst_src.matrix() - T.matrix()).norm(), 1e-9);
+  // One pair: exactly b * a^-1.
+  const Alignment one = align_poses({pairs[7]}, 1.0);
+  ASSERT_TRUE(one.ok);
+  EXPECT_LT((one.T_dst_src.matrix() - T.matrix()).norm(), 1e-9);
+  EXPECT_FALSE(align_poses({}, 1.0).ok);
+  EXPECT_FALSE(align_poses(pairs, 0.0).ok);
+}
+
+TEST(Alignment, PosesFitTheWholeTrajectoryNotItsFirstPose) {
+  // b bends away from a towards its end (drift corrected): the fit spreads the difference over the
+  // trajectory instead of holding the first pose and swinging the far end.
+  std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>> pairs;
+  for (int i = 0; i < 50; ++i) {
+    const Eigen::Isometry3d a(Eigen::Translation3d(2.0 * i, 0, 0));
+    const Eigen::Isometry3d b(Eigen::Translation3d(2.0 * i, 0, 0.001 * i * i));
+    pairs.emplace_back(a, b);
+  }
+  const Alignment al = align_poses(pairs, 1.0);
+  ASSERT_TRUE(al.ok);
+  double worst_fit = 0, worst_first = 0;
+  const Eigen::Isometry3d first = pairs.front().second * pairs.front().first.inverse();
+  for (const auto& [a, b] : pairs) {
+    worst_fit = std::max(worst_fit, ((al.T_dst_src * a).translation() - b.translation()).norm());
+    worst_first = std::max(worst_first, ((first * a).translation() - b.translation()).norm());
+  }
+  EXPECT_NEAR(worst_first, 0.001 * 49 * 49, 1e-9);
+  EXPECT_LT(worst_fit, 0.5 * worst_first);
+}
+
 TEST(Ate, ZeroForRigidlyMovedTrajectoryAfterSe3Alignment) {
   Poses gt;
   for (int i = 0; i < 100; ++i) {

@@ -1,5 +1,7 @@
 #include "cdc/central_optimiser/central_core.hpp"
 
+#include "cdc/geometry/alignment.hpp"
+
 #include <algorithm>
 #include <chrono>
 
@@ -324,11 +326,14 @@ std::vector<RobotEstimate> CentralCore::estimates() const {
       for (uint32_t id : s.in_graph) {
         e.poses.emplace_back(id, graph_.poses.at(key(s, id)));
       }
-      // The first-frames global transform (paper eq. 1-2): W from the robot's odometry frame, where
-      // the robot's first keyframe in the graph now is. Drift corrected later along the trajectory
-      // is not folded into it; the front-end's pose fusion takes it up towards the corrected poses.
-      const uint32_t first = *s.in_graph.begin();
-      e.T_world_robot = e.poses.front().second * s.keyframes.at(first).T_odom_keyframe.inverse();
+      // W from the robot's odometry frame (paper eq. 1-2), fitted to all its keyframes in the graph
+      // rather than held at the first: a new loop that turns the robot's whole trajectory about its
+      // first keyframe moves no corrected pose relative to the others. Only the change in shape (drift
+      // corrected along the trajectory) reaches the front-end, whose fusion takes it up.
+      std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>> odom_world;
+      odom_world.reserve(e.poses.size());
+      for (const auto& [id, T] : e.poses) odom_world.emplace_back(s.keyframes.at(id).T_odom_keyframe, T);
+      e.T_world_robot = geometry::align_poses(odom_world).T_dst_src;
     } else if (s.hint) {
       e.T_world_robot = *s.hint;
       for (const auto& [id, kf] : s.keyframes) {

@@ -1,5 +1,6 @@
 #include "cdc/peer_optimiser/peer_core.hpp"
 
+#include "cdc/geometry/alignment.hpp"
 #include "cdc/graph/solver.hpp"
 
 #include <algorithm>
@@ -231,9 +232,20 @@ std::optional<Eigen::Isometry3d> PeerCore::distributed_round() {
     T = g.poses.at(graph::make_key(me, id));
   }
   ++rounds_;
-  // T_world_robot as the central defines it: from the first keyframe (paper eq. 1-2).
-  const auto& first = *keyframes_.begin();
-  return estimate_.at(first.first) * first.second.T_odom.inverse();
+  return solution_world_transform(std::vector<std::pair<uint32_t, Eigen::Isometry3d>>(estimate_.begin(), estimate_.end()));
+}
+
+std::optional<Eigen::Isometry3d> PeerCore::solution_world_transform(
+    const std::vector<std::pair<uint32_t, Eigen::Isometry3d>>& poses) const {
+  // T_world_robot as the central defines it: fitted to all the solution's own keyframes (paper eq. 1-2).
+  std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>> odom_world;
+  odom_world.reserve(poses.size());
+  for (const auto& [id, T] : poses) {
+    if (const auto k = keyframes_.find(id); k != keyframes_.end()) odom_world.emplace_back(k->second.T_odom, T);
+  }
+  const geometry::Alignment a = geometry::align_poses(odom_world);
+  if (!a.ok) return std::nullopt;
+  return a.T_dst_src;
 }
 
 bool PeerCore::lowest_in_group() const {
@@ -384,13 +396,9 @@ StepOutput PeerCore::step(Nanos now, bool central_alive) {
     // own. A newer solution's poses under a T_world_robot still on its way put the front-end off by
     // the step still to go times the distance from the robot's first keyframe (robot 2 of the demo:
     // 0.3-0.4 m of height for 1.5 s after a rejoin, while the central's own estimate was steady).
-    if (!c.poses.empty()) {
-      const auto first = keyframes_.find(c.poses.front().first);
-      if (first != keyframes_.end()) {
-        const Eigen::Isometry3d solution_T_world_robot = c.poses.front().second * first->second.T_odom.inverse();
-        const Eigen::Isometry3d to_sent = c.T_world_robot * solution_T_world_robot.inverse();
-        for (auto& [id, T] : c.poses) T = to_sent * T;
-      }
+    if (const auto solution_T_world_robot = solution_world_transform(c.poses)) {
+      const Eigen::Isometry3d to_sent = c.T_world_robot * solution_T_world_robot->inverse();
+      for (auto& [id, T] : c.poses) T = to_sent * T;
     }
     out.correction = std::move(c);
   }

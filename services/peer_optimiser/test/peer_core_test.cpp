@@ -1,3 +1,4 @@
+#include "cdc/geometry/alignment.hpp"
 #include "cdc/geometry/se3.hpp"
 #include "cdc/graph/initialise.hpp"
 #include "cdc/graph/objective.hpp"
@@ -53,7 +54,9 @@ CentralResult central_for(const test::SwarmStream& s, uint32_t robot, uint32_t u
   for (uint32_t id = 0; id <= upto; ++id) {
     r.poses.emplace_back(id, offset * s.keyframes[robot][id].T_world_truth);
   }
-  r.T_world_robot = r.poses.front().second * s.keyframes[robot][0].T_odom_keyframe.inverse();  // first-frames transform
+  std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>> odom_world;  // the central's fitted transform
+  for (const auto& [id, T] : r.poses) odom_world.emplace_back(s.keyframes[robot][id].T_odom_keyframe, T);
+  r.T_world_robot = geometry::align_poses(odom_world).T_dst_src;
   return r;
 }
 
@@ -145,6 +148,34 @@ TEST(PeerCore, TheCorrectionsPosesAgreeWithItsWorldTransformAtEveryStep) {
   }
   EXPECT_GT(steps, 1) << "the world transform should have taken the change in more than one step";
   EXPECT_LT(steps, 100);
+}
+
+// A new solution that changes only the robot's first keyframes (a loop at its start turning them by
+// 0.5 deg of pitch) leaves the corrected newest keyframe where it was: T_world_robot is fitted to the
+// whole trajectory, not held at the first keyframe, which would swing the far end by metres.
+TEST(PeerCore, AChangeAtTheStartOfTheTrajectoryDoesNotSwingItsEnd) {
+  const auto s = test::make_swarm_stream({});
+  PeerCore core(config(1));
+  Nanos t = join_central(core, s, 1, 50, 1s);
+  auto newest_in_odometry = [](const Correction& c) { return c.T_world_robot.inverse() * c.poses.back().second; };
+  const Eigen::Isometry3d before = newest_in_odometry(*core.step(t += 50ms, true).correction);
+  CentralResult bent = central_for(s, 1, 49, Eigen::Isometry3d::Identity());
+  Eigen::Isometry3d pitch = Eigen::Isometry3d::Identity();
+  pitch.linear() = geometry::from_rpy(0, 0.5 * M_PI / 180, 0);
+  for (size_t i = 0; i < 3; ++i) bent.poses[i].second = bent.poses[i].second * pitch;
+  std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>> odom_world;
+  for (const auto& [id, T] : bent.poses) odom_world.emplace_back(s.keyframes[1][id].T_odom_keyframe, T);
+  bent.T_world_robot = geometry::align_poses(odom_world).T_dst_src;
+  const double span = (s.keyframes[1][49].T_world_truth.translation() - s.keyframes[1][0].T_world_truth.translation()).norm();
+  ASSERT_GT(span * 0.5 * M_PI / 180, 0.3) << "held at the first keyframe, the end would swing by this much";
+  core.on_central_result(bent);
+  for (int step = 0; step < 50; ++step) {
+    const auto out = core.step(t += 50ms, true);
+    ASSERT_TRUE(out.correction);
+    const Eigen::Isometry3d now = newest_in_odometry(*out.correction);
+    EXPECT_LT((now.translation() - before.translation()).norm(), 0.01) << "step " << step;
+    EXPECT_LT(geometry::rotation_angle(before.rotation().transpose() * now.rotation()), 1e-3) << "step " << step;
+  }
 }
 
 TEST(PeerCore, LivelinessLossSwitchesToDistributedAndKeepsCorrectingFromTheCentralEstimate) {

@@ -3,6 +3,9 @@
 
 #include <Eigen/Geometry>
 
+#include <utility>
+#include <vector>
+
 namespace cdc::geometry {
 
 struct Alignment {
@@ -17,5 +20,11 @@ Alignment align_umeyama(const Eigen::Matrix3Xd& src, const Eigen::Matrix3Xd& dst
 
 // Applies an alignment to a pose: position s R p + t, orientation R * R_p.
 Eigen::Isometry3d apply(const Alignment& a, const Eigen::Isometry3d& pose);
+
+// The rigid transform T that best maps poses a_i onto poses b_i (b_i ~= T * a_i), positions and
+// orientations together: each pair adds its position and the three points `arm_m` along its axes to a
+// Umeyama fit, so a single pair gives b_0 * a_0^-1 exactly and a straight trajectory is not degenerate.
+// Empty input or arm_m <= 0 gives ok = false.
+Alignment align_poses(const std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>>& a_b, double arm_m = 1.0);
 
 }  // namespace cdc::geometry

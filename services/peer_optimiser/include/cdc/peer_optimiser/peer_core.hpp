@@ -125,6 +125,9 @@ class PeerCore {
 
  private:
   std::optional<Eigen::Isometry3d> distributed_round();
+  // T_world_robot of a solution: the rigid fit of its poses to this robot's odometry keyframes.
+  std::optional<Eigen::Isometry3d> solution_world_transform(
+      const std::vector<std::pair<uint32_t, Eigen::Isometry3d>>& poses) const;
   void ensure_initial_values();
   bool lowest_in_group() const;
 
