@@ -258,7 +258,8 @@ void Launcher::sample_traffic(double t_s) {
   std::map<std::pair<uint32_t, uint32_t>, LinkBytes> counters;
   if (net_) counters = net_->counters();
   const std::string fallback = info_.central ? "CENTRALIZED" : "DISTRIBUTED";
-  std::map<uint32_t, std::string> charged;
+  std::map<uint32_t, std::string> charged, kf_charged;
+  std::map<uint32_t, uint64_t> made;  // keyframes each robot made over the interval
   for (uint32_t r : robots_) {
     const RobotNow now = read_now(run_ / ("robot_" + std::to_string(r)) / "modes.csv.now");
     const std::string own = now.mode == "-" ? fallback : now.mode;
@@ -271,8 +272,15 @@ void Launcher::sample_traffic(double t_s) {
     ModeTraffic& t = info_.traffic[r];
     // Keyframes still coming out of the last sweeps in the rendezvous belong to the mode they were made in.
     const std::string kf_mode = mode == "RENDEZVOUS" ? own : charged[r];
-    t.keyframes[kf_mode] += now.keyframes - std::min(now.keyframes, last_keyframes_[r]);
+    kf_charged[r] = kf_mode;
+    made[r] = now.keyframes - std::min(now.keyframes, last_keyframes_[r]);
+    t.keyframes[kf_mode] += made[r];
     last_keyframes_[r] = std::max(now.keyframes, last_keyframes_[r]);
+  }
+  for (uint32_t r : robots_) {
+    for (uint32_t p : robots_) {
+      if (p != r) info_.traffic[r].peer_keyframes[kf_charged[r]][p] += made[p];
+    }
   }
   for (const auto& [key, b] : counters) {
     const auto [r, peer] = key;

@@ -19,6 +19,16 @@ using nlohmann::json;
 
 namespace {
 
+// Keyframes made at both ends of a link while `t`'s robot was in `mode`: its own, and a robot peer's
+// (the central makes none).
+uint64_t keyframes_both_ends(const ModeTraffic& t, const std::string& mode, uint32_t peer) {
+  uint64_t n = t.keyframes.count(mode) ? t.keyframes.at(mode) : 0;
+  if (const auto m = t.peer_keyframes.find(mode); m != t.peer_keyframes.end()) {
+    if (const auto p = m->second.find(peer); p != m->second.end()) n += p->second;
+  }
+  return n;
+}
+
 struct Transition {
   int64_t wall_ns = 0, sim_ns = 0;
   std::string from, to, reason;
@@ -306,6 +316,11 @@ json write_report(const RunInfo& info) {
             l["bytes_per_keyframe"] = static_cast<double>(b.sent + b.received) / static_cast<double>(kfs);
             l["sent_bytes_per_keyframe"] = static_cast<double>(b.sent) / static_cast<double>(kfs);
           }
+          const uint64_t both = keyframes_both_ends(tit->second, mode, peer);
+          l["keyframes_both_ends"] = both;
+          if (both > 0) {
+            l["bytes_per_keyframe_both_ends"] = static_cast<double>(b.sent + b.received) / static_cast<double>(both);
+          }
           jm[mode][node_name(peer)] = l;
         }
       }
@@ -328,7 +343,7 @@ json write_report(const RunInfo& info) {
   // link that comes back carries before the robot rejoins).
   if (info.traffic_measured) {
     json per_link;
-    double worst_dist_per_kf = 0, worst_dist_sent_per_kf = 0;
+    double worst_dist_per_kf = 0, worst_dist_sent_per_kf = 0, worst_dist_both = 0;
     for (const auto& [r, t] : info.traffic) {
       for (const auto& [mode, peers] : t.bytes) {
         for (const auto& [peer, b] : peers) {
@@ -340,6 +355,10 @@ json write_report(const RunInfo& info) {
           if (mode == "DISTRIBUTED" && kfs > 0) {
             worst_dist_per_kf = std::max(worst_dist_per_kf, static_cast<double>(b.sent + b.received) / static_cast<double>(kfs));
             worst_dist_sent_per_kf = std::max(worst_dist_sent_per_kf, static_cast<double>(b.sent) / static_cast<double>(kfs));
+          }
+          const uint64_t both = keyframes_both_ends(t, mode, peer);
+          if (mode == "DISTRIBUTED" && both > 0) {
+            worst_dist_both = std::max(worst_dist_both, static_cast<double>(b.sent + b.received) / static_cast<double>(both));
           }
         }
       }
@@ -376,7 +395,8 @@ json write_report(const RunInfo& info) {
                     {"robot_links_whole_run", whole},
                     {"max_robot_link_bytes_per_keyframe_whole_run", worst_whole},
                     {"max_distributed_bytes_per_keyframe_per_link", worst_dist_per_kf},
-                    {"max_distributed_sent_bytes_per_own_keyframe_per_link", worst_dist_sent_per_kf}};
+                    {"max_distributed_sent_bytes_per_own_keyframe_per_link", worst_dist_sent_per_kf},
+                    {"max_distributed_bytes_per_keyframe_both_ends_per_link", worst_dist_both}};
   }
   // Plots.
   if (!kf_evals.empty()) {
@@ -447,17 +467,22 @@ json write_report(const RunInfo& info) {
        << "last sweep, when the final rendezvous brings every robot back in range (the catch-up: backlogs, and the\n"
        << "loops that could not be closed out of range with the clouds they need), whatever the robot's mode.\n\n"
        << "Per keyframe: the robot's own keyframes made in the mode. A robot's keyframe costs what it sends on a\n"
-       << "link (its descriptor, the clouds it serves, acknowledgements); what it receives is the other end's cost.\n\n"
-       << "| link | mode | data sent | data received | discovery | keyframes in mode | sent per keyframe | sent + received per keyframe |\n"
-       << "|---|---|---|---|---|---|---|---|\n";
+       << "link (its descriptor, the clouds it serves, acknowledgements); what it receives is the other end's cost.\n"
+       << "Both ends: the link's data both ways per keyframe made at either end while the robot was in the mode\n"
+       << "(to the central: its own keyframes only).\n\n"
+       << "| link | mode | data sent | data received | discovery | keyframes in mode | sent per keyframe | sent + received per keyframe | keyframes, both ends | sent + received per keyframe, both ends |\n"
+       << "|---|---|---|---|---|---|---|---|---|---|\n";
     for (const auto& [r, t] : info.traffic) {
       for (const auto& [mode, peers] : t.bytes) {
         const uint64_t kfs = t.keyframes.count(mode) ? t.keyframes.at(mode) : 0;
         for (const auto& [peer, b] : peers) {
+          const uint64_t both = keyframes_both_ends(t, mode, peer);
           md << "| " << node_name(r) << " - " << node_name(peer) << " | " << mode << " | " << b.sent << " | " << b.received
              << " | " << b.meta_sent + b.meta_received << " | " << kfs << " | "
              << (kfs > 0 ? fixed(static_cast<double>(b.sent) / static_cast<double>(kfs), 0) : std::string("-")) << " | "
              << (kfs > 0 ? fixed(static_cast<double>(b.sent + b.received) / static_cast<double>(kfs), 0) : std::string("-"))
+             << " | " << both << " | "
+             << (both > 0 ? fixed(static_cast<double>(b.sent + b.received) / static_cast<double>(both), 0) : std::string("-"))
              << " |\n";
         }
       }
@@ -465,7 +490,9 @@ json write_report(const RunInfo& info) {
     md << "\nLargest distributed-mode user data per own keyframe on a link (to a robot or to the central): "
        << fixed(j["traffic"]["max_distributed_sent_bytes_per_own_keyframe_per_link"].get<double>(), 0) << " B sent ("
        << fixed(j["traffic"]["max_distributed_bytes_per_keyframe_per_link"].get<double>(), 0)
-       << " B sent and received)\n"
+       << " B sent and received); per keyframe made at either end: "
+       << fixed(j["traffic"]["max_distributed_bytes_per_keyframe_both_ends_per_link"].get<double>(), 0)
+       << " B sent and received\n"
        << "\nWhole run, user data on each robot-to-robot link (both directions, every mode) per keyframe made by\n"
        << "either end (a backlog made while out of range crosses when the link returns, in the next mode):\n\n"
        << "| link | user data | keyframes (both ends) | bytes per keyframe |\n|---|---|---|---|\n";

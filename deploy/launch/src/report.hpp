@@ -25,6 +25,9 @@ struct LinkEvent {
 struct ModeTraffic {
   std::map<std::string, std::map<uint32_t, LinkBytes>> bytes;  // mode -> peer node -> bytes
   std::map<std::string, uint64_t> keyframes;                   // mode -> keyframes made in it
+  // mode -> robot peer -> keyframes that peer made while this robot was in the mode (the other end of
+  // a robot-to-robot link makes keyframes too, and its descriptors and clouds cross the same link)
+  std::map<std::string, std::map<uint32_t, uint64_t>> peer_keyframes;
 };
 
 struct RunInfo {

@@ -1,10 +1,12 @@
 // Pure helpers of the launcher's reports (no processes, no DDS).
+#include "network.hpp"
 #include "report.hpp"
 
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <unistd.h>
 
 namespace fs = std::filesystem;
@@ -61,6 +63,44 @@ TEST(PositionDifference, MissingFilesOrNoCommonStampsGiveNothing) {
   EXPECT_FALSE(position_difference(dir.file("a.tum"), dir.file("missing.tum")).has_value());
   EXPECT_FALSE(position_difference(dir.file("missing.tum"), dir.file("a.tum")).has_value());
   EXPECT_FALSE(position_difference(dir.file("a.tum"), dir.file("late.tum")).has_value());
+}
+
+// Distributed traffic per keyframe on a robot-to-robot link: per own keyframe (sent; sent and received)
+// and per keyframe made at either end, where the other robot's keyframes count too (the central's
+// link counts only the robot's own).
+TEST(Report, DistributedTrafficPerKeyframeOfBothEnds) {
+  TempDir dir;
+  RunInfo info;
+  info.name = "traffic";
+  info.run_dir = dir.file("run");
+  fs::create_directories(info.run_dir);
+  info.robots = {1, 2};
+  info.traffic_measured = true;
+  ModeTraffic& t1 = info.traffic[1];
+  t1.keyframes["DISTRIBUTED"] = 10;
+  t1.peer_keyframes["DISTRIBUTED"][2] = 30;
+  t1.bytes["DISTRIBUTED"][2] = LinkBytes{20000, 60000, 0, 0};
+  t1.bytes["DISTRIBUTED"][kCentralNode] = LinkBytes{100, 900, 0, 0};
+  ModeTraffic& t2 = info.traffic[2];
+  t2.keyframes["CENTRALIZED"] = 30;
+  t2.peer_keyframes["CENTRALIZED"][1] = 10;
+  t2.bytes["CENTRALIZED"][1] = LinkBytes{60000, 20000, 0, 0};
+  const nlohmann::json j = write_report(info);
+  const auto& link = j["robots"]["1"]["traffic"]["DISTRIBUTED"]["robot2"];
+  EXPECT_DOUBLE_EQ(link["sent_bytes_per_keyframe"].get<double>(), 2000.0);
+  EXPECT_DOUBLE_EQ(link["bytes_per_keyframe"].get<double>(), 8000.0);
+  EXPECT_EQ(link["keyframes_both_ends"].get<uint64_t>(), 40u);
+  EXPECT_DOUBLE_EQ(link["bytes_per_keyframe_both_ends"].get<double>(), 2000.0);
+  const auto& central = j["robots"]["1"]["traffic"]["DISTRIBUTED"]["central"];
+  EXPECT_EQ(central["keyframes_both_ends"].get<uint64_t>(), 10u);
+  EXPECT_DOUBLE_EQ(central["bytes_per_keyframe_both_ends"].get<double>(), 100.0);
+  // Only DISTRIBUTED counts for the headline figures.
+  EXPECT_DOUBLE_EQ(j["traffic"]["max_distributed_bytes_per_keyframe_per_link"].get<double>(), 8000.0);
+  EXPECT_DOUBLE_EQ(j["traffic"]["max_distributed_sent_bytes_per_own_keyframe_per_link"].get<double>(), 2000.0);
+  EXPECT_DOUBLE_EQ(j["traffic"]["max_distributed_bytes_per_keyframe_both_ends_per_link"].get<double>(), 2000.0);
+  std::ifstream md(fs::path(info.run_dir) / "report.md");
+  const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("| robot1 - robot2 | DISTRIBUTED | 20000 | 60000 | 0 | 10 | 2000 | 8000 | 40 | 2000 |"), std::string::npos);
 }
 
 }  // namespace
