@@ -39,6 +39,32 @@ const std::vector<VariantSpec> kVariants = {
 
 using cdc::launch::fixed;
 
+// One run's row of the table: its wall time and, per robot, real-time ATE/RPE, length, switches,
+// corrections taken and the final keyframes' ATE (from the run's report.json).
+json read_run(const fs::path& run, double wall) {
+  std::ifstream in(run / "report.json");
+  const json r = json::parse(in);
+  json row;
+  row["wall_s"] = r.value("wall_s", wall);  // the run's own wall time
+  for (const auto& [robot, jr] : r["robots"].items()) {
+    const json& e = jr["odometry"];
+    const json& kf = jr["keyframes"];
+    if (!e.contains("ate_m")) continue;
+    row["robots"][robot] = {{"ate_m", e["ate_m"]["rmse"]},
+                            {"rpe_m", e["rpe_frames"]["trans_m"]["rmse"]},
+                            {"length_m", e["gt_length_m"]},
+                            {"switches_to_distributed", jr["switches_to_distributed"]}};
+    if (jr.contains("stats") && jr["stats"].contains("frontend")) {
+      row["robots"][robot]["corrections"] = jr["stats"]["frontend"].value("corrections", 0);
+    }
+    if (kf.contains("ate_m")) {
+      row["robots"][robot]["keyframes_ate_m"] = kf["ate_m"]["rmse"];
+      row["robots"][robot]["keyframes_source"] = jr["keyframes_source"];
+    }
+  }
+  return row;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -68,6 +94,13 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::Range(0.0, 2.0));
   app.add_flag("--reuse", reuse, "keep runs that already have a report.json in OUT (re-tabulate only)");
+  int repeats = 1;
+  app.add_option("--repeats", repeats,
+                 "runs of (b) and (d), whose results depend on when back-end results reach the robots; the tables\n"
+                 "give the median per robot (runs 2.. in OUT/kittiNN_v_rK). (a) and (c) correct no front-end and,\n"
+                 "played in lock-step, repeat to the millimetre: they run once")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 9));
   CLI11_PARSE(app, argc, argv);
   cdc::launch::install_stop_signals();
   try {
@@ -92,55 +125,39 @@ int main(int argc, char** argv) {
       for (const VariantSpec& v : kVariants) {
         if (std::find(variants.begin(), variants.end(), v.key) == variants.end()) continue;
         if (cdc::launch::stop_signal() != 0) throw std::runtime_error("interrupted");
-        const std::string name = "kitti" + seq + "_" + v.key;
-        const fs::path swarm = fs::absolute(fs::path(out) / "swarms" / (name + ".yaml"));
-        const std::string& variant_yaml = v.yaml;
-        std::ofstream(swarm) << "name: " << name << "\nscenario: " << fs::absolute(scenario).string() << "\ndataset: "
-                             << fs::absolute(fs::path(datasets) / dataset).string() << "\n"
-                             << "max_scans: " << max_scans << "\nnetwork: netns\nlockstep: true\nsettle_s: 5\nmap: false\n"
-                             << variant_yaml << "configs:\n  peer_optimiser: "
-                             << fs::absolute(fs::path(root) / "deploy/swarms/config/peer_liveliness_only.yaml").string() << "\n";
-        const fs::path run = fs::absolute(fs::path(out) / name);
-        const auto t0 = std::chrono::steady_clock::now();
-        if (!(reuse && fs::exists(run / "report.json"))) {
-          std::cout << "cdc-experiment: " << name << " (" << v.label << ")" << std::endl;
-          cdc::launch::Process p(cdc::launch::ProcessSpec{
-              name, {fs::absolute(launcher).string(), swarm.string(), "--root", fs::absolute(root).string(), "--bin-dir",
-                     fs::absolute(bin_dir).string(), "--out", run.string(), "--no-progress"},
-              {}, "", (fs::path(out) / (name + ".log")).string()});
-          while (p.running()) {
-            if (cdc::launch::stop_signal() != 0) p.signal(SIGINT);
-            std::this_thread::sleep_for(std::chrono::milliseconds(200));
+        const int runs = (v.key == "b" || v.key == "d") ? repeats : 1;
+        std::vector<json> rows;
+        for (int k = 1; k <= runs; ++k) {
+          if (cdc::launch::stop_signal() != 0) throw std::runtime_error("interrupted");
+          const std::string name = "kitti" + seq + "_" + v.key + (k > 1 ? "_r" + std::to_string(k) : std::string());
+          const fs::path swarm = fs::absolute(fs::path(out) / "swarms" / (name + ".yaml"));
+          std::ofstream(swarm) << "name: " << name << "\nscenario: " << fs::absolute(scenario).string() << "\ndataset: "
+                               << fs::absolute(fs::path(datasets) / dataset).string() << "\n"
+                               << "max_scans: " << max_scans << "\nnetwork: netns\nlockstep: true\nsettle_s: 5\nmap: false\n"
+                               << v.yaml << "configs:\n  peer_optimiser: "
+                               << fs::absolute(fs::path(root) / "deploy/swarms/config/peer_liveliness_only.yaml").string() << "\n";
+          const fs::path run = fs::absolute(fs::path(out) / name);
+          const auto t0 = std::chrono::steady_clock::now();
+          if (!(reuse && fs::exists(run / "report.json"))) {
+            std::cout << "cdc-experiment: " << name << " (" << v.label << ")" << std::endl;
+            cdc::launch::Process p(cdc::launch::ProcessSpec{
+                name, {fs::absolute(launcher).string(), swarm.string(), "--root", fs::absolute(root).string(), "--bin-dir",
+                       fs::absolute(bin_dir).string(), "--out", run.string(), "--no-progress"},
+                {}, "", (fs::path(out) / (name + ".log")).string()});
+            while (p.running()) {
+              if (cdc::launch::stop_signal() != 0) p.signal(SIGINT);
+              std::this_thread::sleep_for(std::chrono::milliseconds(200));
+            }
+            if (p.exit_status().value_or(-1) != 0) {
+              std::cout << "cdc-experiment: " << name << " failed; see " << (fs::path(out) / (name + ".log")).string() << std::endl;
+              continue;
+            }
           }
-          if (p.exit_status().value_or(-1) != 0) {
-            table[seq][v.key] = {{"error", "cdc-launch failed (exit " + std::to_string(p.exit_status().value_or(-1)) + ")"}};
-            std::cout << "cdc-experiment: " << name << " failed; see " << (fs::path(out) / (name + ".log")).string() << std::endl;
-            continue;
-          }
+          const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+          rows.push_back(read_run(run, wall));
+          std::cout << "cdc-experiment: " << name << " done in " << fixed(wall, 0) << " s" << std::endl;
         }
-        const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        std::ifstream in(run / "report.json");
-        const json r = json::parse(in);
-        json row;
-        row["wall_s"] = r.value("wall_s", wall);  // the run's own wall time
-        for (const auto& [robot, jr] : r["robots"].items()) {
-          const json& e = jr["odometry"];
-          const json& kf = jr["keyframes"];
-          if (!e.contains("ate_m")) continue;
-          row["robots"][robot] = {{"ate_m", e["ate_m"]["rmse"]},
-                                  {"rpe_m", e["rpe_frames"]["trans_m"]["rmse"]},
-                                  {"length_m", e["gt_length_m"]},
-                                  {"switches_to_distributed", jr["switches_to_distributed"]}};
-          if (jr.contains("stats") && jr["stats"].contains("frontend")) {
-            row["robots"][robot]["corrections"] = jr["stats"]["frontend"].value("corrections", 0);
-          }
-          if (kf.contains("ate_m")) {
-            row["robots"][robot]["keyframes_ate_m"] = kf["ate_m"]["rmse"];
-            row["robots"][robot]["keyframes_source"] = jr["keyframes_source"];
-          }
-        }
-        table[seq][v.key] = row;
-        std::cout << "cdc-experiment: " << name << " done in " << fixed(wall, 0) << " s" << std::endl;
+        table[seq][v.key] = rows.empty() ? json{{"error", "every cdc-launch run failed"}} : cdc::launch::merge_runs(rows);
       }
     }
     // Table IV: rows = sequence x robot, columns = variant; `cell` formats one robot's entry.
@@ -164,10 +181,21 @@ int main(int argc, char** argv) {
         }
       }
     };
-    write_table("# Table IV (our data): ATE / RPE [m] of each robot's real-time trajectory, SE(3)-aligned per robot",
+    const std::string medians =
+        repeats > 1 ? " ((b) and (d): median of " + std::to_string(repeats) + " runs)" : std::string();
+    write_table("# Table IV (our data): ATE / RPE [m] of each robot's real-time trajectory, SE(3)-aligned per robot" + medians,
                 [](const json& r) { return fixed(r["ate_m"].get<double>(), 3) + " / " + fixed(r["rpe_m"].get<double>(), 4); });
+    if (repeats > 1) {
+      write_table("\nReal-time ATE [m] of every run of (b) and (d):", [](const json& r) {
+        std::string text;
+        if (r.contains("ate_m_runs")) {
+          for (const json& x : r["ate_m_runs"]) text += (text.empty() ? "" : ", ") + fixed(x.get<double>(), 3);
+        }
+        return text;
+      });
+    }
     write_table("\nFinal optimised keyframes, ATE [m] (the central's final graph where it holds the robot, else the robot's "
-                "peer optimiser):",
+                "peer optimiser)" + medians + ":",
                 [](const json& r) {
                   return r.contains("keyframes_ate_m") ? fixed(r["keyframes_ate_m"].get<double>(), 3) : std::string();
                 });
@@ -217,7 +245,8 @@ int main(int argc, char** argv) {
     // the real-time trajectory from (c)'s (same scenario, lock-step: (c) and (d) differ only by it).
     md << "\nWhat the correction had to work with, per robot: the final keyframes' ATE gain over the real-time "
           "odometry in (c) (what a correction could bring at most, roughly), corrections the front-end took in (d), "
-          "and how far they moved its real-time trajectory from (c)'s (RMS / largest position difference [m]):\n\n"
+          "and how far they moved its real-time trajectory from (c)'s (RMS / largest position difference [m]"
+       << (repeats > 1 ? ", (d)'s first run" : "") << "):\n\n"
        << "| sequence | robot | (c) odometry - keyframes ATE | corrections in (d) | (d) moved from (c) |\n"
        << "|---|---|---|---|---|\n";
     for (const std::string& seq : sequences) {

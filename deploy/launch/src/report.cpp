@@ -10,6 +10,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <tuple>
 #include <sstream>
 
@@ -549,6 +550,51 @@ std::optional<PositionDifference> position_difference(const std::string& tum_a, 
   d.matched = pairs.size();
   d.rms_m = std::sqrt(sum / static_cast<double>(pairs.size()));
   return d;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// Several runs of one variant: per robot the median of each figure over the runs that have it, the
+// smallest and largest real-time ATE, and every run's ATE.
+json merge_runs(const std::vector<json>& rows) {
+  if (rows.size() == 1) return rows.front();
+  json out;
+  out["runs"] = rows.size();
+  std::vector<double> walls;
+  for (const json& r : rows) walls.push_back(r.value("wall_s", 0.0));
+  out["wall_s"] = median(walls);
+  std::set<std::string> robots;
+  for (const json& r : rows) {
+    if (r.contains("robots")) {
+      for (const auto& [robot, _] : r["robots"].items()) robots.insert(robot);
+    }
+  }
+  for (const std::string& robot : robots) {
+    json m;
+    for (const char* key : {"ate_m", "rpe_m", "length_m", "keyframes_ate_m", "corrections", "switches_to_distributed"}) {
+      std::vector<double> v;
+      for (const json& r : rows) {
+        if (r.contains("robots") && r["robots"].contains(robot) && r["robots"][robot].contains(key)) {
+          v.push_back(r["robots"][robot][key].get<double>());
+        }
+      }
+      if (v.empty()) continue;
+      m[key] = median(v);
+      if (std::string(key) == "ate_m") {
+        m["ate_m_runs"] = v;
+        m["ate_m_min"] = *std::min_element(v.begin(), v.end());
+        m["ate_m_max"] = *std::max_element(v.begin(), v.end());
+      }
+    }
+    if (m.contains("corrections")) m["corrections"] = static_cast<uint64_t>(m["corrections"].get<double>());
+    out["robots"][robot] = m;
+  }
+  return out;
 }
 
 }  // namespace cdc::launch

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <optional>
 #include <unistd.h>
 
 namespace fs = std::filesystem;
@@ -101,6 +102,34 @@ TEST(Report, DistributedTrafficPerKeyframeOfBothEnds) {
   std::ifstream md(fs::path(info.run_dir) / "report.md");
   const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("| robot1 - robot2 | DISTRIBUTED | 20000 | 60000 | 0 | 10 | 2000 | 8000 | 40 | 2000 |"), std::string::npos);
+}
+
+// cdc-experiment's repeats: per robot the median of each figure over the runs that have it, the
+// real-time ATE's range and every run's value; a single run stays as it is.
+TEST(MergeRuns, MediansPerRobotOverTheRunsThatHaveThem) {
+  auto row = [](double wall, double ate0, double kf0, std::optional<double> ate1) {
+    nlohmann::json r{{"wall_s", wall}};
+    r["robots"]["0"] = {{"ate_m", ate0}, {"rpe_m", 0.001}, {"length_m", 500.0}, {"keyframes_ate_m", kf0}, {"corrections", 10}};
+    if (ate1) r["robots"]["1"] = {{"ate_m", *ate1}, {"rpe_m", 0.002}, {"length_m", 300.0}};
+    return r;
+  };
+  const std::vector<nlohmann::json> rows = {row(100, 0.030, 0.020, 0.010), row(120, 0.010, 0.040, std::nullopt),
+                                            row(110, 0.020, 0.030, 0.030)};
+  const nlohmann::json m = merge_runs(rows);
+  EXPECT_EQ(m["runs"].get<int>(), 3);
+  EXPECT_DOUBLE_EQ(m["wall_s"].get<double>(), 110.0);
+  EXPECT_DOUBLE_EQ(m["robots"]["0"]["ate_m"].get<double>(), 0.020);
+  EXPECT_DOUBLE_EQ(m["robots"]["0"]["keyframes_ate_m"].get<double>(), 0.030);
+  EXPECT_DOUBLE_EQ(m["robots"]["0"]["ate_m_min"].get<double>(), 0.010);
+  EXPECT_DOUBLE_EQ(m["robots"]["0"]["ate_m_max"].get<double>(), 0.030);
+  EXPECT_EQ(m["robots"]["0"]["ate_m_runs"].size(), 3u);
+  EXPECT_EQ(m["robots"]["0"]["corrections"].get<uint64_t>(), 10u);
+  // Robot 1 is in two runs only: the median of two is their mean.
+  EXPECT_DOUBLE_EQ(m["robots"]["1"]["ate_m"].get<double>(), 0.020);
+  EXPECT_FALSE(m["robots"]["1"].contains("keyframes_ate_m"));
+  EXPECT_EQ(merge_runs({rows[1]}), rows[1]);
+  EXPECT_DOUBLE_EQ(median({}), 0.0);
+  EXPECT_DOUBLE_EQ(median({3, 1, 2}), 2.0);
 }
 
 }  // namespace
