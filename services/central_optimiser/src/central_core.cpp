@@ -333,7 +333,8 @@ std::vector<RobotEstimate> CentralCore::estimates() const {
       std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>> odom_world;
       odom_world.reserve(e.poses.size());
       for (const auto& [id, T] : e.poses) odom_world.emplace_back(s.keyframes.at(id).T_odom_keyframe, T);
-      e.T_world_robot = geometry::align_poses(odom_world).T_dst_src;
+      const geometry::Alignment fit = geometry::align_poses(odom_world);
+      e.T_world_robot = fit.ok ? fit.T_dst_src : odom_world.front().second * odom_world.front().first.inverse();
     } else if (s.hint) {
       e.T_world_robot = *s.hint;
       for (const auto& [id, kf] : s.keyframes) {
