@@ -317,7 +317,7 @@ Validation validate(const cdc_msg_CloudReply& m, const ValidationLimits& limits)
 Validation validate(const cdc_msg_OptimizedPoses& m, const ValidationLimits& limits) {
   CDC_CHECK(validate_robot_id(m.robot_id, "robot_id", limits));
   CDC_CHECK(check_node_id(m.sender_robot_id, "sender_robot_id", limits));
-  CDC_CHECK(check_enum(m.source, 2, "source"));
+  CDC_CHECK(check_enum(m.source, 3, "source"));
   CDC_CHECK(validate_pose(m.T_world_robot, "T_world_robot", limits));
   return check_keyframe_poses(m.poses, limits, "poses", &m.robot_id);
 }
@@ -330,7 +330,7 @@ Validation validate(const cdc_msg_SeparatorPoses& m, const ValidationLimits& lim
 
 Validation validate(const cdc_msg_WorldTransform& m, const ValidationLimits& limits) {
   CDC_CHECK(validate_robot_id(m.robot_id, "robot_id", limits));
-  CDC_CHECK(check_enum(m.source, 2, "source"));
+  CDC_CHECK(check_enum(m.source, 3, "source"));
   return validate_pose(m.T_world_robot, "T_world_robot", limits);
 }
 

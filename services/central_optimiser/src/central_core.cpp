@@ -337,6 +337,7 @@ std::vector<RobotEstimate> CentralCore::estimates() const {
       e.T_world_robot = fit.ok ? fit.T_dst_src : odom_world.front().second * odom_world.front().first.inverse();
     } else if (s.hint) {
       e.T_world_robot = *s.hint;
+      e.from_hint = true;
       for (const auto& [id, kf] : s.keyframes) {
         e.poses.emplace_back(id, *s.hint * kf.T_odom_keyframe);
       }

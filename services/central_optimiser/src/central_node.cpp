@@ -219,7 +219,7 @@ int run_central(const CentralNodeOptions& o) {
           msg.sender_incarnation = incarnation;
           msg.graph_version = core.version();
           msg.stamp_ns = dds::now_ns();
-          msg.source = cdc_msg_SOURCE_CENTRAL;
+          msg.source = e.from_hint ? cdc_msg_SOURCE_CENTRAL_HINT : cdc_msg_SOURCE_CENTRAL;
           msg.T_world_robot = dds::to_msg(e.T_world_robot);
           dds::borrow(msg.poses, pose_storage);
           w_results.at(e.robot).write(msg);

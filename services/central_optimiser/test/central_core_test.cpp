@@ -58,6 +58,7 @@ TEST(CentralCore, PlacesEveryRobotThroughInterRobotLoopsAndTracksTheTruth) {
   ASSERT_EQ(est.size(), 3u);
   for (const auto& e : est) {
     EXPECT_EQ(e.poses.size(), 250u) << "robot " << e.robot;
+    EXPECT_FALSE(e.from_hint) << "robot " << e.robot;
     // T_world_robot is the odometry frame's place in W fitted to all the robot's keyframes: it lays
     // the odometry over the estimate with a smaller misfit than holding the first keyframe, and so
     // over the truth up to the odometry's drift.
@@ -204,6 +205,7 @@ TEST(CentralCore, AWorldHintPlacesARobotBeforeAnyLoop) {
   ASSERT_EQ(est.size(), 1u);
   EXPECT_LT((est[0].T_world_robot.matrix() - s.T_world_odom[2].matrix()).norm(), 1e-12);
   EXPECT_EQ(est[0].poses.size(), 10u);
+  EXPECT_TRUE(est[0].from_hint) << "a placement from the robot's own hint is flagged as such";
 }
 
 // A large change (here the whole swarm at once) does not converge within one bounded update: the

@@ -282,8 +282,13 @@ StepOutput PeerCore::step(Nanos now, bool central_alive) {
   // central placing the robot anew (its first loop after a rejoin), with a gap in the re-sent backlog
   // it fills in order. Relaying it carried the correction back to an old keyframe and out again with a
   // different placement: robot 2 of the demo 0.3 m off for 0.8 s. Wait until it catches up.
+  // A placement from the robot's own hint (the central has not put it in its graph yet) holds every
+  // keyframe but no correction: relaying it took the front-end back to its bare odometry, then to the
+  // stale distributed estimate once a placed result with part of the backlog came, then to the central's
+  // (three sources in a few seconds after a rejoin, session 19's debug run). It is not relayed and does
+  // not count towards the frontier: the distributed estimate stays until a placed result is current.
   std::optional<uint32_t> central_newest;  // the newest own keyframe the central's last result holds
-  if (central_) {
+  if (central_ && !central_->from_hint) {
     for (const auto& p : central_->poses) central_newest = std::max(central_newest.value_or(0), p.first);
   }
   if (!frontier_ && central_newest && relayed_newest_ && *central_newest < *relayed_newest_) {
@@ -292,7 +297,7 @@ StepOutput PeerCore::step(Nanos now, bool central_alive) {
   if (frontier_ && central_newest && *central_newest >= *frontier_) {
     frontier_.reset();
   }
-  const bool central_current = central_.has_value() && !frontier_;
+  const bool central_current = central_.has_value() && !central_->from_hint && !frontier_;
   if (central_current && central_newest) {
     relayed_newest_ = std::max(relayed_newest_.value_or(0), *central_newest);
   }

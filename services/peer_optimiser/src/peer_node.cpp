@@ -274,6 +274,7 @@ int run_peer(const PeerNodeOptions& o) {
       r.central_incarnation = m.sender_incarnation;
       r.version = m.graph_version;
       r.T_world_robot = dds::to_eigen(m.T_world_robot);
+      r.from_hint = m.source == cdc_msg_SOURCE_CENTRAL_HINT;
       for (uint32_t i = 0; i < m.poses._length; ++i) {
         r.poses.emplace_back(m.poses._buffer[i].keyframe_id, dds::to_eigen(m.poses._buffer[i].pose));
       }

@@ -246,6 +246,44 @@ TEST(PeerCore, AfterARejoinTheCentralIsRelayedOnlyOnceItHoldsTheNewKeyframes) {
   EXPECT_GT(out.correction->T_world_robot.translation().z() - before.translation().z(), 0.05);
 }
 
+// After a rejoin the central answers a robot it has not placed in its graph with the robot's own hint
+// (every keyframe, no correction of the central's): that is not relayed, and it does not let a later
+// placed result holding part of the backlog through either. The distributed estimate stays the one
+// source until a placed result holds every keyframe.
+TEST(PeerCore, AHintOnlyCentralResultIsNotRelayed) {
+  const auto s = test::make_swarm_stream({});
+  PeerCore core(config(1));
+  Nanos t = join_central(core, s, 1, 60, 1500ms);
+  ASSERT_TRUE(core.step(t += 50ms, false).transition);  // the central's lease lapsed
+  for (uint32_t id = 60; id < 80; ++id) {
+    core.add_keyframe(kf_from(s.keyframes[1][id]), t);
+    core.step(t += 100ms, false);
+  }
+  bool rejoined = false;
+  for (int i = 0; i < 40 && !rejoined; ++i) {
+    const auto out = core.step(t += 50ms, true);
+    rejoined = out.transition && out.transition->to == Mode::kCentralized;
+  }
+  ASSERT_TRUE(rejoined);
+  Eigen::Isometry3d up = Eigen::Isometry3d::Identity();
+  up.translation().z() = 1.0;
+  CentralResult hint = central_for(s, 1, 79, up);
+  hint.from_hint = true;
+  for (int i = 0; i < 40; ++i) {
+    if (i == 0) core.on_central_result(hint);
+    if (i == 20) core.on_central_result(central_for(s, 1, 70, up));  // placed, part of the backlog
+    const auto out = core.step(t += 50ms, true);
+    ASSERT_TRUE(out.correction);
+    EXPECT_FALSE(out.correction->from_central) << "step " << i;
+    EXPECT_EQ(out.correction->poses.back().first, 79u) << "step " << i << ": not the distributed estimate";
+  }
+  core.on_central_result(central_for(s, 1, 79, up));  // placed, every keyframe
+  const auto out = core.step(t += 50ms, true);
+  ASSERT_TRUE(out.correction);
+  EXPECT_TRUE(out.correction->from_central);
+  EXPECT_EQ(out.correction->poses.size(), 80u);
+}
+
 // A central result that holds fewer of the robot's keyframes than one already relayed (the central
 // placing the robot anew, with a gap in the re-sent backlog) is not relayed until it catches up.
 TEST(PeerCore, ACentralResultThatFallsBehindOneRelayedIsNotRelayed) {

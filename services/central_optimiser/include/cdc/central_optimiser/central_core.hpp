@@ -73,6 +73,7 @@ struct RobotEstimate {
   uint32_t incarnation = 0;
   Eigen::Isometry3d T_world_robot = Eigen::Isometry3d::Identity();
   std::vector<std::pair<uint32_t, Eigen::Isometry3d>> poses;  // keyframe id -> T_world_keyframe
+  bool from_hint = false;  // not in the graph yet: placed by the robot's own hint (no shape of the graph's)
 };
 
 struct Acknowledgement {

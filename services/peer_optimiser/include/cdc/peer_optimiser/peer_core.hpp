@@ -60,6 +60,9 @@ struct CentralResult {
   uint64_t version = 0;
   Eigen::Isometry3d T_world_robot = Eigen::Isometry3d::Identity();
   std::vector<std::pair<uint32_t, Eigen::Isometry3d>> poses;  // own keyframes, T_world_keyframe
+  // The central has not placed the robot in its graph yet and returns the robot's own hint (its
+  // T_world_robot times the odometry): W is known, but there is no correction in it to relay.
+  bool from_hint = false;
 };
 
 struct AckIn {
