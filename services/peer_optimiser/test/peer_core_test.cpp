@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <map>
+#include <optional>
 
 namespace cdc::peer {
 namespace {
@@ -72,6 +73,22 @@ Nanos join_central(PeerCore& core, const test::SwarmStream& s, uint32_t robot, u
     core.step(t, true);
   }
   return t;
+}
+
+// Robot 1 with keyframes 0..59 joins the central, loses its lease, makes keyframes 60..79 in
+// DISTRIBUTED mode and comes back: returns the time of its switch to CENTRALIZED (none: it did not).
+std::optional<Nanos> cut_and_rejoin(PeerCore& core, const test::SwarmStream& s) {
+  Nanos t = join_central(core, s, 1, 60, 1500ms);
+  if (core.mode() != Mode::kCentralized || !core.step(t += 50ms, false).transition) return std::nullopt;
+  for (uint32_t id = 60; id < 80; ++id) {
+    core.add_keyframe(kf_from(s.keyframes[1][id]), t);
+    core.step(t += 100ms, false);
+  }
+  for (int i = 0; i < 40; ++i) {
+    const auto out = core.step(t += 50ms, true);
+    if (out.transition && out.transition->to == Mode::kCentralized) return t;
+  }
+  return std::nullopt;
 }
 
 // Keyframes without a corrected pose follow their odometry from the nearest corrected one before
@@ -206,30 +223,27 @@ TEST(PeerCore, LivelinessLossSwitchesToDistributedAndKeepsCorrectingFromTheCentr
 // Back from DISTRIBUTED, the central's results are relayed only once the central holds every
 // keyframe made before the rejoin: its last result from before the cut, or one from a graph still
 // taking in the re-sent backlog, would pull the front-end back to where the robot was then (in a
-// demo run, 0.4 m of height for 2 s).
+// demo run, 0.4 m of height for 2 s). A placement from the robot's own hint (the central has not
+// put it in its graph yet) holds every keyframe but no correction: it is not relayed either, nor
+// lets the partial backlog after it through; the distributed estimate stays the one source.
 TEST(PeerCore, AfterARejoinTheCentralIsRelayedOnlyOnceItHoldsTheNewKeyframes) {
   const auto s = test::make_swarm_stream({});
   PeerCore core(config(1));
-  Nanos t = join_central(core, s, 1, 60, 1500ms);
-  ASSERT_EQ(core.mode(), Mode::kCentralized);
-  ASSERT_TRUE(core.step(t += 50ms, false).transition);  // the central's lease lapsed
-  for (uint32_t id = 60; id < 80; ++id) {
-    core.add_keyframe(kf_from(s.keyframes[1][id]), t);
-    core.step(t += 100ms, false);
-  }
-  bool rejoined = false;
-  for (int i = 0; i < 40 && !rejoined; ++i) {
-    const auto out = core.step(t += 50ms, true);
-    rejoined = out.transition && out.transition->to == Mode::kCentralized;
-  }
+  const auto rejoined = cut_and_rejoin(core, s);
   ASSERT_TRUE(rejoined);
-  // Back in reach: the central's results hold keyframes up to 59, then a partial backlog (up to
-  // 70), 1 m higher than the truth; they must not be relayed.
+  Nanos t = *rejoined;
+  // Back in reach: the central's results hold keyframes up to 59, then all of them placed by the
+  // robot's hint, then a partial backlog (up to 70), 1 m higher than the truth; none is relayed.
   Eigen::Isometry3d up = Eigen::Isometry3d::Identity();
   up.translation().z() = 1.0;
   const Eigen::Isometry3d before = core.step(t += 50ms, true).correction->T_world_robot;
   for (int i = 0; i < 40; ++i) {
     if (i == 0) core.on_central_result(central_for(s, 1, 59, up));
+    if (i == 10) {
+      CentralResult hint = central_for(s, 1, 79, up);
+      hint.from_hint = true;
+      core.on_central_result(hint);
+    }
     if (i == 20) core.on_central_result(central_for(s, 1, 70, up));
     const auto out = core.step(t += 50ms, true);
     ASSERT_TRUE(out.correction);
@@ -244,44 +258,6 @@ TEST(PeerCore, AfterARejoinTheCentralIsRelayedOnlyOnceItHoldsTheNewKeyframes) {
   EXPECT_TRUE(out.correction->from_central);
   EXPECT_EQ(out.correction->poses.size(), 80u);
   EXPECT_GT(out.correction->T_world_robot.translation().z() - before.translation().z(), 0.05);
-}
-
-// After a rejoin the central answers a robot it has not placed in its graph with the robot's own hint
-// (every keyframe, no correction of the central's): that is not relayed, and it does not let a later
-// placed result holding part of the backlog through either. The distributed estimate stays the one
-// source until a placed result holds every keyframe.
-TEST(PeerCore, AHintOnlyCentralResultIsNotRelayed) {
-  const auto s = test::make_swarm_stream({});
-  PeerCore core(config(1));
-  Nanos t = join_central(core, s, 1, 60, 1500ms);
-  ASSERT_TRUE(core.step(t += 50ms, false).transition);  // the central's lease lapsed
-  for (uint32_t id = 60; id < 80; ++id) {
-    core.add_keyframe(kf_from(s.keyframes[1][id]), t);
-    core.step(t += 100ms, false);
-  }
-  bool rejoined = false;
-  for (int i = 0; i < 40 && !rejoined; ++i) {
-    const auto out = core.step(t += 50ms, true);
-    rejoined = out.transition && out.transition->to == Mode::kCentralized;
-  }
-  ASSERT_TRUE(rejoined);
-  Eigen::Isometry3d up = Eigen::Isometry3d::Identity();
-  up.translation().z() = 1.0;
-  CentralResult hint = central_for(s, 1, 79, up);
-  hint.from_hint = true;
-  for (int i = 0; i < 40; ++i) {
-    if (i == 0) core.on_central_result(hint);
-    if (i == 20) core.on_central_result(central_for(s, 1, 70, up));  // placed, part of the backlog
-    const auto out = core.step(t += 50ms, true);
-    ASSERT_TRUE(out.correction);
-    EXPECT_FALSE(out.correction->from_central) << "step " << i;
-    EXPECT_EQ(out.correction->poses.back().first, 79u) << "step " << i << ": not the distributed estimate";
-  }
-  core.on_central_result(central_for(s, 1, 79, up));  // placed, every keyframe
-  const auto out = core.step(t += 50ms, true);
-  ASSERT_TRUE(out.correction);
-  EXPECT_TRUE(out.correction->from_central);
-  EXPECT_EQ(out.correction->poses.size(), 80u);
 }
 
 // A central result that holds fewer of the robot's keyframes than one already relayed (the central
