@@ -3,6 +3,7 @@
 #include "process.hpp"
 
 #include "cdc/eval/evaluation.hpp"
+#include "cdc/geometry/metrics.hpp"
 #include "cdc/geometry/trajectory.hpp"
 #include "cdc/graph/g2o.hpp"
 
@@ -552,13 +553,6 @@ std::optional<PositionDifference> position_difference(const std::string& tum_a, 
   return d;
 }
 
-double median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 == 1 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 // Several runs of one variant: per robot the median of each figure over the runs that have it, the
 // smallest and largest real-time ATE, and every run's ATE.
 json merge_runs(const std::vector<json>& rows) {
@@ -567,7 +561,7 @@ json merge_runs(const std::vector<json>& rows) {
   out["runs"] = rows.size();
   std::vector<double> walls;
   for (const json& r : rows) walls.push_back(r.value("wall_s", 0.0));
-  out["wall_s"] = median(walls);
+  out["wall_s"] = geometry::compute_stats(walls).median;
   std::set<std::string> robots;
   for (const json& r : rows) {
     if (r.contains("robots")) {
@@ -584,11 +578,12 @@ json merge_runs(const std::vector<json>& rows) {
         }
       }
       if (v.empty()) continue;
-      m[key] = median(v);
+      const geometry::ErrorStats st = geometry::compute_stats(v);
+      m[key] = st.median;
       if (std::string(key) == "ate_m") {
         m["ate_m_runs"] = v;
-        m["ate_m_min"] = *std::min_element(v.begin(), v.end());
-        m["ate_m_max"] = *std::max_element(v.begin(), v.end());
+        m["ate_m_min"] = st.min;
+        m["ate_m_max"] = st.max;
       }
     }
     if (m.contains("corrections")) m["corrections"] = static_cast<uint64_t>(m["corrections"].get<double>());

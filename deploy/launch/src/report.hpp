@@ -63,9 +63,6 @@ std::optional<PositionDifference> position_difference(const std::string& tum_a, 
 // Writes every result file into info.run_dir and returns report.json's content.
 nlohmann::json write_report(const RunInfo& info);
 
-// Median of the values (0 for none).
-double median(std::vector<double> v);
-
 // cdc-experiment: several runs of one variant (rows as it reads them from each run's report.json:
 // wall_s and robots -> figures) merged into one row: per robot the median of each figure over the
 // runs that have it, the smallest and largest real-time ATE and every run's ATE; one row stays as is.
