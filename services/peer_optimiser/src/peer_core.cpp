@@ -1,6 +1,7 @@
 #include "cdc/peer_optimiser/peer_core.hpp"
 
 #include "cdc/geometry/alignment.hpp"
+#include "cdc/geometry/se3.hpp"
 #include "cdc/graph/solver.hpp"
 
 #include <algorithm>
@@ -229,7 +230,8 @@ std::optional<Eigen::Isometry3d> PeerCore::distributed_round() {
   o.robust_loss_scale = 0.0;
   graph::solve(g, o, fixed);
   for (auto& [id, T] : estimate_) {
-    T = g.poses.at(graph::make_key(me, id));
+    const Eigen::Isometry3d& S = g.poses.at(graph::make_key(me, id));
+    T = config_.relaxation == 1.0 ? S : T * geometry::se3_exp(config_.relaxation * geometry::se3_log(T.inverse() * S));
   }
   ++rounds_;
   return solution_world_transform(std::vector<std::pair<uint32_t, Eigen::Isometry3d>>(estimate_.begin(), estimate_.end()));

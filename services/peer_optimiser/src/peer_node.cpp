@@ -68,6 +68,7 @@ PeerNodeOptions load_options(const std::string& path) {
   o.core.resend_period = std::chrono::milliseconds(resend);
   r.get<double>("peer_range_m", o.core.peer_range_m, positive_d, "> 0");
   r.get<int>("distributed_iterations", o.core.distributed_iterations, positive_i, "> 0");
+  r.get<double>("distributed_relaxation", o.core.relaxation, [](const double& v) { return v > 0 && v <= 1; }, "in (0, 1]");
   r.get<bool>("share_loop_information", o.core.share_loop_information);
   r.get<double>("fusion.pos_max_m", o.core.fusion.pos_max, positive_d, "> 0");
   double rot_deg = o.core.fusion.rot_max * 180.0 / M_PI;

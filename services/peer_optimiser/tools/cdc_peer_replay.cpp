@@ -1,0 +1,234 @@
+// cdc-peer-replay: the distributed back-end of a run, without DDS and without a central. Replays a
+// multi-robot pose graph (g2o, as the central writes it) through one PeerCore per robot: keyframes
+// arrive at their stamps, each loop once both its keyframes exist (plus a latency and a seeded
+// jitter), and every robot's separators reach their targets after each tick, as the nodes exchange
+// them. Every robot steps at once, as the nodes do. Reports per robot the ATE of the odometry, of the
+// keyframes where the corrections had placed them when they were made (the real-time view), and of
+// the final estimate; and the joint cost of the distributed estimate against the centralized optimum.
+#include "cdc/geometry/metrics.hpp"
+#include "cdc/geometry/trajectory.hpp"
+#include "cdc/graph/g2o.hpp"
+#include "cdc/graph/initialise.hpp"
+#include "cdc/graph/objective.hpp"
+#include "cdc/graph/solver.hpp"
+#include "cdc/peer_optimiser/peer_core.hpp"
+
+#include <CLI/CLI.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <map>
+#include <random>
+#include <string>
+#include <vector>
+
+using namespace cdc;
+
+namespace {
+
+using Stamped = std::vector<std::pair<double, Eigen::Vector3d>>;  // seconds, position
+
+struct TimedLoop {
+  double available_s = 0;
+  peer::LoopRecord record;
+};
+
+// ATE [m] (SE(3)-aligned) of stamped positions against a ground-truth trajectory; NaN below 3 pairs.
+double ate_of(const Stamped& est, const geometry::Trajectory& gt) {
+  geometry::Poses e, g;
+  for (const auto& [t, p] : est) {
+    if (const auto T = geometry::interpolate_at(gt, std::llround(t * 1e9))) {
+      Eigen::Isometry3d E = Eigen::Isometry3d::Identity();
+      E.translation() = p;
+      e.push_back(E);
+      g.push_back(*T);
+    }
+  }
+  if (e.size() < 3) return NAN;
+  return geometry::compute_ate(e, g, geometry::AlignMode::kSE3).translation.rmse;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Replays a run's multi-robot pose graph through the peer optimisers' distributed rounds (no central, "
+               "no DDS) and reports how close they come to the centralized optimum"};
+  std::string graph_path, run_dir, truth_dir;
+  double latency_s = 1.0, jitter_s = 0.0, tail_s = 30.0;
+  uint32_t robots = 3, seed = 1;
+  int round_ms = 200;
+  bool verbose = false;
+  peer::PeerConfig base;
+  app.add_option("GRAPH", graph_path, "g2o graph with every robot's keyframes and loops (a run's global_graph.g2o)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  app.add_option("--run", run_dir, "the run's folder: robot_N/keyframes.tum gives each keyframe's stamp")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  app.add_option("--truth", truth_dir, "the dataset's folder: robot_N/groundtruth.tum")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  app.add_option("--robots", robots, "robots in the graph")->capture_default_str()->check(CLI::Range(1, 64));
+  app.add_option("--loop-latency", latency_s, "seconds from a loop's later keyframe to its arrival")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--jitter", jitter_s, "a uniform extra loop latency up to this many seconds (seeded)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--seed", seed, "seed of the jitter")->capture_default_str();
+  app.add_option("--tail", tail_s, "seconds of rounds after the last keyframe")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--round-ms", round_ms, "distributed round period (peer_optimiser.yaml's round_period_ms)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 100000));
+  app.add_option("--iterations", base.distributed_iterations, "solver iterations per round (distributed_iterations)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1000));
+  app.add_option("--relaxation", base.relaxation, "fraction of each round's step taken (distributed_relaxation)")
+      ->capture_default_str()
+      ->check(CLI::Range(1e-3, 1.0));
+  app.add_flag("--verbose", verbose, "print the joint cost every 5 s of replayed time");
+  CLI11_PARSE(app, argc, argv);
+  base.round_period = std::chrono::milliseconds(round_ms);
+
+  try {
+    const graph::PoseGraph g = graph::read_g2o(graph_path);
+    std::vector<std::vector<double>> stamps(robots);
+    std::vector<geometry::Trajectory> truth(robots);
+    for (uint32_t r = 0; r < robots; ++r) {
+      const std::string dir = "/robot_" + std::to_string(r);
+      for (const auto& p : geometry::read_tum(run_dir + dir + "/keyframes.tum")) stamps[r].push_back(static_cast<double>(p.stamp_ns) * 1e-9);
+      truth[r] = geometry::read_tum(truth_dir + dir + "/groundtruth.tum");
+    }
+    for (const auto& [k, _] : g.poses) {
+      if (graph::robot_of(k) >= robots) {
+        std::fprintf(stderr, "cdc-peer-replay: %s holds robot %u; --robots is %u\n", graph_path.c_str(),
+                     static_cast<unsigned>(graph::robot_of(k)), robots);
+        return 2;
+      }
+    }
+    const auto stamp_of = [&](graph::Key k) {
+      const uint64_t i = graph::index_of(k);
+      const auto& s = stamps[graph::robot_of(k)];
+      return i < s.size() ? s[i] : HUGE_VAL;
+    };
+
+    // Each robot's keyframes, their odometry chained from the graph's odometry factors.
+    std::vector<std::map<uint32_t, peer::OwnKeyframe>> keyframes(robots);
+    for (auto& k : keyframes) k[0] = peer::OwnKeyframe{};
+    std::vector<const graph::Factor*> odometry;
+    std::vector<TimedLoop> loops;
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> jitter(0.0, jitter_s);
+    for (const graph::Factor& f : g.factors) {
+      if (f.kind == graph::FactorKind::kOdometry) {
+        odometry.push_back(&f);
+      } else if (f.kind == graph::FactorKind::kLoop) {
+        peer::LoopRecord l;
+        l.sender = static_cast<uint32_t>(graph::robot_of(f.b));
+        l.seq = static_cast<uint32_t>(loops.size());
+        l.robot_a = static_cast<uint32_t>(graph::robot_of(f.a));
+        l.keyframe_a = static_cast<uint32_t>(graph::index_of(f.a));
+        l.robot_b = static_cast<uint32_t>(graph::robot_of(f.b));
+        l.keyframe_b = static_cast<uint32_t>(graph::index_of(f.b));
+        l.T_a_b = f.measurement;
+        l.information = f.information;
+        loops.push_back({std::max(stamp_of(f.a), stamp_of(f.b)) + latency_s + jitter(rng), l});
+      }
+    }
+    std::sort(odometry.begin(), odometry.end(), [](const auto* a, const auto* b) { return a->b < b->b; });
+    for (const graph::Factor* f : odometry) {
+      auto& own = keyframes[graph::robot_of(f->a)];
+      const auto id = static_cast<uint32_t>(graph::index_of(f->b));
+      if (const auto prev = own.find(id - 1); id > 0 && prev != own.end()) {
+        own[id] = peer::OwnKeyframe{id, 0, prev->second.T_odom * f->measurement, f->measurement, f->information};
+      }
+    }
+    std::stable_sort(loops.begin(), loops.end(), [](const auto& a, const auto& b) { return a.available_s < b.available_s; });
+
+    // The centralized problem the rounds should reach: the same loops, weighed as the peers weigh them.
+    graph::PoseGraph central = g;
+    if (base.share_loop_information) graph::share_loop_information(central);
+    central.add_prior(graph::make_key(0, 0), keyframes[0].at(0).T_odom, graph::Matrix6d::Identity() * 1e6);
+
+    std::vector<peer::PeerCore> cores;
+    for (uint32_t r = 0; r < robots; ++r) {
+      peer::PeerConfig c = base;
+      c.robot = r;
+      c.robot_count = robots;
+      c.rtdos.range_m = 1e9;
+      cores.emplace_back(c);
+    }
+    std::vector<uint32_t> next(robots, 0);
+    size_t next_loop = 0;
+    std::vector<Stamped> realtime(robots), odom(robots);
+    std::vector<std::optional<peer::Correction>> last(robots);
+    const auto joint_cost = [&] {
+      graph::PoseGraph joint = central;
+      for (uint32_t r = 0; r < robots; ++r) {
+        if (last[r]) {
+          for (const auto& [id, T] : last[r]->poses) joint.poses[graph::make_key(r, id)] = T;
+        }
+      }
+      return graph::full_information_cost(joint);
+    };
+    double end_s = 0;
+    for (const auto& s : stamps) end_s = std::max(end_s, s.empty() ? 0.0 : s.back());
+    const long ticks = std::lround((end_s + tail_s) / 0.05);
+    for (long tick = 0; tick <= ticks; ++tick) {
+      const double t = static_cast<double>(tick) * 0.05;
+      const peer::Nanos now{static_cast<int64_t>(tick) * 50'000'000};
+      for (uint32_t r = 0; r < robots; ++r) {
+        for (; next[r] < stamps[r].size() && stamps[r][next[r]] <= t && keyframes[r].count(next[r]) != 0; ++next[r]) {
+          const peer::OwnKeyframe& k = keyframes[r].at(next[r]);
+          cores[r].add_keyframe(k, now);
+          odom[r].emplace_back(stamps[r][next[r]], k.T_odom.translation());
+          // Where the front-end puts this keyframe: the newest corrected keyframe, as
+          // T_world_robot^-1 * pose, carried on by the odometry.
+          Eigen::Isometry3d T = k.T_odom;
+          if (last[r] && !last[r]->poses.empty()) {
+            const auto& [id, P] = last[r]->poses.back();
+            T = last[r]->T_world_robot.inverse() * P * keyframes[r].at(id).T_odom.inverse() * k.T_odom;
+          }
+          realtime[r].emplace_back(stamps[r][next[r]], T.translation());
+        }
+      }
+      for (; next_loop < loops.size() && loops[next_loop].available_s <= t; ++next_loop) {
+        const peer::LoopRecord& l = loops[next_loop].record;
+        cores[l.robot_a].add_loop(l, now);
+        if (l.robot_b != l.robot_a) cores[l.robot_b].add_loop(l, now);
+      }
+      std::vector<peer::StepOutput> out;
+      for (auto& c : cores) out.push_back(c.step(now, false));
+      for (uint32_t r = 0; r < robots; ++r) {
+        for (const auto& s : out[r].separators) cores[s.target].on_separator(r, s.poses);
+        if (out[r].correction) last[r] = std::move(out[r].correction);
+      }
+      if (verbose && tick % 100 == 0) std::printf("t %.0f s: joint cost %.2f\n", t, joint_cost());
+    }
+    for (uint32_t r = 0; r < robots; ++r) {
+      Stamped final_estimate;
+      if (last[r]) {
+        for (const auto& [id, P] : last[r]->poses) {
+          if (id < stamps[r].size()) final_estimate.emplace_back(stamps[r][id], P.translation());
+        }
+      }
+      std::printf("robot %u: %zu keyframes, %llu rounds; ATE odometry %.4f, real-time %.4f, final %.4f m\n", r,
+                  odom[r].size(), static_cast<unsigned long long>(cores[r].distributed_rounds()),
+                  ate_of(odom[r], truth[r]), ate_of(realtime[r], truth[r]), ate_of(final_estimate, truth[r]));
+    }
+    const double distributed = joint_cost();
+    graph::SolverOptions o;
+    o.robust_loss_scale = 0.0;  // as the rounds solve
+    graph::solve(central, o);
+    std::printf("joint cost: distributed %.2f, centralized optimum %.2f\n", distributed,
+                graph::full_information_cost(central));
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "cdc-peer-replay: %s\n", e.what());
+    return 2;
+  }
+  return 0;
+}
