@@ -366,15 +366,29 @@ StepOutput PeerCore::step(Nanos now, bool central_alive) {
     for (const auto& [target, ids] : wanted) {
       auto peer = peer_positions_.find(target);
       if (me && peer != peer_positions_.end() && (me->translation() - peer->second).norm() > config_.peer_range_m) {
-        continue;  // out of radio range of that peer
+        separators_sent_.erase(target);  // out of radio range of that peer: all of them when it is back
+        separators_refreshed_.erase(target);
+        continue;
       }
+      auto refreshed = separators_refreshed_.find(target);
+      const bool refresh = refreshed == separators_refreshed_.end() || now - refreshed->second >= config_.separator_refresh;
+      auto& sent = separators_sent_[target];
       SeparatorOut s;
       s.target = target;
       for (uint32_t id : ids) {
-        if (auto it = own.find(id); it != own.end()) {
+        const auto it = own.find(id);
+        if (it == own.end()) continue;
+        const auto before = sent.find(id);
+        const bool moved = before == sent.end() ||
+                           (before->second.translation() - it->second.translation()).norm() >= config_.separator_min_change_m ||
+                           Eigen::AngleAxisd(before->second.linear().transpose() * it->second.linear()).angle() >=
+                               config_.separator_min_change_rad;
+        if (refresh || moved) {
           s.poses.emplace_back(id, it->second);
+          sent[id] = it->second;
         }
       }
+      if (refresh) separators_refreshed_[target] = now;
       if (!s.poses.empty()) {
         out.separators.push_back(std::move(s));
       }

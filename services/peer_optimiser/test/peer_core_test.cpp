@@ -475,21 +475,24 @@ TEST(PeerCore, TwoPeersPlaceEachOtherThroughSeparatorsAlone) {
 namespace cdc::peer {
 namespace {
 
-// The nodes solve at once, each with its peers' last separators held fixed (block Jacobi). Taken
-// whole, each round's solution makes coupled robots jump onto each other's old poses and the swarm
-// oscillates around the optimum instead of settling; the damped rounds reach it.
-double distributed_cost_after(const test::SwarmStream& s, uint32_t robots, int rounds, double relaxation,
-                              double* central_cost) {
+// Three peers with the whole stream, all solving at once (as the nodes do: block Jacobi, each with
+// its peers' last separators held fixed) for `rounds` rounds of 100 ms.
+struct SwarmRounds {
+  double cost = 0;     // joint cost of the peers' estimates
+  double optimum = 0;  // the centralized optimum of the same graph
+  size_t separator_poses = 0;
+};
+
+SwarmRounds run_swarm_rounds(const test::SwarmStream& s, int rounds, const PeerConfig& base) {
+  const auto robots = static_cast<uint32_t>(s.keyframes.size());
   std::vector<PeerCore> cores;
-  for (uint32_t r = 0; r < robots; ++r) {
-    PeerConfig c = config(r);
-    c.relaxation = relaxation;
-    cores.emplace_back(c);
-    for (const auto& kf : s.keyframes[r]) cores.back().add_keyframe(kf_from(kf), 0s);
-  }
   graph::PoseGraph central;
   for (uint32_t r = 0; r < robots; ++r) {
+    PeerConfig c = base;
+    c.robot = r;
+    cores.emplace_back(c);
     for (const auto& kf : s.keyframes[r]) {
+      cores.back().add_keyframe(kf_from(kf), 0s);
       if (kf.id > 0) {
         central.add_between(graph::make_key(r, kf.id - 1u), graph::make_key(r, kf.id), kf.T_prev_keyframe, kf.information);
       }
@@ -504,38 +507,93 @@ double distributed_cost_after(const test::SwarmStream& s, uint32_t robots, int r
   graph::share_loop_information(central);  // as the peers weigh their loops
   central.add_prior(graph::make_key(0, 0), s.keyframes[0][0].T_odom_keyframe, Matrix6d::Identity() * 1e6);
   graph::PoseGraph joint = central;
+  SwarmRounds result;
   Nanos t = 0s;
   for (int i = 0; i < rounds; ++i) {
     t += 100ms;
     std::vector<StepOutput> out;
     for (auto& c : cores) out.push_back(c.step(t, false));
     for (uint32_t r = 0; r < robots; ++r) {
-      for (const auto& sep : out[r].separators) cores[sep.target].on_separator(r, sep.poses);
-      if (out[r].correction) {
-        // The estimate itself: undo the bounded step the correction's frame still has to go.
+      for (const auto& sep : out[r].separators) {
+        cores[sep.target].on_separator(r, sep.poses);
+        result.separator_poses += sep.poses.size();
+      }
+      if (out[r].correction) {  // in the frame of its T_world_robot, which has long caught up
         for (const auto& [id, T] : out[r].correction->poses) joint.poses[graph::make_key(r, id)] = T;
       }
     }
   }
-  graph::chordal_initialise(central);
+  EXPECT_TRUE(graph::chordal_initialise(central));
   graph::SolverOptions o;
-  o.robust_loss_scale = 0.0;
+  o.robust_loss_scale = 0.0;  // as the rounds solve
   graph::solve(central, o);
-  *central_cost = graph::full_information_cost(central);
-  return graph::full_information_cost(joint);
+  result.optimum = graph::full_information_cost(central);
+  result.cost = graph::full_information_cost(joint);
+  return result;
 }
 
-TEST(PeerCore, PeersSolvingAtOnceSettleOnTheCentralizedOptimum) {
+test::SwarmStream three_robot_stream() {
   test::SwarmStreamOptions o;
   o.robots = 3;
   o.keyframes_per_robot = 150;
-  const auto s = test::make_swarm_stream(o);
-  double optimum = 0;
-  // Undamped (relaxation 1.0) the joint cost is still 23 times the optimum after these rounds.
-  const double cost = distributed_cost_after(s, 3, 300, PeerConfig{}.relaxation, &optimum);
-  std::printf("joint cost after 300 rounds %.2f, centralized optimum %.2f\n", cost, optimum);
-  EXPECT_LT(cost, optimum * 1.02);
-  EXPECT_GE(cost, optimum * (1 - 1e-6));
+  return test::make_swarm_stream(o);
+}
+
+TEST(PeerCore, PeersSolvingAtOnceSettleOnTheCentralizedOptimum) {
+  // Taken whole, a round's solution moves coupled robots onto each other's old poses and the swarm
+  // oscillates about the optimum: undamped (relaxation 1.0) the joint cost is still 23 times the
+  // optimum after these rounds. Separators exchanged exactly, to see the rounds alone.
+  PeerConfig c = config(0);
+  c.separator_min_change_m = 0;
+  c.separator_min_change_rad = 0;
+  const SwarmRounds r = run_swarm_rounds(three_robot_stream(), 300, c);
+  std::printf("joint cost after 300 rounds %.2f, centralized optimum %.2f\n", r.cost, r.optimum);
+  EXPECT_LT(r.cost, r.optimum * 1.02);
+  EXPECT_GE(r.cost, r.optimum * (1 - 1e-6));
+}
+
+TEST(PeerCore, SeparatorPosesGoAgainOnlyOnceTheyMovedOrOnRefresh) {
+  const auto s = three_robot_stream();
+  PeerConfig exact = config(0);
+  exact.separator_min_change_m = 0;
+  exact.separator_min_change_rad = 0;
+  const SwarmRounds all = run_swarm_rounds(s, 300, exact);
+  const SwarmRounds moved = run_swarm_rounds(s, 300, config(0));  // 1 mm / 0.01 deg, refresh 2 s
+  std::printf("separator poses sent: %zu exactly, %zu when moved; joint cost %.2f / %.2f, optimum %.2f\n",
+              all.separator_poses, moved.separator_poses, all.cost, moved.cost, all.optimum);
+  EXPECT_LT(moved.separator_poses * 2, all.separator_poses);
+  EXPECT_LT(moved.cost, all.cost * 1.05);
+
+  // Unit level: a settled pose is not sent again until the refresh; a moved one is.
+  PeerCore r0(config(0));
+  for (uint32_t id = 0; id < 10; ++id) r0.add_keyframe(kf_from(s.keyframes[0][id]), 0s);
+  LoopRecord l = loop_from(s.loops.front());
+  l.robot_a = 0;
+  l.keyframe_a = 5;
+  l.robot_b = 1;
+  l.keyframe_b = 7;
+  r0.add_loop(l, 0s);
+  size_t sent = 0;
+  Nanos t = 0s;
+  for (int i = 0; i < 20; ++i) {  // 0.1-2.0 s: the first send, then the estimate settles (robot 0 is alone)
+    for (const auto& sep : r0.step(t += 100ms, false).separators) {
+      ASSERT_EQ(sep.target, 1u);
+      sent += sep.poses.size();
+    }
+  }
+  EXPECT_EQ(sent, 1u) << "an unmoved separator pose was sent again before the refresh";
+  const auto refresh = r0.step(t += 100ms, false);  // 2.1 s: 2 s after the first send
+  ASSERT_EQ(refresh.separators.size(), 1u);
+  EXPECT_EQ(refresh.separators[0].poses.size(), 1u);
+  EXPECT_EQ(refresh.separators[0].poses[0].first, 5u);
+
+  // Robot 1's pose arrives: the loop now pulls keyframe 5, which moves and goes out before the next refresh.
+  r0.on_separator(1, {{7u, refresh.separators[0].poses[0].second * Eigen::Translation3d(0.3, 0.0, 0.0)}});
+  size_t moved_sends = 0;
+  for (int i = 0; i < 5; ++i) {
+    for (const auto& sep : r0.step(t += 100ms, false).separators) moved_sends += sep.poses.size();
+  }
+  EXPECT_GE(moved_sends, 1u) << "a moved separator pose was held back";
 }
 
 }  // namespace

@@ -90,9 +90,14 @@ int main(int argc, char** argv) {
   app.add_option("--relaxation", base.relaxation, "fraction of each round's step taken (distributed_relaxation)")
       ->capture_default_str()
       ->check(CLI::Range(1e-3, 1.0));
+  app.add_option("--separator-min-change", base.separator_min_change_m,
+                 "a separator pose is sent again once it moved this far [m] (separator_min_change_m; the angle scales with it)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   app.add_flag("--verbose", verbose, "print the joint cost every 5 s of replayed time");
   CLI11_PARSE(app, argc, argv);
   base.round_period = std::chrono::milliseconds(round_ms);
+  base.separator_min_change_rad *= base.separator_min_change_m / peer::PeerConfig{}.separator_min_change_m;
 
   try {
     const graph::PoseGraph g = graph::read_g2o(graph_path);
@@ -165,6 +170,7 @@ int main(int argc, char** argv) {
     std::vector<uint32_t> next(robots, 0);
     size_t next_loop = 0;
     std::vector<Stamped> realtime(robots), odom(robots);
+    std::vector<size_t> separator_poses(robots, 0);
     std::vector<std::optional<peer::Correction>> last(robots);
     const auto joint_cost = [&] {
       graph::PoseGraph joint = central;
@@ -204,7 +210,10 @@ int main(int argc, char** argv) {
       std::vector<peer::StepOutput> out;
       for (auto& c : cores) out.push_back(c.step(now, false));
       for (uint32_t r = 0; r < robots; ++r) {
-        for (const auto& s : out[r].separators) cores[s.target].on_separator(r, s.poses);
+        for (const auto& s : out[r].separators) {
+          cores[s.target].on_separator(r, s.poses);
+          separator_poses[r] += s.poses.size();
+        }
         if (out[r].correction) last[r] = std::move(out[r].correction);
       }
       if (verbose && tick % 100 == 0) std::printf("t %.0f s: joint cost %.2f\n", t, joint_cost());
@@ -216,8 +225,8 @@ int main(int argc, char** argv) {
           if (id < stamps[r].size()) final_estimate.emplace_back(stamps[r][id], P.translation());
         }
       }
-      std::printf("robot %u: %zu keyframes, %llu rounds; ATE odometry %.4f, real-time %.4f, final %.4f m\n", r,
-                  odom[r].size(), static_cast<unsigned long long>(cores[r].distributed_rounds()),
+      std::printf("robot %u: %zu keyframes, %llu rounds, %zu separator poses sent; ATE odometry %.4f, real-time %.4f, final %.4f m\n", r,
+                  odom[r].size(), static_cast<unsigned long long>(cores[r].distributed_rounds()), separator_poses[r],
                   ate_of(odom[r], truth[r]), ate_of(realtime[r], truth[r]), ate_of(final_estimate, truth[r]));
     }
     const double distributed = joint_cost();

@@ -10,6 +10,7 @@
 
 #include <Eigen/Geometry>
 
+#include <cmath>
 #include <cstdint>
 #include <map>
 #include <optional>
@@ -37,6 +38,12 @@ struct PeerConfig {
   // the pair oscillates instead of settling: replaying the KITTI-05 graph (cdc-peer-replay) its joint
   // cost stayed 2-25 times the optimum, 30 s after the last keyframe. Damped it reaches the optimum.
   double relaxation = 0.7;
+  // A separator pose goes to a peer again only once it has moved this far since it was last sent
+  // there (the rounds settle, and most poses stop moving); every `separator_refresh` the peer gets all
+  // of them, so that one that missed a message (a radio cut) is whole again soon after.
+  double separator_min_change_m = 0.001;
+  double separator_min_change_rad = 0.01 * M_PI / 180.0;
+  Nanos separator_refresh{std::chrono::milliseconds(2000)};
   // Loops through one keyframe share its cloud's errors: each loop's information is divided by the
   // most loops either of its keyframes takes part in (graph::share_loop_information).
   bool share_loop_information = true;
@@ -151,6 +158,8 @@ class PeerCore {
   uint32_t central_incarnation_ = 0;
   AckIn ack_;
   std::map<Key, Eigen::Isometry3d> separators_;        // peers' keyframes, T_world
+  std::map<uint32_t, std::map<uint32_t, Eigen::Isometry3d>> separators_sent_;  // target -> own keyframe -> pose sent
+  std::map<uint32_t, Nanos> separators_refreshed_;                               // target -> last full send
   std::map<uint32_t, Eigen::Isometry3d> estimate_;     // own keyframes, T_world (distributed)
   std::optional<Eigen::Isometry3d> target_;            // T_world_robot the back-end believes
   std::optional<Eigen::Isometry3d> published_;         // what the front-end has been told
