@@ -203,7 +203,8 @@ void Launcher::start_services() {
     spawn("robot" + id + "/peer-optimiser", r,
           with_local({bin("services/peer_optimiser/cdc-peer-optimiser"), "--robot", id, "--config", c_.peer_config,
                       "--domain", slam, "--mode-out", (rd / "modes.csv").string(), "--trajectory-out",
-                      (rd / "keyframes.tum").string(), "--stats-out", (rd / "peer_optimiser.stats.json").string()}));
+                      (rd / "keyframes.tum").string(), "--graph-out", (rd / "peer_graph.g2o").string(), "--stats-out",
+                      (rd / "peer_optimiser.stats.json").string()}));
   }
 }
 

@@ -34,10 +34,13 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 232));
   app.add_option("--local-dds-config", local_dds_config, "Cyclone DDS configuration of the local domain (default: as --dds-config)");
   app.add_option("--stats-out", stats_out, "write counters (JSON) here at shutdown");
-  std::string mode_out, trajectory_out;
+  std::string mode_out, trajectory_out, graph_out;
   app.add_option("--mode-out", mode_out, "write every mode transition (CSV) here as it happens");
   app.add_option("--trajectory-out", trajectory_out,
                  "write the robot's keyframes in the world frame as last corrected (TUM) here at shutdown");
+  app.add_option("--graph-out", graph_out,
+                 "write what this robot knows as a pose graph (g2o: its keyframes, the loops touching them, its "
+                 "peers' separator poses) here at shutdown; cdc-peer-replay replays a folder of them");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error");
   CLI11_PARSE(app, argc, argv);
   try {
@@ -55,6 +58,7 @@ int main(int argc, char** argv) {
     o.stats_out = stats_out;
     o.mode_out = mode_out;
     o.trajectory_out = trajectory_out;
+    o.graph_out = graph_out;
     if (!log_level.empty()) {
       o.log_level = log_level;
     }

@@ -237,6 +237,24 @@ std::optional<Eigen::Isometry3d> PeerCore::distributed_round() {
   return solution_world_transform(std::vector<std::pair<uint32_t, Eigen::Isometry3d>>(estimate_.begin(), estimate_.end()));
 }
 
+graph::PoseGraph PeerCore::graph() const {
+  graph::PoseGraph g;
+  const uint32_t me = config_.robot;
+  for (const auto& [id, kf] : keyframes_) {
+    const auto e = estimate_.find(id);
+    g.poses[graph::make_key(me, id)] = e != estimate_.end() ? e->second : kf.T_odom;
+    if (id > 0 && keyframes_.count(id - 1u) != 0) {
+      g.add_between(graph::make_key(me, id - 1u), graph::make_key(me, id), kf.T_prev, kf.information);
+    }
+  }
+  for (const auto& [k, T] : separators_) g.poses[k] = T;
+  for (const LoopRecord& l : loops_) {
+    const Key a = graph::make_key(l.robot_a, l.keyframe_a), b = graph::make_key(l.robot_b, l.keyframe_b);
+    if (!l.withdrawn && g.poses.count(a) != 0 && g.poses.count(b) != 0) g.add_between(a, b, l.T_a_b, l.information);
+  }
+  return g;
+}
+
 std::optional<Eigen::Isometry3d> PeerCore::solution_world_transform(
     const std::vector<std::pair<uint32_t, Eigen::Isometry3d>>& poses) const {
   // T_world_robot as the central defines it: fitted to all the solution's own keyframes (paper eq. 1-2).

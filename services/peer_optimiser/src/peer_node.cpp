@@ -1,5 +1,7 @@
 #include "peer_node.hpp"
 
+#include "cdc/graph/g2o.hpp"
+
 #include "cdc/config/reader.hpp"
 #include "cdc/dds/convert.hpp"
 #include "cdc/dds/liveliness.hpp"
@@ -11,6 +13,7 @@
 #include "cdc/dds/traffic_json.hpp"
 #include "cdc/dds/validate.hpp"
 #include "cdc/dds/waitset.hpp"
+#include "cdc/graph/g2o.hpp"
 #include "cdc/runtime/logging.hpp"
 #include "cdc/geometry/trajectory.hpp"
 
@@ -436,6 +439,9 @@ int run_peer(const PeerNodeOptions& o) {
       traj.push_back({own_keyframes.at(id).msg.stamp_ns, T});
     }
     geometry::write_tum(o.trajectory_out, traj);
+  }
+  if (!o.graph_out.empty()) {
+    graph::write_g2o(o.graph_out, core.graph());
   }
   if (!o.stats_out.empty()) {
     nlohmann::json j{{"robot", me},

@@ -21,6 +21,7 @@ struct PeerNodeOptions {
   std::string stats_out;
   std::string mode_out;        // CSV of every mode transition, written as it happens
   std::string trajectory_out;  // TUM: own keyframes in W as last corrected, written at shutdown
+  std::string graph_out;       // g2o: PeerCore::graph(), written at shutdown
   std::string log_level = "info";
 };
 

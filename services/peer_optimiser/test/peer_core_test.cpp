@@ -465,6 +465,16 @@ TEST(PeerCore, TwoPeersPlaceEachOtherThroughSeparatorsAlone) {
   std::printf("joint cost: after 10 rounds %.1f, after 40 %.1f, centralized %.1f; robot 1 worst %.2f m from it\n",
               f10, f40, f_central, worst);
   EXPECT_LT(worst, 5.0) << "robot 1 is not placed in robot 0's frame";
+  // What robot 1 knows, as a graph: its own keyframes and odometry, and the loops touching it whose
+  // other end it has (robot 0's separator poses).
+  const graph::PoseGraph known = r1.graph();
+  size_t own = 0, separators = 0, loops_touching = 0;
+  for (const auto& [k, T] : known.poses) (graph::robot_of(k) == 1 ? own : separators) += 1;
+  for (const auto& l : s.loops) loops_touching += (l.robot_a == 1 || l.robot_b == 1) ? 1 : 0;
+  EXPECT_EQ(own, 150u);
+  EXPECT_GT(separators, 0u);
+  EXPECT_EQ(known.count(graph::FactorKind::kOdometry), 149u);
+  EXPECT_EQ(known.count(graph::FactorKind::kLoop), loops_touching);
   EXPECT_LT(f40, f10) << "the rounds stopped improving the joint cost";
   EXPECT_GE(f40, f_central * (1 - 1e-9));
 }

@@ -21,6 +21,7 @@
 #include <exception>
 #include <map>
 #include <random>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -55,13 +56,16 @@ double ate_of(const Stamped& est, const geometry::Trajectory& gt) {
 int main(int argc, char** argv) {
   CLI::App app{"Replays a run's multi-robot pose graph through the peer optimisers' distributed rounds (no central, "
                "no DDS) and reports how close they come to the centralized optimum"};
-  std::string graph_path, run_dir, truth_dir;
+  std::vector<std::string> graph_paths;
+  std::string run_dir, truth_dir;
   double latency_s = 1.0, jitter_s = 0.0, tail_s = 30.0;
   uint32_t robots = 3, seed = 1;
   int round_ms = 200;
   bool verbose = false;
   peer::PeerConfig base;
-  app.add_option("GRAPH", graph_path, "g2o graph with every robot's keyframes and loops (a run's global_graph.g2o)")
+  app.add_option("GRAPH", graph_paths,
+                 "g2o graph(s) holding every robot's keyframes and loops: a run's global_graph.g2o, or its "
+                 "robot_N/peer_graph.g2o files together (merged; a factor in several is kept once)")
       ->required()
       ->check(CLI::ExistingFile);
   app.add_option("--run", run_dir, "the run's folder: robot_N/keyframes.tum gives each keyframe's stamp")
@@ -100,7 +104,15 @@ int main(int argc, char** argv) {
   base.separator_min_change_rad *= base.separator_min_change_m / peer::PeerConfig{}.separator_min_change_m;
 
   try {
-    const graph::PoseGraph g = graph::read_g2o(graph_path);
+    graph::PoseGraph g;
+    std::set<std::pair<graph::Key, graph::Key>> factors_seen;
+    for (const std::string& path : graph_paths) {
+      graph::PoseGraph part = graph::read_g2o(path);
+      g.poses.insert(part.poses.begin(), part.poses.end());
+      for (const graph::Factor& f : part.factors) {
+        if (f.kind != graph::FactorKind::kPrior && factors_seen.insert({f.a, f.b}).second) g.factors.push_back(f);
+      }
+    }
     std::vector<std::vector<double>> stamps(robots);
     std::vector<geometry::Trajectory> truth(robots);
     for (uint32_t r = 0; r < robots; ++r) {
@@ -110,7 +122,7 @@ int main(int argc, char** argv) {
     }
     for (const auto& [k, _] : g.poses) {
       if (graph::robot_of(k) >= robots) {
-        std::fprintf(stderr, "cdc-peer-replay: %s holds robot %u; --robots is %u\n", graph_path.c_str(),
+        std::fprintf(stderr, "cdc-peer-replay: the graph holds robot %u; --robots is %u\n",
                      static_cast<unsigned>(graph::robot_of(k)), robots);
         return 2;
       }

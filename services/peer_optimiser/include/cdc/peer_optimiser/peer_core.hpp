@@ -138,6 +138,10 @@ class PeerCore {
   // The highest keyframe id up to which the current central has acknowledged every keyframe (-1: none).
   int64_t central_acknowledged_keyframe() const noexcept { return ack_.keyframe; }
   uint64_t distributed_rounds() const noexcept { return rounds_; }
+  // What this robot knows, as a pose graph: its keyframes (at the distributed estimate, else their
+  // odometry) with their odometry factors, every loop touching it, and its peers' separator poses as
+  // received. The union of every robot's graph is the swarm's graph (cdc-peer-replay reads a folder).
+  graph::PoseGraph graph() const;
 
  private:
   std::optional<Eigen::Isometry3d> distributed_round();
