@@ -268,6 +268,16 @@ TEST_F(SwarmEndToEnd, LoopbackCutsRobotsWithDeafMuteAndTheySwitchOnLivelinessLap
     }
     EXPECT_GT(fe["keyframes"].get<int>(), 100) << robot;
     EXPECT_EQ(peer["keyframes"], fe["keyframes"]) << robot;
+    // What the peer knew, written for cdc-peer-replay: a vertex per own keyframe (keys robot << 56 | id).
+    std::istringstream graph(read_file(rd / "peer_graph.g2o"));
+    int own_vertices = 0;
+    for (std::string line; std::getline(graph, line);) {
+      std::istringstream in(line);
+      std::string tag;
+      uint64_t key = 0;
+      if (in >> tag >> key && tag == "VERTEX_SE3:QUAT" && (key >> 56) == std::stoull(robot)) ++own_vertices;
+    }
+    EXPECT_EQ(own_vertices, fe["keyframes"].get<int>()) << robot;
     // Keyframes go to the central only while CENTRALIZED; a DISTRIBUTED robot keeps them and re-sends
     // the backlog when it rejoins (robot 1 comes back at 39 s).
     EXPECT_EQ(peer["forwarded_keyframes"].get<int>() + peer["withheld_keyframes"].get<int>(), fe["keyframes"].get<int>())
