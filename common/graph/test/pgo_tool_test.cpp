@@ -1,17 +1,17 @@
 // cdc-pgo on the published pose-graph benchmarks: SE-Sync's objective reaches the published
 // optimum f* (../shared/data/pose-graphs/optimal-costs.csv).
+#include "run_command.hpp"
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
-#include <sys/wait.h>
 
 namespace {
 
@@ -60,16 +60,9 @@ double half_unit(const std::string& text) {
 
 nlohmann::json run_pgo(const std::string& args) {
   const std::string cmd = std::string(std::getenv("CDC_PGO_BIN")) + " " + args;
-  FILE* p = ::popen(cmd.c_str(), "r");
-  std::string out;
-  std::array<char, 4096> buf{};
-  size_t n = 0;
-  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) {
-    out.append(buf.data(), n);
-  }
-  const int status = ::pclose(p);
-  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << cmd << "\n" << out;
-  return nlohmann::json::parse(out);
+  const auto r = cdc::test::run_command(cmd, /*merge_stderr=*/false);
+  EXPECT_EQ(r.exit_code, 0) << cmd << "\n" << r.output;
+  return nlohmann::json::parse(r.output);
 }
 
 TEST(PgoTool, ReachesThePublishedOptimaWithSeSyncWeights) {

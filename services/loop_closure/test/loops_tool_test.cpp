@@ -1,15 +1,15 @@
 // cdc-loops as a user runs it: `pcm` on the external multi-robot graphs (JSON), `run` on a
 // short simulated dataset (precision against its ground truth, output files), and clear errors
 // on bad input.
+#include "run_command.hpp"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include <array>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <sys/wait.h>
 #include <unistd.h>
 
 namespace {
@@ -22,14 +22,8 @@ struct Result {
 };
 
 Result run(const std::string& cmd) {
-  Result r;
-  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
-  std::array<char, 4096> buf{};
-  size_t n = 0;
-  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  const int status = ::pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+  const auto r = cdc::test::run_command(cmd);
+  return {r.exit_code, r.output};
 }
 
 std::string data_dir() {

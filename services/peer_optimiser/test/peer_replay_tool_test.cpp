@@ -2,13 +2,11 @@
 // stamps and the ground truth, replays the damped rounds close to the centralized optimum, and
 // refuses a graph that holds more robots than it was told.
 #include "cdc/geometry/trajectory.hpp"
+#include "run_command.hpp"
 #include "swarm_stream.hpp"
 
 #include <gtest/gtest.h>
 
-#include <sys/wait.h>
-
-#include <array>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -19,21 +17,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct ToolRun {
-  int status = -1;
-  std::string out;
-};
-
-ToolRun run_replay(const std::string& args) {
-  const std::string cmd = std::string(std::getenv("CDC_PEER_REPLAY_BIN")) + " " + args + " 2>&1";
-  FILE* p = ::popen(cmd.c_str(), "r");
-  ToolRun r;
-  std::array<char, 4096> buf{};
-  size_t n = 0;
-  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) r.out.append(buf.data(), n);
-  const int status = ::pclose(p);
-  r.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+cdc::test::CommandResult run_replay(const std::string& args) {
+  return cdc::test::run_command(std::string(std::getenv("CDC_PEER_REPLAY_BIN")) + " " + args);
 }
 
 class PeerReplayTool : public ::testing::Test {
@@ -72,24 +57,24 @@ TEST_F(PeerReplayTool, ReplaysTheDampedRoundsCloseToTheCentralizedOptimum) {
   // Loops arrive one by one here and the rounds are first order: 60 s after the last keyframe the
   // joint cost is about 4 % above the optimum (the KITTI graphs' replays end at it). A replay that
   // lost loops, separators or keyframes on the way would end far from it.
-  const ToolRun r = run_replay(args("--round-ms 100 --tail 60"));
-  ASSERT_EQ(r.status, 0) << r.out;
+  const cdc::test::CommandResult r = run_replay(args("--round-ms 100 --tail 60"));
+  ASSERT_EQ(r.exit_code, 0) << r.output;
   std::smatch m;
-  ASSERT_TRUE(std::regex_search(r.out, m, std::regex(R"(joint cost: distributed ([0-9.]+), centralized optimum ([0-9.]+))")))
-      << r.out;
+  ASSERT_TRUE(std::regex_search(r.output, m, std::regex(R"(joint cost: distributed ([0-9.]+), centralized optimum ([0-9.]+))")))
+      << r.output;
   const double distributed = std::stod(m[1]), optimum = std::stod(m[2]);
   EXPECT_GT(optimum, 0.0);
-  EXPECT_LT(distributed, optimum * 1.1) << r.out;
-  EXPECT_GE(distributed, optimum * (1 - 1e-4)) << r.out;
+  EXPECT_LT(distributed, optimum * 1.1) << r.output;
+  EXPECT_GE(distributed, optimum * (1 - 1e-4)) << r.output;
   for (int robot = 0; robot < 3; ++robot) {
-    EXPECT_NE(r.out.find("robot " + std::to_string(robot) + ": 100 keyframes"), std::string::npos) << r.out;
+    EXPECT_NE(r.output.find("robot " + std::to_string(robot) + ": 100 keyframes"), std::string::npos) << r.output;
   }
 }
 
 TEST_F(PeerReplayTool, RefusesAGraphWithMoreRobotsThanGiven) {
-  const ToolRun r = run_replay(args("--robots 2"));
-  EXPECT_EQ(r.status, 2) << r.out;
-  EXPECT_NE(r.out.find("holds robot 2"), std::string::npos) << r.out;
+  const cdc::test::CommandResult r = run_replay(args("--robots 2"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("holds robot 2"), std::string::npos) << r.output;
 }
 
 }  // namespace

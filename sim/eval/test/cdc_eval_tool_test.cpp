@@ -1,17 +1,16 @@
 // cdc-eval on the real KITTI ground truth (sequence 05) against perturbed copies with known errors.
 #include "cdc/geometry/se3.hpp"
 #include "cdc/geometry/trajectory.hpp"
+#include "run_command.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include <array>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <sys/wait.h>
 #include <unistd.h>
 
 namespace cdc {
@@ -20,27 +19,9 @@ namespace {
 namespace fs = std::filesystem;
 using geometry::Trajectory;
 
-struct ToolRun {
-  int exit_code = -1;
-  std::string output;
-};
+using ToolRun = test::CommandResult;
 
-ToolRun run(const std::string& args) {
-  const std::string cmd = std::string(std::getenv("CDC_EVAL_BIN")) + " " + args + " 2>&1";
-  ToolRun r;
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (p == nullptr) {
-    return r;
-  }
-  std::array<char, 4096> buf{};
-  size_t n = 0;
-  while ((n = std::fread(buf.data(), 1, buf.size(), p)) > 0) {
-    r.output.append(buf.data(), n);
-  }
-  const int status = ::pclose(p);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+ToolRun run(const std::string& args) { return test::run_command(std::string(std::getenv("CDC_EVAL_BIN")) + " " + args); }
 
 class CdcEvalTool : public ::testing::Test {
  protected:

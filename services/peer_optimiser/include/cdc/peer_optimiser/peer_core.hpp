@@ -35,8 +35,8 @@ struct PeerConfig {
   // Each round moves the own keyframes this fraction of the way to the block's solution (in each
   // pose's tangent space). Every robot solves at once with its peers' last separators held fixed
   // (block Jacobi); taken whole (1.0), two coupled robots each jump onto the other's old poses and
-  // the pair oscillates instead of settling: replaying the KITTI-05 graph (cdc-peer-replay) its joint
-  // cost stayed 2-25 times the optimum, 30 s after the last keyframe. Damped it reaches the optimum.
+  // the pair oscillates instead of settling: replaying session 19's KITTI graphs (cdc-peer-replay) the
+  // joint cost stayed 1.5-40 times the optimum, 30 s after the last keyframe. Damped it reaches it.
   double relaxation = 0.7;
   // A separator pose goes to a peer again only once it has moved this far since it was last sent
   // there (the rounds settle, and most poses stop moving); every `separator_refresh` the peer gets all
@@ -140,7 +140,7 @@ class PeerCore {
   uint64_t distributed_rounds() const noexcept { return rounds_; }
   // What this robot knows, as a pose graph: its keyframes (at the distributed estimate, else their
   // odometry) with their odometry factors, every loop touching it, and its peers' separator poses as
-  // received. The union of every robot's graph is the swarm's graph (cdc-peer-replay reads a folder).
+  // received. The union of every robot's graph is the swarm's graph (cdc-peer-replay merges them).
   graph::PoseGraph graph() const;
 
  private:
