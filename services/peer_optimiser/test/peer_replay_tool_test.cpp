@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <regex>
 #include <string>
 
@@ -69,6 +70,28 @@ TEST_F(PeerReplayTool, ReplaysTheDampedRoundsCloseToTheCentralizedOptimum) {
   for (int robot = 0; robot < 3; ++robot) {
     EXPECT_NE(r.output.find("robot " + std::to_string(robot) + ": 100 keyframes"), std::string::npos) << r.output;
   }
+}
+
+TEST_F(PeerReplayTool, AppliesTheRunsRadioTimeline) {
+  // Every robot pair cut from the start: no inter-robot loop arrives, nothing crosses, and the robots
+  // stay in their own frames, far from the joint optimum.
+  std::ofstream(dir_ / "links.csv") << "wall_s,sim_s,a,b,state\n0.1,0.0,0,1,down\n0.1,0.0,0,2,down\n0.1,0.0,1,2,down\n";
+  const cdc::test::CommandResult cut = run_replay(args("--links " + (dir_ / "links.csv").string()));
+  ASSERT_EQ(cut.exit_code, 0) << cut.output;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(cut.output, m, std::regex(R"(joint cost: distributed ([0-9.]+), centralized optimum ([0-9.]+))")))
+      << cut.output;
+  EXPECT_GT(std::stod(m[1]), 10 * std::stod(m[2])) << cut.output;
+  for (int robot = 0; robot < 3; ++robot) {
+    EXPECT_TRUE(std::regex_search(
+        cut.output, std::regex("robot " + std::to_string(robot) + R"(: 100 keyframes, \d+ rounds, 0 separator poses sent)")))
+        << cut.output;
+  }
+
+  std::ofstream(dir_ / "bad.csv") << "wall_s,sim_s,a,b,state\n0.1,0.0,0,1,sideways\n";
+  const cdc::test::CommandResult bad = run_replay(args("--links " + (dir_ / "bad.csv").string()));
+  EXPECT_EQ(bad.exit_code, 2) << bad.output;
+  EXPECT_NE(bad.output.find("bad.csv:2"), std::string::npos) << bad.output;
 }
 
 TEST_F(PeerReplayTool, RefusesAGraphWithMoreRobotsThanGiven) {

@@ -19,9 +19,12 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <fstream>
 #include <map>
 #include <random>
 #include <set>
+#include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -34,6 +37,52 @@ using Stamped = std::vector<std::pair<double, Eigen::Vector3d>>;  // seconds, po
 struct TimedLoop {
   double available_s = 0;
   peer::LoopRecord record;
+};
+
+// A run's radio timeline (cdc-launch's links.csv: wall_s,sim_s,a,b,state): which robot pairs could talk
+// when. A pair with no row is up.
+class RadioTimeline {
+ public:
+  void load(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw std::runtime_error(path + ": cannot be read");
+    std::string line;
+    size_t n = 0;
+    while (std::getline(in, line)) {
+      ++n;
+      if (n == 1 || line.empty()) continue;  // the header
+      std::istringstream row(line);
+      std::string wall, sim, a, b, state;
+      if (!std::getline(row, wall, ',') || !std::getline(row, sim, ',') || !std::getline(row, a, ',') ||
+          !std::getline(row, b, ',') || !std::getline(row, state) || (state != "up" && state != "down")) {
+        throw std::runtime_error(path + ":" + std::to_string(n) + ": expected wall_s,sim_s,a,b,up|down");
+      }
+      const auto ra = static_cast<uint32_t>(std::stoul(a)), rb = static_cast<uint32_t>(std::stoul(b));
+      changes_[{std::min(ra, rb), std::max(ra, rb)}].emplace_back(std::stod(sim), state == "up");
+    }
+  }
+  bool up(uint32_t a, uint32_t b, double t) const {
+    const auto it = changes_.find({std::min(a, b), std::max(a, b)});
+    if (it == changes_.end()) return true;
+    bool state = true;
+    for (const auto& [at, is_up] : it->second) {
+      if (at > t) break;
+      state = is_up;
+    }
+    return state;
+  }
+  // The first time from t on when the pair is up; infinity if never again.
+  double next_up(uint32_t a, uint32_t b, double t) const {
+    if (up(a, b, t)) return t;
+    const auto it = changes_.find({std::min(a, b), std::max(a, b)});
+    for (const auto& [at, is_up] : it->second) {
+      if (at > t && is_up) return at;
+    }
+    return HUGE_VAL;
+  }
+
+ private:
+  std::map<std::pair<uint32_t, uint32_t>, std::vector<std::pair<double, bool>>> changes_;
 };
 
 // ATE [m] (SE(3)-aligned) of stamped positions against a ground-truth trajectory; NaN below 3 pairs.
@@ -57,7 +106,7 @@ int main(int argc, char** argv) {
   CLI::App app{"Replays a run's multi-robot pose graph through the peer optimisers' distributed rounds (no central, "
                "no DDS) and reports how close they come to the centralized optimum"};
   std::vector<std::string> graph_paths;
-  std::string run_dir, truth_dir;
+  std::string run_dir, truth_dir, links_path;
   double latency_s = 1.0, jitter_s = 0.0, tail_s = 30.0;
   uint32_t robots = 3, seed = 1;
   int round_ms = 200;
@@ -98,6 +147,10 @@ int main(int argc, char** argv) {
                  "a separator pose is sent again once it moved this far [m] (separator_min_change_m; the angle scales with it)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--links", links_path,
+                 "the run's links.csv: separators cross, and inter-robot loops arrive, only while the pair's link is up "
+                 "(default: every link up)")
+      ->check(CLI::ExistingFile);
   app.add_flag("--verbose", verbose, "print the joint cost every 5 s of replayed time");
   CLI11_PARSE(app, argc, argv);
   base.round_period = std::chrono::milliseconds(round_ms);
@@ -127,6 +180,8 @@ int main(int argc, char** argv) {
         return 2;
       }
     }
+    RadioTimeline radio;
+    if (!links_path.empty()) radio.load(links_path);
     const auto stamp_of = [&](graph::Key k) {
       const uint64_t i = graph::index_of(k);
       const auto& s = stamps[graph::robot_of(k)];
@@ -153,7 +208,9 @@ int main(int argc, char** argv) {
         l.keyframe_b = static_cast<uint32_t>(graph::index_of(f.b));
         l.T_a_b = f.measurement;
         l.information = f.information;
-        loops.push_back({std::max(stamp_of(f.a), stamp_of(f.b)) + latency_s + jitter(rng), l});
+        // An inter-robot loop is verified with the other robot's cloud: not before their link is up.
+        const double t = std::max(stamp_of(f.a), stamp_of(f.b)) + latency_s + jitter(rng);
+        loops.push_back({radio.next_up(l.robot_a, l.robot_b, t), l});
       }
     }
     std::sort(odometry.begin(), odometry.end(), [](const auto* a, const auto* b) { return a->b < b->b; });
@@ -223,6 +280,7 @@ int main(int argc, char** argv) {
       for (auto& c : cores) out.push_back(c.step(now, false));
       for (uint32_t r = 0; r < robots; ++r) {
         for (const auto& s : out[r].separators) {
+          if (!radio.up(r, s.target, t)) continue;
           cores[s.target].on_separator(r, s.poses);
           separator_poses[r] += s.poses.size();
         }
