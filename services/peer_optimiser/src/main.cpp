@@ -40,7 +40,7 @@ int main(int argc, char** argv) {
                  "write the robot's keyframes in the world frame as last corrected (TUM) here at shutdown");
   app.add_option("--graph-out", graph_out,
                  "write what this robot knows as a pose graph (g2o: its keyframes, the loops touching them, its "
-                 "peers' separator poses) here at shutdown; cdc-peer-replay replays a folder of them");
+                 "peers' separator poses) here at shutdown; cdc-peer-replay replays the robots' files together");
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error");
   CLI11_PARSE(app, argc, argv);
   try {

@@ -399,7 +399,7 @@ StepOutput PeerCore::step(Nanos now, bool central_alive) {
         const auto before = sent.find(id);
         const bool moved = before == sent.end() ||
                            (before->second.translation() - it->second.translation()).norm() >= config_.separator_min_change_m ||
-                           Eigen::AngleAxisd(before->second.linear().transpose() * it->second.linear()).angle() >=
+                           geometry::rotation_angle(before->second.linear().transpose() * it->second.linear()) >=
                                config_.separator_min_change_rad;
         if (refresh || moved) {
           s.poses.emplace_back(id, it->second);

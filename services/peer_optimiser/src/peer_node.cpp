@@ -1,7 +1,5 @@
 #include "peer_node.hpp"
 
-#include "cdc/graph/g2o.hpp"
-
 #include "cdc/config/reader.hpp"
 #include "cdc/dds/convert.hpp"
 #include "cdc/dds/liveliness.hpp"
