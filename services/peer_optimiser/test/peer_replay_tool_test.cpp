@@ -1,7 +1,9 @@
 // cdc-peer-replay end to end on a synthetic three-robot stream: it reads the graph, the keyframes'
 // stamps and the ground truth, replays the damped rounds close to the centralized optimum, and
-// refuses a graph that holds more robots than it was told.
+// refuses a graph that holds more robots than it was told; given each robot's own graph, it also
+// scores the run's own estimate.
 #include "cdc/geometry/trajectory.hpp"
+#include "cdc/graph/g2o.hpp"
 #include "run_command.hpp"
 #include "swarm_stream.hpp"
 
@@ -30,7 +32,8 @@ class PeerReplayTool : public ::testing::Test {
     cdc::test::SwarmStreamOptions o;
     o.robots = 3;
     o.keyframes_per_robot = 100;
-    const auto s = cdc::test::make_swarm_stream(o);
+    stream_ = cdc::test::make_swarm_stream(o);
+    const auto& s = stream_;
     cdc::test::write_stream_g2o(s, (dir_ / "graph.g2o").string());
     for (uint32_t r = 0; r < 3; ++r) {
       cdc::geometry::Trajectory kf, truth;
@@ -52,6 +55,7 @@ class PeerReplayTool : public ::testing::Test {
            " " + extra;
   }
   fs::path dir_;
+  cdc::test::SwarmStream stream_;
 };
 
 TEST_F(PeerReplayTool, ReplaysTheDampedRoundsCloseToTheCentralizedOptimum) {
@@ -92,6 +96,45 @@ TEST_F(PeerReplayTool, AppliesTheRunsRadioTimeline) {
   const cdc::test::CommandResult bad = run_replay(args("--links " + (dir_ / "bad.csv").string()));
   EXPECT_EQ(bad.exit_code, 2) << bad.output;
   EXPECT_NE(bad.output.find("bad.csv:2"), std::string::npos) << bad.output;
+}
+
+TEST_F(PeerReplayTool, ScoresTheRunsOwnEstimateFromEachRobotsGraph) {
+  // Each robot's graph as a peer writes it: its own keyframes (here at the truth), its odometry, the
+  // loops it takes part in and the peers' separators those loops touch. The run's own estimate is
+  // then the truth: zero ATE, and a joint cost no lower than the optimum's.
+  namespace graph = cdc::graph;
+  const graph::PoseGraph whole = graph::read_g2o((dir_ / "graph.g2o").string());
+  std::string files;
+  for (uint32_t r = 0; r < 3; ++r) {
+    graph::PoseGraph part;
+    for (const auto& k : stream_.keyframes[r]) part.poses[graph::make_key(r, k.id)] = k.T_world_truth;
+    for (const graph::Factor& f : whole.factors) {
+      if (graph::robot_of(f.a) != r && graph::robot_of(f.b) != r) continue;
+      part.factors.push_back(f);
+      for (const graph::Key k : {f.a, f.b}) part.poses.emplace(k, whole.poses.at(k));
+    }
+    const fs::path path = dir_ / ("peer_graph_" + std::to_string(r) + ".g2o");
+    graph::write_g2o(path.string(), part);
+    files += path.string() + " ";
+  }
+  const cdc::test::CommandResult r = cdc::test::run_command(std::string(std::getenv("CDC_PEER_REPLAY_BIN")) + " " + files +
+                                                            "--run " + (dir_ / "run").string() + " --truth " +
+                                                            (dir_ / "truth").string() + " --tail 5");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(r.output, m, std::regex(R"(centralized optimum ([0-9.]+))"))) << r.output;
+  const double optimum = std::stod(m[1]);
+  ASSERT_TRUE(std::regex_search(r.output, m, std::regex(R"(joint cost of the run's own estimate[^:]*: ([0-9.]+))"))) << r.output;
+  EXPECT_GE(std::stod(m[1]), optimum * (1 - 1e-4)) << r.output;
+  for (int robot = 0; robot < 3; ++robot) {
+    ASSERT_TRUE(std::regex_search(r.output, m, std::regex("robot " + std::to_string(robot) + R"(: ATE of the run's own estimate ([0-9.e-]+) m)")))
+        << r.output;
+    EXPECT_LT(std::stod(m[1]), 1e-3) << r.output;
+  }
+  // One graph holds no robot's own view: no such line.
+  const cdc::test::CommandResult one = run_replay(args("--tail 5"));
+  ASSERT_EQ(one.exit_code, 0) << one.output;
+  EXPECT_EQ(one.output.find("own estimate"), std::string::npos) << one.output;
 }
 
 TEST_F(PeerReplayTool, RefusesAGraphWithMoreRobotsThanGiven) {
