@@ -50,7 +50,12 @@ LoopNodeOptions load_loop_options(const std::string& path) {
   int retry = static_cast<int>(p.request_retry.count() / 1'000'000);
   r.get<int>("cloud_request_retry_ms", retry, positive_i, "> 0");
   p.request_retry = std::chrono::milliseconds(retry);
-  r.get<int>("peer_timeout_ms", o.peer_timeout_ms, positive_i, "> 0");
+  const auto ms_of = [](Nanos t) { return static_cast<int>(std::chrono::duration_cast<std::chrono::milliseconds>(t).count()); };
+  int silence = ms_of(o.reach.silence), margin = ms_of(o.reach.margin), delay = ms_of(o.reach.delay);
+  r.get<int>("peer_timeout_ms", silence, positive_i, "> 0");
+  r.get<int>("loop_resend.margin_ms", margin, [](const int& v) { return v >= 0; }, ">= 0");
+  r.get<int>("loop_resend.delay_ms", delay, [](const int& v) { return v >= 0; }, ">= 0");
+  o.reach = {std::chrono::milliseconds(silence), std::chrono::milliseconds(margin), std::chrono::milliseconds(delay)};
   r.get<int>("tick_ms", o.tick_ms, positive_i, "> 0");
   int resend = static_cast<int>(std::chrono::duration_cast<std::chrono::milliseconds>(o.sequencer.resend).count());
   r.get<int>("descriptor_sync.resend_ms", resend, positive_i, "> 0");

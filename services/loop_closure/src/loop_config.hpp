@@ -4,6 +4,7 @@
 
 #include "cdc/loop_closure/descriptor_sequencer.hpp"
 #include "cdc/loop_closure/loop_core.hpp"
+#include "cdc/loop_closure/peer_reach.hpp"
 
 #include <string>
 
@@ -14,7 +15,7 @@ struct LoopNodeOptions {
   int local_domain = -1;  // the robot's own domain (see cdc/dds/robot_domains.hpp); -1: none
   std::string dds_config, local_dds_config, stats_out, log_level = "info";
   LoopParams core;
-  int peer_timeout_ms = 3000;   // a peer unheard of this long is out of range: no cloud requests to it
+  PeerReachParams reach;        // a peer unheard of reach.silence is out of range: no cloud requests to it
   int tick_ms = 100;
   float reply_resolution_m = 0.01f;  // quantisation of the clouds sent in cloud replies
   SequencerParams sequencer;         // asking for missed descriptors

@@ -1,5 +1,7 @@
 #include "loop_node.hpp"
 
+#include "cdc/loop_closure/peer_reach.hpp"
+
 #include "cdc/dds/compact.hpp"
 #include "cdc/dds/convert.hpp"
 #include "cdc/dds/descriptor_convert.hpp"
@@ -17,6 +19,7 @@
 #include <spdlog/spdlog.h>
 
 #include <fstream>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -109,13 +112,11 @@ int run_loop_closure(const LoopNodeOptions& o) {
   const auto t0 = Clock::now();
   auto now_ns = [&] { return std::chrono::duration_cast<Nanos>(Clock::now() - t0); };
   LoopCore core(o.core, me);
-  std::map<uint32_t, Clock::time_point> last_heard;
-  // A peer is in reach while heard from within peer_timeout_ms; the robot's own services always are.
-  const auto in_reach = [&](uint32_t robot) {
-    if (robot == me) return true;
-    const auto it = last_heard.find(robot);
-    return it != last_heard.end() && Clock::now() - it->second <= std::chrono::milliseconds(o.peer_timeout_ms);
-  };
+  // A peer is in reach while heard from within peer_timeout_ms; one heard again after a silence
+  // gets the loops involving it that it may have missed meanwhile (kept here by sequence number).
+  PeerReach reach(me, o.reach);
+  std::map<uint32_t, cdc_msg_LoopClosure> written_loops;
+  const std::function<bool(uint32_t)> in_reach = [&](uint32_t robot) { return reach.in_reach(robot, now_ns()); };
   core.set_reachable(in_reach);
   uint64_t next_request = 1, duplicate_replies = 0, requests_served = 0, requests_unknown = 0, loops_sent = 0, points_served = 0;
   uint32_t incarnation = 0, loop_seq = 0;
@@ -161,6 +162,8 @@ int run_loop_closure(const LoopNodeOptions& o) {
       w_loop.write(m);
       if (w_loop_local) w_loop_local->write(m);
       ++loops_sent;
+      reach.published(m.loop_seq, m.robot_a, m.robot_b, now_ns());
+      written_loops[m.loop_seq] = m;
       spdlog::info("{} loop {}/{} - {}/{} (fitness {:.3f})", l.withdrawn ? "withdrew" : "published", l.robot_a,
                    l.keyframe_a, l.robot_b, l.keyframe_b, l.fitness);
     }
@@ -180,7 +183,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
         return;
       }
       traffic.in(dds::serialized_size(m), m.requester_robot_id);
-      last_heard[m.requester_robot_id] = Clock::now();
+      reach.heard(m.requester_robot_id, now_ns());
       cdc_msg_CloudReply rep{};
       rep.requester_robot_id = m.requester_robot_id;
       rep.request_id = m.request_id;
@@ -244,7 +247,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
       }
       if (m.robot_id != me) {
         traffic.in(dds::serialized_size(m), m.robot_id);
-        last_heard[m.robot_id] = Clock::now();
+        reach.heard(m.robot_id, now_ns());
       }
       for (DescriptorIn& d : sequencer.add(DescriptorIn{m.robot_id, m.keyframe_id, dds::descriptor_from_msg(m),
                                                         dds::to_eigen(m.pose_hint)})) {
@@ -312,6 +315,11 @@ int run_loop_closure(const LoopNodeOptions& o) {
       handle(core.on_cloud(m.owner_robot_id, m.keyframe_id, std::move(cloud), now));
     });
     handle(core.tick(now_ns()));
+    if (const std::vector<uint32_t> again = reach.due(now_ns()); !again.empty()) {
+      for (uint32_t seq : again) w_loop.write(written_loops.at(seq));
+      spdlog::info("wrote {} loops again (loops {}..{}) for a peer heard again after a silence", again.size(),
+                   again.front(), again.back());
+    }
   }
   dds::ShutdownSignal::remove_guard(&stop);
   if (!o.stats_out.empty()) {
@@ -323,6 +331,8 @@ int run_loop_closure(const LoopNodeOptions& o) {
     nlohmann::json j{{"robot", me},
                      {"keyframes", core.keyframes()},
                      {"loops_published", loops_sent},
+                     {"peer_silences", reach.stats().silences},
+                     {"loops_written_again", reach.stats().loops_due},
                      {"queries", s.queries},
                      {"reverse_queries", s.reverse_queries},
                      {"intra_gated", s.intra_gated},
