@@ -162,7 +162,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
       w_loop.write(m);
       if (w_loop_local) w_loop_local->write(m);
       ++loops_sent;
-      reach.published(m.loop_seq, m.robot_a, m.robot_b, now_ns());
+      reach.published(m.loop_seq, m.robot_a, m.keyframe_a, m.robot_b, m.keyframe_b, l.withdrawn, now_ns());
       written_loops[m.loop_seq] = m;
       spdlog::info("{} loop {}/{} - {}/{} (fitness {:.3f})", l.withdrawn ? "withdrew" : "published", l.robot_a,
                    l.keyframe_a, l.robot_b, l.keyframe_b, l.fitness);

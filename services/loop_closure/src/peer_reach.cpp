@@ -26,8 +26,17 @@ void PeerReach::heard(uint32_t peer, Nanos now) {
   if (it == last_heard_.end() || now > it->second) last_heard_[peer] = now;
 }
 
-void PeerReach::published(uint32_t seq, uint32_t robot_a, uint32_t robot_b, Nanos now) {
-  written_.push_back({seq, robot_a, robot_b, now});
+void PeerReach::published(uint32_t seq, uint32_t robot_a, uint32_t keyframe_a, uint32_t robot_b, uint32_t keyframe_b,
+                          bool withdrawal, Nanos now) {
+  if (withdrawal) {
+    for (Written& w : written_) {
+      if (!w.withdrawal && w.robot_a == robot_a && w.keyframe_a == keyframe_a && w.robot_b == robot_b &&
+          w.keyframe_b == keyframe_b) {
+        w.withdrawn = true;
+      }
+    }
+  }
+  written_.push_back({seq, robot_a, keyframe_a, robot_b, keyframe_b, withdrawal, now});
 }
 
 std::vector<uint32_t> PeerReach::due(Nanos now) {
@@ -42,7 +51,7 @@ std::vector<uint32_t> PeerReach::due(Nanos now) {
     auto from = std::lower_bound(written_.begin(), written_.end(), c->second.since,
                                  [](const Written& w, Nanos t) { return w.at < t; });
     for (; from != written_.end(); ++from) {
-      if (from->robot_a == peer || from->robot_b == peer) seqs.insert(from->seq);
+      if (!from->withdrawn && (from->robot_a == peer || from->robot_b == peer)) seqs.insert(from->seq);
     }
     c = catchup_.erase(c);
   }

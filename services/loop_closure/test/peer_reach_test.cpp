@@ -34,11 +34,11 @@ TEST(PeerReach, APeerHeardAgainAfterASilenceGetsTheLoopsItMayHaveMissed) {
   for (int t = 0; t <= 10; ++t) {  // both peers heard every second; peer 1's last word at 10 s
     r.heard(1, seconds(t));
     r.heard(2, seconds(t));
-    if (t == 1) r.published(0, 0, 1, seconds(1));  // long before the silence: acknowledged
+    if (t == 1) r.published(0, 0, 0, 1, 0, false, seconds(1));  // long before the silence: acknowledged
   }
-  r.published(1, 1, 0, seconds(9));    // within the margin: may still have been unacknowledged
-  r.published(2, 0, 2, seconds(11));   // involves peer 2 only
-  r.published(3, 0, 1, seconds(12));   // written into the cut
+  r.published(1, 1, 1, 0, 1, false, seconds(9));    // within the margin: may still have been unacknowledged
+  r.published(2, 0, 2, 2, 2, false, seconds(11));   // involves peer 2 only
+  r.published(3, 0, 3, 1, 3, false, seconds(12));   // written into the cut
   r.heard(2, seconds(12));             // peer 2 stays in reach throughout
   EXPECT_TRUE(r.due(seconds(12)).empty());
   r.heard(1, seconds(30));             // back after 20 s
@@ -54,7 +54,7 @@ TEST(PeerReach, ShortGapsNeedNoCatchUp) {
   // acknowledged by itself.
   PeerReach r(0, params());
   r.heard(1, seconds(0));
-  r.published(0, 0, 1, seconds(1));
+  r.published(0, 0, 0, 1, 0, false, seconds(1));
   r.heard(1, seconds(3));
   EXPECT_TRUE(r.due(seconds(10)).empty());
   EXPECT_EQ(r.stats().silences, 0u);
@@ -63,10 +63,10 @@ TEST(PeerReach, ShortGapsNeedNoCatchUp) {
 TEST(PeerReach, SilencesBeforeTheCatchUpWentOutMerge) {
   PeerReach r(0, params());
   r.heard(1, seconds(0));
-  r.published(0, 0, 1, seconds(5));   // into the first silence
+  r.published(0, 0, 0, 1, 0, false, seconds(5));   // into the first silence
   r.heard(1, seconds(10));            // catch-up due at 11 s, but not taken yet
-  r.published(1, 0, 2, seconds(12));  // peer 2's
-  r.published(2, 0, 1, seconds(13));  // into the second silence
+  r.published(1, 0, 1, 2, 1, false, seconds(12));  // peer 2's
+  r.published(2, 0, 2, 1, 2, false, seconds(13));  // into the second silence
   r.heard(1, milliseconds(14500));    // silent again for 4.5 s: due at 15.5 s
   EXPECT_TRUE(r.due(seconds(15)).empty());
   EXPECT_EQ(r.due(seconds(16)), (Seqs{0, 2})) << "one catch-up covering both silences";
@@ -77,11 +77,23 @@ TEST(PeerReach, ALoopDueForTwoPeersIsWrittenOnce) {
   PeerReach r(0, params());
   r.heard(1, seconds(0));
   r.heard(2, seconds(0));
-  r.published(0, 1, 2, seconds(1));
+  r.published(0, 1, 0, 2, 0, false, seconds(1));
   r.heard(1, seconds(20));
   r.heard(2, seconds(20));
   EXPECT_EQ(r.due(seconds(21)), (Seqs{0}));
   EXPECT_EQ(r.stats().loops_due, 1u);
+}
+
+TEST(PeerReach, AWithdrawnLoopIsNotWrittenAgainButItsWithdrawalIs) {
+  // Written again after its withdrawal, an accepted loop would be revived at a peer that missed it
+  // but took the withdrawal.
+  PeerReach r(0, params());
+  r.heard(1, seconds(0));
+  r.published(0, 0, 10, 1, 20, false, seconds(1));
+  r.published(1, 0, 11, 1, 21, false, seconds(1));
+  r.published(2, 0, 10, 1, 20, true, seconds(2));
+  r.heard(1, seconds(20));
+  EXPECT_EQ(r.due(seconds(21)), (Seqs{1, 2}));
 }
 
 }  // namespace

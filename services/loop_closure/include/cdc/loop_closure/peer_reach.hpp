@@ -36,8 +36,10 @@ class PeerReach {
   bool in_reach(uint32_t robot, Nanos now) const;
   // Something came from `peer` (a descriptor, a cloud request).
   void heard(uint32_t peer, Nanos now);
-  // This robot wrote loop `seq` between robots a and b.
-  void published(uint32_t seq, uint32_t robot_a, uint32_t robot_b, Nanos now);
+  // This robot wrote loop `seq` between keyframes a and b: accepted, or withdrawing the accepted one of
+  // that pair (which is then never written again: a copy arriving after the withdrawal would revive it).
+  void published(uint32_t seq, uint32_t robot_a, uint32_t keyframe_a, uint32_t robot_b, uint32_t keyframe_b,
+                 bool withdrawal, Nanos now);
   // The loops to write again now (ascending sequence numbers, each once per call).
   std::vector<uint32_t> due(Nanos now);
 
@@ -45,8 +47,10 @@ class PeerReach {
 
  private:
   struct Written {
-    uint32_t seq, robot_a, robot_b;
+    uint32_t seq, robot_a, keyframe_a, robot_b, keyframe_b;
+    bool withdrawal;
     Nanos at;
+    bool withdrawn = false;  // an accepted loop withdrawn since
   };
   struct Catchup {
     Nanos since;  // loops written from here on involving the peer
