@@ -3,6 +3,7 @@
 // with simulated VLP-16 clouds by the test.
 //  * Only descriptors travel until a candidate is found; robot 1 asks robot 0 for clouds, robot 0
 //    serves them, and the inter-robot loops published are true (1 m / 5 deg).
+//  * A peer heard again after a silence gets the loops involving it again (the same messages).
 //  * A malformed descriptor and a malformed cloud reply are rejected with a reason and counted,
 //    and the services carry on; traffic is counted per topic and per peer.
 #include "cdc/dds/compact.hpp"
@@ -90,7 +91,10 @@ test::ChildProcess spawn_service(const char* binary_env, const std::string& stem
 
 TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   ASSERT_NO_FATAL_FAILURE(require_service_binaries());
-  const Workspace ws = make_workspace("cdc_loop_services", "robots: 2\nretrieval:\n  exclude_recent: 1000\n", "robots: 2\n");
+  // Every loop written since the start counts as possibly missed by a peer heard again after a silence.
+  const Workspace ws = make_workspace("cdc_loop_services",
+                                      "robots: 2\nretrieval:\n  exclude_recent: 1000\nloop_resend:\n  margin_ms: 600000\n",
+                                      "robots: 2\n");
   const fs::path& dir = ws.dir;
 
   // Scenario: one 40 m circle, robot 1 eight metres behind robot 0, keyframes every 2 m.
@@ -166,33 +170,42 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
     r_loop.take(256).for_each_valid([&](const cdc_msg_LoopClosure& m, const dds_sample_info_t&) { loops.push_back(m); });
   };
   std::vector<cdc_msg_PointXYZI> storage;
-  for (uint32_t k = 0; k * 10 + 40 < lap.size(); ++k) {
-    for (uint32_t r = 0; r < 2; ++r) {
-      const Eigen::Isometry3d T = lap[k * 10 + 40 * (1 - r)].pose;  // robot 0 is 8 m ahead
-      truth[{r, k}] = T;
-      cdc_msg_Keyframe m{};
-      m.robot_id = r;
-      m.keyframe_id = k;
-      m.incarnation = 1;
-      m.stamp_ns = static_cast<int64_t>(k) * 1'000'000'000;
-      m.T_odom_keyframe = dds::to_msg(T);
-      m.T_prev_keyframe = dds::to_msg(k == 0 ? Eigen::Isometry3d::Identity() : truth.at({r, k - 1}).inverse() * T);
-      dds::Matrix6d info = dds::Matrix6d::Zero();
-      info.diagonal() << 2500, 2500, 2500, 250000, 250000, 250000;
-      dds::information_to_msg(info, m.information);
-      storage.clear();
-      for (const auto& p : sim::sweep(world, sim::LidarModel::vlp16(), [&](double) { return T; }, rng)) {
-        storage.push_back(cdc_msg_PointXYZI{p.x, p.y, p.z, 0.5f});
-      }
-      m.point_count = static_cast<uint32_t>(storage.size());
-      dds::borrow(m.cloud, storage);
-      w_kf.write(m);
+  auto write_keyframe = [&](uint32_t r, uint32_t k, const Eigen::Isometry3d& T) {
+    truth[{r, k}] = T;
+    cdc_msg_Keyframe m{};
+    m.robot_id = r;
+    m.keyframe_id = k;
+    m.incarnation = 1;
+    m.stamp_ns = static_cast<int64_t>(k) * 1'000'000'000;
+    m.T_odom_keyframe = dds::to_msg(T);
+    m.T_prev_keyframe = dds::to_msg(k == 0 ? Eigen::Isometry3d::Identity() : truth.at({r, k - 1}).inverse() * T);
+    dds::Matrix6d info = dds::Matrix6d::Zero();
+    info.diagonal() << 2500, 2500, 2500, 250000, 250000, 250000;
+    dds::information_to_msg(info, m.information);
+    storage.clear();
+    for (const auto& p : sim::sweep(world, sim::LidarModel::vlp16(), [&](double) { return T; }, rng)) {
+      storage.push_back(cdc_msg_PointXYZI{p.x, p.y, p.z, 0.5f});
     }
+    m.point_count = static_cast<uint32_t>(storage.size());
+    dds::borrow(m.cloud, storage);
+    w_kf.write(m);
+  };
+  uint32_t k = 0;
+  for (; k * 10 + 40 < lap.size(); ++k) {
+    for (uint32_t r = 0; r < 2; ++r) write_keyframe(r, k, lap[k * 10 + 40 * (1 - r)].pose);  // robot 0 is 8 m ahead
     std::this_thread::sleep_for(150ms);
     poll();
   }
-  // Let the last verifications finish.
+  // Let the last verifications finish: robot 0 falls silent (no descriptors) for 10 s, longer than
+  // the loop-closure services' peer_timeout_ms.
   for (int i = 0; i < 40; ++i) {
+    std::this_thread::sleep_for(250ms);
+    poll();
+  }
+  const std::vector<cdc_msg_LoopClosure> before_silence_ended = loops;
+  // Robot 0 is heard again: robot 1's service writes its loops with robot 0 again, a second later.
+  write_keyframe(0, k, lap[k * 10 + 40 - lap.size()].pose);
+  for (int i = 0; i < 16; ++i) {
     std::this_thread::sleep_for(250ms);
     poll();
   }
@@ -208,6 +221,19 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
     inter += l.robot_a != l.robot_b ? 1 : 0;
   }
   EXPECT_GE(inter, 4u) << loops.size() << " loops in all";
+  // Each loop robot 1 wrote before robot 0's silence came again, the same message (sender, sequence number).
+  std::map<uint32_t, int> copies;  // robot 1's loops by sequence number
+  for (const auto& l : loops) {
+    if (l.sender_robot_id == 1) ++copies[l.loop_seq];
+  }
+  size_t written_again = 0;
+  for (const auto& l : before_silence_ended) {
+    if (l.sender_robot_id != 1) continue;
+    if (l.robot_a != 0 && l.robot_b != 0) continue;
+    EXPECT_GE(copies[l.loop_seq], 2) << "robot 1's loop " << l.loop_seq;
+    ++written_again;
+  }
+  EXPECT_GE(written_again, 1u);
 
   auto stats = [&](const std::string& name) {
     std::ifstream in(dir / name);
@@ -221,6 +247,8 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   // Robot 1 asked robot 0 for clouds, robot 0 served them; both counted the bytes per peer.
   EXPECT_GT(l1.value("cloud_requests", 0), 0);
   EXPECT_GT(l1.value("cloud_replies", 0), 0);
+  EXPECT_GE(l1.value("peer_silences", 0), 1);
+  EXPECT_GE(l1.value("loops_written_again", 0), static_cast<int>(written_again));
   EXPECT_GT(l0.value("requests_served", 0), 0);
   // Served clouds travel packed: at most 5 bytes per point (16 as floats), headers included.
   EXPECT_GT(l0.value("points_served", 0), 0);
