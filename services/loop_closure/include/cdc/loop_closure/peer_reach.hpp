@@ -30,7 +30,7 @@ struct PeerReachStats {
 
 class PeerReach {
  public:
-  PeerReach(uint32_t me, PeerReachParams p = {}) : me_(me), p_(p) {}
+  explicit PeerReach(uint32_t me, PeerReachParams p = {}) : me_(me), p_(p) {}
 
   // This robot's own services always are in reach; a peer while heard within `silence`.
   bool in_reach(uint32_t robot, Nanos now) const;
