@@ -410,6 +410,19 @@ int run_peer(const PeerNodeOptions& o) {
       dds::borrow(m.poses, pose_storage);
       w_corr.write(m);
       ++corrections;
+      if (spdlog::should_log(spdlog::level::debug) && !out.correction->poses.empty()) {
+        // What the front-end takes: T_world_robot, and the newest keyframe in its odometry frame.
+        const Eigen::Isometry3d& T = out.correction->T_world_robot;
+        const Eigen::AngleAxisd r(T.linear());
+        const Eigen::Vector3d rv = r.angle() * r.axis() * 1e3;
+        const auto& [id, P] = out.correction->poses.back();
+        const Eigen::Vector3d w = P.translation(), l = (T.inverse() * P).translation();
+        spdlog::debug("correction {} ({}, lambda {:.3f}): T_world_robot ({:.3f}, {:.3f}, {:.3f}) m ({:.3f}, {:.3f}, {:.3f}) mrad; "
+                      "keyframe {} at ({:.3f}, {:.3f}, {:.3f}) in W, ({:.3f}, {:.3f}, {:.3f}) in L",
+                      corrections, out.correction->from_central ? "central" : "distributed", out.correction->lambda,
+                      T.translation().x(), T.translation().y(), T.translation().z(), rv.x(), rv.y(), rv.z(), id, w.x(),
+                      w.y(), w.z(), l.x(), l.y(), l.z());
+      }
     }
     if (Clock::now() - last_status >= std::chrono::milliseconds(o.status_period_ms)) {
       cdc_msg_RobotStatus s{};
