@@ -195,8 +195,13 @@ int run_central(const CentralNodeOptions& o) {
 
     const auto now = Clock::now();
     if ((core.dirty() || !core.settled()) && now - last_update >= std::chrono::milliseconds(o.update_period_ms)) {
-      core.optimise();
+      const UpdateStats u = core.optimise();
       w_alive.assert_liveliness();
+      if (spdlog::should_log(spdlog::level::debug)) {
+        spdlog::debug("update {} (graph version {}): {} pass over {} poses and {} factors, {} iterations in {:.0f} ms, {}",
+                      updates + 1, core.version(), u.full ? "full" : "local", u.poses, u.factors, u.iterations,
+                      u.time_s * 1e3, u.converged ? "converged" : "not converged");
+      }
       last_update = now;
       ++updates;
       // A graph that has not settled (a bounded pass after a large change, such as a robot's
@@ -223,10 +228,17 @@ int run_central(const CentralNodeOptions& o) {
           msg.T_world_robot = dds::to_msg(e.T_world_robot);
           dds::borrow(msg.poses, pose_storage);
           w_results.at(e.robot).write(msg);
-          if (!e.poses.empty()) {
-            const Eigen::Vector3d t = e.poses.back().second.translation();
-            spdlog::debug("graph version {}: robot {} newest keyframe {} at ({:.3f}, {:.3f}, {:.3f})", core.version(), e.robot,
-                          e.poses.back().first, t.x(), t.y(), t.z());
+          if (spdlog::should_log(spdlog::level::debug) && !e.poses.empty()) {
+            // The result as the robot's front-end takes it: T_world_robot, the newest keyframe in W and in L.
+            const Eigen::Isometry3d& T = e.T_world_robot;
+            const Eigen::AngleAxisd r(T.linear());
+            const Eigen::Vector3d rv = r.angle() * r.axis() * 1e3;
+            const auto& [id, P] = e.poses.back();
+            const Eigen::Vector3d w = P.translation(), l = (T.inverse() * P).translation();
+            spdlog::debug("graph version {}: robot {}{}: T_world_robot ({:.3f}, {:.3f}, {:.3f}) m ({:.3f}, {:.3f}, {:.3f}) mrad; "
+                          "newest keyframe {} at ({:.3f}, {:.3f}, {:.3f}) in W, ({:.3f}, {:.3f}, {:.3f}) in L",
+                          core.version(), e.robot, e.from_hint ? " (hint)" : "", T.translation().x(), T.translation().y(),
+                          T.translation().z(), rv.x(), rv.y(), rv.z(), id, w.x(), w.y(), w.z(), l.x(), l.y(), l.z());
           }
           if (static_cast<int>(e.robot) == o.central_on_robot && !e.poses.empty()) {
             central_position = e.poses.back().second.translation();
