@@ -99,6 +99,11 @@ void CentralCore::insert_ready_keyframes(Session& s) {
     graph_.add_between(prev, cur, kf.T_prev_keyframe, kf.information);
     s.in_graph.insert(id);
     touch(s, id);
+    // A backlog (a robot's re-sent keyframes after a rejoin, with the loops it missed) is more than a
+    // window: a local pass holds the rest of that robot fixed, and the loops that should turn its whole
+    // trajectory bend only its end. Robot 2 of the demo: its fitted T_world_robot 0.2 m and 2 mrad off
+    // for 2 s of local passes, then a full pass moved its corrected newest keyframe 0.15-0.3 m.
+    if (++s.inserted_since_full > config_.window) need_full_ = true;
   }
 }
 
@@ -223,6 +228,9 @@ UpdateStats CentralCore::solve_with(const graph::SolverOptions& options) {
   touched_.clear();
   updates_since_full_ = 0;
   need_full_ = false;
+  for (auto& [robot, list] : sessions_) {
+    for (Session& s : list) s.inserted_since_full = 0;
+  }
   settled_ = r.converged;
   st.full = true;
   return st;

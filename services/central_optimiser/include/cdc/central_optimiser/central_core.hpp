@@ -60,8 +60,8 @@ struct CentralConfig {
   size_t max_pending_loops = 100'000;
   // Incremental updates re-optimise what changed (new keyframes, loop ends) plus this many
   // preceding keyframes of the same robot, the rest held fixed; every full_every updates (and
-  // whenever a robot joins the world, and after any update that did not converge) the whole graph
-  // is re-optimised.
+  // whenever a robot joins the world, after any update that did not converge, and once a robot has
+  // gained more than `window` keyframes since the last full pass) the whole graph is re-optimised.
   uint32_t window = 30;
   uint32_t full_every = 20;
   int full_pass_iterations = 3;
@@ -142,6 +142,7 @@ class CentralCore {
     std::optional<Eigen::Isometry3d> hint;  // T_world_robot from the robot
     Eigen::Isometry3d T_world_odom = Eigen::Isometry3d::Identity();  // once placed
     std::set<uint32_t> loop_seqs;  // loops sent by this session
+    uint32_t inserted_since_full = 0;  // keyframes put in the graph since the last full pass
   };
   struct StoredLoop {
     LoopIn in;
@@ -168,7 +169,7 @@ class CentralCore {
   bool dirty_ = false;
   std::set<Key> touched_;        // keys changed since the last update
   uint32_t updates_since_full_ = 0;
-  bool need_full_ = false;       // a robot joined the world
+  bool need_full_ = false;       // a robot joined the world, or one grew beyond the window
   bool settled_ = true;          // the last update converged
   Counters counters_;
 };
