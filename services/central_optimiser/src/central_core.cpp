@@ -101,7 +101,7 @@ void CentralCore::insert_ready_keyframes(Session& s) {
     touch(s, id);
     // A backlog (a robot's re-sent keyframes after a rejoin, with the loops it missed) is more than a
     // window: a local pass holds the rest of that robot fixed, and the loops that should turn its whole
-    // trajectory bend only its end. Robot 2 of the demo: its fitted T_world_robot 0.2 m and 2 mrad off
+    // trajectory bend only its end. Robot 2 of the demo: its fitted T_world_robot 0.2 m and 3 mrad off
     // for 2 s of local passes, then a full pass moved its corrected newest keyframe 0.15-0.3 m.
     if (++s.inserted_since_full > config_.window) need_full_ = true;
   }
