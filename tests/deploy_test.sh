@@ -35,6 +35,9 @@ done
 # The rendered units start the right binaries with the robot's instance.
 grep -q "ExecStart=$tmp/root/opt/cdc-slam/bin/cdc-loop-closure --robot %i" "$tmp/root/etc/systemd/system/cdc-loop-closure@.service" \
   || fail "loop-closure unit does not start its binary"
+# A restarted loop-closure service goes on numbering its loops from its state file.
+grep -q -- "--state-file $tmp/root/var/lib/cdc-slam/loop-closure-%i.state" "$tmp/root/etc/systemd/system/cdc-loop-closure@.service" \
+  || fail "loop-closure unit keeps no loop numbering state"
 if command -v systemd-analyze > /dev/null; then
   for u in frontend descriptor loop-closure peer-optimiser; do
     cp "$tmp/root/etc/systemd/system/cdc-$u@.service" "$tmp/cdc-$u@2.service"

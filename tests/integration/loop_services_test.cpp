@@ -6,6 +6,7 @@
 //  * A peer heard again after a silence gets the loops involving it again (the same messages).
 //  * A malformed descriptor and a malformed cloud reply are rejected with a reason and counted,
 //    and the services carry on; traffic is counted per topic and per peer.
+//  * A loop-closure service restarted under the same incarnation numbers its loops on.
 #include "cdc/dds/compact.hpp"
 #include "cdc/dds/convert.hpp"
 #include "cdc/dds/descriptor_convert.hpp"
@@ -278,6 +279,127 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   } else {
     std::printf("logs kept in %s\n", dir.c_str());
   }
+}
+
+// A loop-closure service that dies and is started again (systemd Restart=on-failure) while the
+// robot's sensor incarnation goes on numbers its new loops on from where the dead one stopped: the
+// central and the peers drop a loop whose (sender, incarnation, seq) they hold, so a number used
+// again would lose the new loop. The numbering lives in the --state-file. One robot drives four laps
+// of a 10 m circle (31 keyframes a lap), closing loops with its own first lap, and its loop-closure
+// service is killed (SIGKILL: no shutdown step) after two laps.
+TEST(LoopServices, ARestartedServiceNumbersItsLoopsOnUnderTheSameIncarnation) {
+  ASSERT_NO_FATAL_FAILURE(require_service_binaries());
+  const Workspace ws = make_workspace("cdc_loop_restart", "robots: 1\nretrieval:\n  exclude_recent: 10\n", "robots: 1\n");
+  const fs::path& dir = ws.dir;
+  const std::string state = (dir / "loop-closure-0.state").string();
+  sim::MissionOptions mo;
+  mo.pattern = sim::MissionPattern::kLoops;
+  mo.robots = 1;
+  mo.size_m = 10;
+  mo.speed_mps = 2;
+  mo.duration_s = 126;  // four laps of 62.8 m
+  const auto laps = sim::procedural_mission(mo).front();
+  std::vector<Eigen::Vector3d> path;
+  for (const auto& sp : laps) path.push_back(sp.pose.translation());
+  sim::WorldOptions wo;
+  wo.seed = 5;
+  wo.spacing_m = 8;
+  const sim::World world = sim::World::generate({path}, wo);
+  std::mt19937_64 rng(2);
+
+  dds::ParticipantOptions po;
+  po.domain_id = dds::domain_from_env(0);
+  dds::Participant participant(po);
+  dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
+  dds::Topic<cdc_msg_LoopClosure> t_loop(participant, dds::topics::kLoopClosure);
+  dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096));
+  dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop, dds::qos::event_stream(4096));
+  const std::vector<std::string> with_state = {"--state-file", state};
+  test::ChildProcess descriptor = spawn_service("CDC_DESCRIPTOR_BIN", "descriptor", 0, ws.descriptor_config, dir);
+  test::ChildProcess loops_first = spawn_service("CDC_LOOP_CLOSURE_BIN", "loops_first", 0, ws.loops_config, dir, with_state);
+  ASSERT_TRUE(w_kf.wait_for_readers(2, 15s)) << "services did not subscribe to keyframes";
+  ASSERT_TRUE(r_loop.wait_for_writers(1, 15s));
+
+  std::vector<cdc_msg_LoopClosure> loops;
+  auto poll = [&] {
+    r_loop.take(256).for_each_valid([&](const cdc_msg_LoopClosure& m, const dds_sample_info_t&) { loops.push_back(m); });
+  };
+  std::vector<cdc_msg_PointXYZI> storage;
+  Eigen::Isometry3d previous = Eigen::Isometry3d::Identity();
+  auto drive = [&](uint32_t from, uint32_t to) {
+    for (uint32_t k = from; k < to && k * 10 < laps.size(); ++k) {
+      const Eigen::Isometry3d T = laps[k * 10].pose;
+      cdc_msg_Keyframe m{};
+      m.robot_id = 0;
+      m.keyframe_id = k;
+      m.incarnation = 77;  // the same sensor session throughout
+      m.stamp_ns = static_cast<int64_t>(k) * 1'000'000'000;
+      m.T_odom_keyframe = dds::to_msg(T);
+      m.T_prev_keyframe = dds::to_msg(k == 0 ? Eigen::Isometry3d::Identity() : previous.inverse() * T);
+      previous = T;
+      dds::Matrix6d info = dds::Matrix6d::Zero();
+      info.diagonal() << 2500, 2500, 2500, 250000, 250000, 250000;
+      dds::information_to_msg(info, m.information);
+      storage.clear();
+      for (const auto& p : sim::sweep(world, sim::LidarModel::vlp16(), [&](double) { return T; }, rng)) {
+        storage.push_back(cdc_msg_PointXYZI{p.x, p.y, p.z, 0.5f});
+      }
+      m.point_count = static_cast<uint32_t>(storage.size());
+      dds::borrow(m.cloud, storage);
+      w_kf.write(m);
+      std::this_thread::sleep_for(150ms);
+      poll();
+    }
+    for (int i = 0; i < 20; ++i) {  // the last verifications
+      std::this_thread::sleep_for(250ms);
+      poll();
+    }
+  };
+  drive(0, 63);
+  const std::vector<cdc_msg_LoopClosure> first = loops;
+  loops.clear();
+  ASSERT_GE(first.size(), 3u) << "the first service closed too few loops to test with";
+  loops_first.signal(SIGKILL);
+  ASSERT_TRUE(loops_first.wait(5s).has_value());
+  // Until its participant's lease (10 s) runs out, the dead service's endpoints still count as matched.
+  for (int i = 0; i < 150 && w_kf.matched_readers() > 1; ++i) std::this_thread::sleep_for(100ms);
+  ASSERT_EQ(w_kf.matched_readers(), 1u) << "the killed service's keyframe reader did not go";
+  test::ChildProcess loops_second = spawn_service("CDC_LOOP_CLOSURE_BIN", "loops_second", 0, ws.loops_config, dir, with_state);
+  ASSERT_TRUE(w_kf.wait_for_readers(2, 15s)) << "the restarted service did not subscribe to keyframes";
+  ASSERT_TRUE(r_loop.wait_for_writers(1, 15s));
+  std::this_thread::sleep_for(1s);  // its own readers may still be matching the test's writer
+  drive(63, 126);
+  stop(loops_second);
+  stop(descriptor);
+
+  std::set<uint32_t> first_seqs;
+  for (const auto& l : first) {
+    EXPECT_EQ(l.sender_incarnation, 77u);
+    EXPECT_TRUE(first_seqs.insert(l.loop_seq).second) << "seq " << l.loop_seq << " written twice by the first service";
+  }
+  EXPECT_EQ(*first_seqs.rbegin() + 1, first_seqs.size()) << "the first service numbered from 0 without gaps";
+  ASSERT_GE(loops.size(), 3u) << "the restarted service closed too few loops to test with";
+  std::set<uint32_t> second_seqs;
+  for (const auto& l : loops) {
+    EXPECT_EQ(l.sender_incarnation, 77u);
+    EXPECT_EQ(first_seqs.count(l.loop_seq), 0u) << "loop " << l.robot_a << "/" << l.keyframe_a << " - " << l.robot_b << "/"
+                                                << l.keyframe_b << " reuses seq " << l.loop_seq;
+    second_seqs.insert(l.loop_seq);
+  }
+  EXPECT_EQ(*second_seqs.begin(), first_seqs.size()) << "the restarted service goes on from the first's next number";
+  std::ifstream in(dir / "loops_second0.json");
+  ASSERT_TRUE(in.good());
+  const auto st = nlohmann::json::parse(in);
+  EXPECT_EQ(st["loop_numbering"].value("resumed", 0), 1);
+  EXPECT_EQ(st["loop_numbering"].value("state_errors", -1), 0);
+  EXPECT_EQ(st["loop_numbering"].value("save_failures", -1), 0);
+  std::ifstream log(dir / "loops_second0.log");
+  const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("incarnation 77 as before the restart: loop numbers go on from " + std::to_string(first_seqs.size())),
+            std::string::npos);
+  std::printf("first service: %zu loops (seq 0..%u); restarted: %zu loops (seq %u..%u)\n", first.size(),
+              *first_seqs.rbegin(), loops.size(), *second_seqs.begin(), *second_seqs.rbegin());
+  if (!HasFailure()) fs::remove_all(dir);
 }
 
 // Descriptors are sent once: a service that sees a gap in a robot's keyframe ids asks the owner for

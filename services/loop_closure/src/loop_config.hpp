@@ -4,6 +4,7 @@
 
 #include "cdc/loop_closure/descriptor_sequencer.hpp"
 #include "cdc/loop_closure/loop_core.hpp"
+#include "cdc/loop_closure/loop_numbering.hpp"
 #include "cdc/loop_closure/peer_reach.hpp"
 
 #include <string>
@@ -14,6 +15,7 @@ struct LoopNodeOptions {
   uint32_t robot = 0, robots = 3, domain = 0;
   int local_domain = -1;  // the robot's own domain (see cdc/dds/robot_domains.hpp); -1: none
   std::string dds_config, local_dds_config, stats_out, log_level = "info";
+  std::string state_file;  // where the loop numbering is kept across restarts (LoopNumbering); empty: nowhere
   LoopParams core;
   PeerReachParams reach;        // a peer unheard of reach.silence is out of range: no cloud requests to it
   int tick_ms = 100;

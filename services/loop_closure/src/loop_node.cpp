@@ -119,7 +119,15 @@ int run_loop_closure(const LoopNodeOptions& o) {
   const std::function<bool(uint32_t)> in_reach = [&](uint32_t robot) { return reach.in_reach(robot, now_ns()); };
   core.set_reachable(in_reach);
   uint64_t next_request = 1, duplicate_replies = 0, requests_served = 0, requests_unknown = 0, loops_sent = 0, points_served = 0;
-  uint32_t incarnation = 0, loop_seq = 0;
+  uint32_t incarnation = 0;
+  // Loop numbers per incarnation, kept in the state file across restarts of this service alone.
+  LoopNumbering numbering(o.state_file);
+  if (!numbering.last_error().empty()) {
+    spdlog::error("{}", numbering.last_error());
+  } else if (const auto st = numbering.stored()) {
+    spdlog::info("loop numbering state {}: incarnation {}, next loop {}", o.state_file, st->first, st->second);
+  }
+  uint64_t numbering_failures_logged = 0;
   PeerTraffic traffic;
   spdlog::info("loop-closure service of robot {} up: {} robots, PCM chi2 {}, domain {}{}", me, o.robots,
                o.core.pcm.chi2_threshold, o.domain,
@@ -153,7 +161,15 @@ int run_loop_closure(const LoopNodeOptions& o) {
       m.keyframe_b = l.keyframe_b;
       m.sender_robot_id = me;
       m.sender_incarnation = incarnation;
-      m.loop_seq = loop_seq++;
+      const uint64_t resumed = numbering.stats().resumed;
+      m.loop_seq = numbering.take(incarnation);
+      if (numbering.stats().resumed != resumed) {
+        spdlog::info("incarnation {} as before the restart: loop numbers go on from {}", incarnation, m.loop_seq);
+      }
+      if (numbering.stats().save_failures != numbering_failures_logged) {
+        numbering_failures_logged = numbering.stats().save_failures;
+        spdlog::error("{} (failure {}; loops are still written)", numbering.last_error(), numbering_failures_logged);
+      }
       m.stamp_ns = dds::now_ns();
       m.status = l.withdrawn ? cdc_msg_LOOP_WITHDRAWN : cdc_msg_LOOP_ACCEPTED;
       m.T_a_b = dds::to_msg(l.T_a_b);
@@ -333,6 +349,10 @@ int run_loop_closure(const LoopNodeOptions& o) {
                      {"loops_published", loops_sent},
                      {"peer_silences", reach.stats().silences},
                      {"loops_written_again", reach.stats().loops_due},
+                     {"loop_numbering", {{"state_file", o.state_file},
+                                         {"resumed", numbering.stats().resumed},
+                                         {"state_errors", numbering.stats().state_errors},
+                                         {"save_failures", numbering.stats().save_failures}}},
                      {"queries", s.queries},
                      {"reverse_queries", s.reverse_queries},
                      {"intra_gated", s.intra_gated},
