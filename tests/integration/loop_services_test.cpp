@@ -15,9 +15,9 @@
 #include "cdc/dds/topics.hpp"
 #include "cdc/lidar/scan_context.hpp"
 #include "cdc/sim/lidar.hpp"
-#include "cdc/sim/missions.hpp"
 #include "cdc/sim/world.hpp"
 #include "child_process.hpp"
+#include "circle_lap.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -90,6 +90,30 @@ test::ChildProcess spawn_service(const char* binary_env, const std::string& stem
   return test::ChildProcess::spawn(argv, (dir / (stem + r + ".log")).string());
 }
 
+// Writes keyframe `k` of `robot` at pose T (the previous keyframe at T_prev), with a simulated VLP-16
+// sweep of `world` as its cloud; `storage` holds the points while the sample is written.
+void write_keyframe(dds::Writer<cdc_msg_Keyframe>& w, const sim::World& world, std::mt19937_64& rng, uint32_t robot,
+                    uint32_t k, uint32_t incarnation, const Eigen::Isometry3d& T, const Eigen::Isometry3d& T_prev,
+                    std::vector<cdc_msg_PointXYZI>& storage) {
+  cdc_msg_Keyframe m{};
+  m.robot_id = robot;
+  m.keyframe_id = k;
+  m.incarnation = incarnation;
+  m.stamp_ns = static_cast<int64_t>(k) * 1'000'000'000;
+  m.T_odom_keyframe = dds::to_msg(T);
+  m.T_prev_keyframe = dds::to_msg(k == 0 ? Eigen::Isometry3d::Identity() : T_prev.inverse() * T);
+  dds::Matrix6d info = dds::Matrix6d::Zero();
+  info.diagonal() << 2500, 2500, 2500, 250000, 250000, 250000;
+  dds::information_to_msg(info, m.information);
+  storage.clear();
+  for (const auto& p : sim::sweep(world, sim::LidarModel::vlp16(), [&](double) { return T; }, rng)) {
+    storage.push_back(cdc_msg_PointXYZI{p.x, p.y, p.z, 0.5f});
+  }
+  m.point_count = static_cast<uint32_t>(storage.size());
+  dds::borrow(m.cloud, storage);
+  w.write(m);
+}
+
 TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   ASSERT_NO_FATAL_FAILURE(require_service_binaries());
   // Every loop written since the start counts as possibly missed by a peer heard again after a silence.
@@ -98,20 +122,9 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
                                       "robots: 2\n");
   const fs::path& dir = ws.dir;
 
-  // Scenario: one 40 m circle, robot 1 eight metres behind robot 0, keyframes every 2 m.
-  sim::MissionOptions mo;
-  mo.pattern = sim::MissionPattern::kLoops;
-  mo.robots = 1;
-  mo.size_m = 40;
-  mo.speed_mps = 2;
-  mo.duration_s = 34;
-  const auto lap = sim::procedural_mission(mo).front();
-  std::vector<Eigen::Vector3d> path;
-  for (const auto& sp : lap) path.push_back(sp.pose.translation());
-  sim::WorldOptions wo;
-  wo.seed = 3;
-  wo.spacing_m = 8;
-  const sim::World world = sim::World::generate({path}, wo);
+  // Scenario: 68 m of a circle of radius 40 m, robot 1 eight metres behind robot 0, keyframes every 2 m.
+  const test::CircleLap circuit = test::circle_lap(40, 34, 3);
+  const geometry::Trajectory& lap = circuit.lap;
   std::mt19937_64 rng(1);
 
   dds::ParticipantOptions po;
@@ -171,29 +184,13 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
     r_loop.take(256).for_each_valid([&](const cdc_msg_LoopClosure& m, const dds_sample_info_t&) { loops.push_back(m); });
   };
   std::vector<cdc_msg_PointXYZI> storage;
-  auto write_keyframe = [&](uint32_t r, uint32_t k, const Eigen::Isometry3d& T) {
+  auto write = [&](uint32_t r, uint32_t k, const Eigen::Isometry3d& T) {
     truth[{r, k}] = T;
-    cdc_msg_Keyframe m{};
-    m.robot_id = r;
-    m.keyframe_id = k;
-    m.incarnation = 1;
-    m.stamp_ns = static_cast<int64_t>(k) * 1'000'000'000;
-    m.T_odom_keyframe = dds::to_msg(T);
-    m.T_prev_keyframe = dds::to_msg(k == 0 ? Eigen::Isometry3d::Identity() : truth.at({r, k - 1}).inverse() * T);
-    dds::Matrix6d info = dds::Matrix6d::Zero();
-    info.diagonal() << 2500, 2500, 2500, 250000, 250000, 250000;
-    dds::information_to_msg(info, m.information);
-    storage.clear();
-    for (const auto& p : sim::sweep(world, sim::LidarModel::vlp16(), [&](double) { return T; }, rng)) {
-      storage.push_back(cdc_msg_PointXYZI{p.x, p.y, p.z, 0.5f});
-    }
-    m.point_count = static_cast<uint32_t>(storage.size());
-    dds::borrow(m.cloud, storage);
-    w_kf.write(m);
+    write_keyframe(w_kf, circuit.world, rng, r, k, 1, T, k == 0 ? T : truth.at({r, k - 1}), storage);
   };
   uint32_t k = 0;
   for (; k * 10 + 40 < lap.size(); ++k) {
-    for (uint32_t r = 0; r < 2; ++r) write_keyframe(r, k, lap[k * 10 + 40 * (1 - r)].pose);  // robot 0 is 8 m ahead
+    for (uint32_t r = 0; r < 2; ++r) write(r, k, lap[k * 10 + 40 * (1 - r)].pose);  // robot 0 is 8 m ahead
     std::this_thread::sleep_for(150ms);
     poll();
   }
@@ -205,7 +202,7 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   }
   const std::vector<cdc_msg_LoopClosure> before_silence_ended = loops;
   // Robot 0 is heard again: robot 1's service writes its loops with robot 0 again, a second later.
-  write_keyframe(0, k, lap[k * 10 + 40 - lap.size()].pose);
+  write(0, k, lap[k * 10 + 40 - lap.size()].pose);
   for (int i = 0; i < 16; ++i) {
     std::this_thread::sleep_for(250ms);
     poll();
@@ -292,19 +289,8 @@ TEST(LoopServices, ARestartedServiceNumbersItsLoopsOnUnderTheSameIncarnation) {
   const Workspace ws = make_workspace("cdc_loop_restart", "robots: 1\nretrieval:\n  exclude_recent: 10\n", "robots: 1\n");
   const fs::path& dir = ws.dir;
   const std::string state = (dir / "loop-closure-0.state").string();
-  sim::MissionOptions mo;
-  mo.pattern = sim::MissionPattern::kLoops;
-  mo.robots = 1;
-  mo.size_m = 10;
-  mo.speed_mps = 2;
-  mo.duration_s = 126;  // four laps of 62.8 m
-  const auto laps = sim::procedural_mission(mo).front();
-  std::vector<Eigen::Vector3d> path;
-  for (const auto& sp : laps) path.push_back(sp.pose.translation());
-  sim::WorldOptions wo;
-  wo.seed = 5;
-  wo.spacing_m = 8;
-  const sim::World world = sim::World::generate({path}, wo);
+  const test::CircleLap circuit = test::circle_lap(10, 126, 5);  // four laps of 62.8 m
+  const geometry::Trajectory& laps = circuit.lap;
   std::mt19937_64 rng(2);
 
   dds::ParticipantOptions po;
@@ -329,24 +315,8 @@ TEST(LoopServices, ARestartedServiceNumbersItsLoopsOnUnderTheSameIncarnation) {
   auto drive = [&](uint32_t from, uint32_t to) {
     for (uint32_t k = from; k < to && k * 10 < laps.size(); ++k) {
       const Eigen::Isometry3d T = laps[k * 10].pose;
-      cdc_msg_Keyframe m{};
-      m.robot_id = 0;
-      m.keyframe_id = k;
-      m.incarnation = 77;  // the same sensor session throughout
-      m.stamp_ns = static_cast<int64_t>(k) * 1'000'000'000;
-      m.T_odom_keyframe = dds::to_msg(T);
-      m.T_prev_keyframe = dds::to_msg(k == 0 ? Eigen::Isometry3d::Identity() : previous.inverse() * T);
+      write_keyframe(w_kf, circuit.world, rng, 0, k, 77, T, previous, storage);  // one sensor incarnation throughout
       previous = T;
-      dds::Matrix6d info = dds::Matrix6d::Zero();
-      info.diagonal() << 2500, 2500, 2500, 250000, 250000, 250000;
-      dds::information_to_msg(info, m.information);
-      storage.clear();
-      for (const auto& p : sim::sweep(world, sim::LidarModel::vlp16(), [&](double) { return T; }, rng)) {
-        storage.push_back(cdc_msg_PointXYZI{p.x, p.y, p.z, 0.5f});
-      }
-      m.point_count = static_cast<uint32_t>(storage.size());
-      dds::borrow(m.cloud, storage);
-      w_kf.write(m);
       std::this_thread::sleep_for(150ms);
       poll();
     }

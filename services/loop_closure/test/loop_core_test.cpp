@@ -1,6 +1,7 @@
 // The loop-closure core end to end on simulated scans: two robots drive the same block; every loop it
 // publishes is true (1 m / 5 deg), and it finds the robots' shared places.
 #include "cdc/loop_closure/loop_core.hpp"
+#include "circle_lap.hpp"
 #include "cdc/sim/lidar.hpp"
 #include "cdc/sim/missions.hpp"
 #include "cdc/sim/world.hpp"
@@ -16,28 +17,7 @@
 namespace cdc::loops {
 namespace {
 
-// A drive round a circle of radius_m at 2 m/s and a world built along it.
-struct Lap {
-  geometry::Trajectory lap;
-  sim::World world;
-};
-Lap circle_lap(double radius_m, double duration_s) {
-  sim::MissionOptions mo;
-  mo.pattern = sim::MissionPattern::kLoops;
-  mo.robots = 1;
-  mo.size_m = radius_m;
-  mo.speed_mps = 2;
-  mo.duration_s = duration_s;
-  Lap out;
-  out.lap = sim::procedural_mission(mo).front();
-  std::vector<Eigen::Vector3d> path;
-  for (const auto& sp : out.lap) path.push_back(sp.pose.translation());
-  sim::WorldOptions wo;
-  wo.seed = 3;
-  wo.spacing_m = 8;
-  out.world = sim::World::generate({path}, wo);
-  return out;
-}
+using test::circle_lap;
 
 TEST(LoopCore, FindsTrueLoopsBetweenTwoRobotsOnTheSameBlock) {
   // Robots 0 and 1 drive the same circle (40 m radius), robot 1 a little behind; keyframes every 2 m.
@@ -153,7 +133,7 @@ struct Circle {
   std::map<std::pair<uint32_t, uint32_t>, Eigen::Isometry3d> truth;
   std::map<std::pair<uint32_t, uint32_t>, std::vector<Eigen::Vector3f>> clouds;
   Circle(double duration_s, uint32_t robots) {
-    Lap l = circle_lap(40, duration_s);
+    test::CircleLap l = circle_lap(40, duration_s);
     lap = std::move(l.lap);
     world = std::move(l.world);
     std::mt19937_64 rng(1);
