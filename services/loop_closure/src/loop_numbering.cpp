@@ -36,13 +36,16 @@ bool parse_field(std::istream& in, const char* key, uint32_t& value, std::string
 }  // namespace
 
 LoopNumbering::LoopNumbering(std::string state_path) : path_(std::move(state_path)) {
-  if (path_.empty() || !std::filesystem::exists(path_)) {
-    return;
+  std::error_code ec;
+  if (path_.empty() || (!std::filesystem::exists(path_, ec) && !ec)) {
+    return;  // no file yet: the first run under this path
   }
   std::ifstream in(path_);
   std::string header, error;
   uint32_t incarnation = 0, next = 0;
-  if (!in) {
+  if (ec) {
+    error = "cannot be looked up: " + ec.message();
+  } else if (!in) {
     error = "cannot be read: " + std::string(std::strerror(errno));
   } else if (!std::getline(in, header) || header != kHeader) {
     error = "first line is not '" + std::string(kHeader) + "'";
