@@ -4,7 +4,6 @@
 
 #include "cdc/loop_closure/descriptor_sequencer.hpp"
 #include "cdc/loop_closure/loop_core.hpp"
-#include "cdc/loop_closure/loop_numbering.hpp"
 #include "cdc/loop_closure/peer_reach.hpp"
 
 #include <string>

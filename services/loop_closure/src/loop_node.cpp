@@ -1,5 +1,6 @@
 #include "loop_node.hpp"
 
+#include "cdc/loop_closure/loop_numbering.hpp"
 #include "cdc/loop_closure/peer_reach.hpp"
 
 #include "cdc/dds/compact.hpp"
