@@ -55,7 +55,10 @@ LoopNodeOptions load_loop_options(const std::string& path) {
   r.get<int>("peer_timeout_ms", silence, positive_i, "> 0");
   r.get<int>("loop_resend.margin_ms", margin, [](const int& v) { return v >= 0; }, ">= 0");
   r.get<int>("loop_resend.delay_ms", delay, [](const int& v) { return v >= 0; }, ">= 0");
-  o.reach = {std::chrono::milliseconds(silence), std::chrono::milliseconds(margin), std::chrono::milliseconds(delay)};
+  int keep = static_cast<int>(o.reach.keep);
+  r.get<int>("loop_resend.keep_loops", keep, positive_i, "> 0");
+  o.reach = {std::chrono::milliseconds(silence), std::chrono::milliseconds(margin), std::chrono::milliseconds(delay),
+             static_cast<size_t>(keep)};
   r.get<int>("tick_ms", o.tick_ms, positive_i, "> 0");
   int resend = ms_of(o.sequencer.resend);
   r.get<int>("descriptor_sync.resend_ms", resend, positive_i, "> 0");

@@ -116,7 +116,8 @@ int run_loop_closure(const LoopNodeOptions& o) {
   // A peer is in reach while heard from within peer_timeout_ms; one heard again after a silence
   // gets the loops involving it that it may have missed meanwhile (kept here by sequence number).
   PeerReach reach(me, o.reach);
-  std::map<uint32_t, cdc_msg_LoopClosure> written_loops;
+  std::map<uint64_t, cdc_msg_LoopClosure> written_loops;  // by handle: numbers start again with each incarnation
+  uint64_t next_written = 0;
   const std::function<bool(uint32_t)> in_reach = [&](uint32_t robot) { return reach.in_reach(robot, now_ns()); };
   core.set_reachable(in_reach);
   uint64_t next_request = 1, duplicate_replies = 0, requests_served = 0, requests_unknown = 0, loops_sent = 0, points_served = 0;
@@ -181,8 +182,11 @@ int run_loop_closure(const LoopNodeOptions& o) {
       w_loop.write(m);
       if (w_loop_local) w_loop_local->write(m);
       ++loops_sent;
-      reach.published(m.loop_seq, m.robot_a, m.keyframe_a, m.robot_b, m.keyframe_b, l.withdrawn, now_ns());
-      written_loops[m.loop_seq] = m;
+      const uint64_t id = next_written++;
+      written_loops[id] = m;
+      if (const auto gone = reach.published(id, m.robot_a, m.keyframe_a, m.robot_b, m.keyframe_b, l.withdrawn, now_ns())) {
+        written_loops.erase(*gone);
+      }
       spdlog::info("{} loop {}/{} - {}/{} (fitness {:.3f})", l.withdrawn ? "withdrew" : "published", l.robot_a,
                    l.keyframe_a, l.robot_b, l.keyframe_b, l.fitness);
     }
@@ -334,10 +338,10 @@ int run_loop_closure(const LoopNodeOptions& o) {
       handle(core.on_cloud(m.owner_robot_id, m.keyframe_id, std::move(cloud), now));
     });
     handle(core.tick(now_ns()));
-    if (const std::vector<uint32_t> again = reach.due(now_ns()); !again.empty()) {
-      for (uint32_t seq : again) w_loop.write(written_loops.at(seq));
+    if (const std::vector<uint64_t> again = reach.due(now_ns()); !again.empty()) {
+      for (uint64_t id : again) w_loop.write(written_loops.at(id));
       spdlog::info("wrote {} loops again (loops {}..{}) for a peer heard again after a silence", again.size(),
-                   again.front(), again.back());
+                   written_loops.at(again.front()).loop_seq, written_loops.at(again.back()).loop_seq);
     }
   }
   dds::ShutdownSignal::remove_guard(&stop);
@@ -352,6 +356,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
                      {"loops_published", loops_sent},
                      {"peer_silences", reach.stats().silences},
                      {"loops_written_again", reach.stats().loops_due},
+                     {"loops_forgotten", reach.stats().forgotten},
                      {"loop_numbering", {{"state_file", o.state_file},
                                          {"resumed", numbering.stats().resumed},
                                          {"state_errors", numbering.stats().state_errors},

@@ -26,8 +26,8 @@ void PeerReach::heard(uint32_t peer, Nanos now) {
   if (it == last_heard_.end() || now > it->second) last_heard_[peer] = now;
 }
 
-void PeerReach::published(uint32_t seq, uint32_t robot_a, uint32_t keyframe_a, uint32_t robot_b, uint32_t keyframe_b,
-                          bool withdrawal, Nanos now) {
+std::optional<uint64_t> PeerReach::published(uint64_t id, uint32_t robot_a, uint32_t keyframe_a, uint32_t robot_b,
+                                             uint32_t keyframe_b, bool withdrawal, Nanos now) {
   if (withdrawal) {
     for (Written& w : written_) {
       if (!w.withdrawal && w.robot_a == robot_a && w.keyframe_a == keyframe_a && w.robot_b == robot_b &&
@@ -36,11 +36,16 @@ void PeerReach::published(uint32_t seq, uint32_t robot_a, uint32_t keyframe_a, u
       }
     }
   }
-  written_.push_back({seq, robot_a, keyframe_a, robot_b, keyframe_b, withdrawal, now});
+  written_.push_back({id, robot_a, keyframe_a, robot_b, keyframe_b, withdrawal, now});
+  if (written_.size() <= p_.keep) return std::nullopt;
+  const uint64_t gone = written_.front().id;
+  written_.pop_front();
+  ++stats_.forgotten;
+  return gone;
 }
 
-std::vector<uint32_t> PeerReach::due(Nanos now) {
-  std::set<uint32_t> seqs;
+std::vector<uint64_t> PeerReach::due(Nanos now) {
+  std::set<uint64_t> ids;
   for (auto c = catchup_.begin(); c != catchup_.end();) {
     if (c->second.at > now) {
       ++c;
@@ -51,12 +56,12 @@ std::vector<uint32_t> PeerReach::due(Nanos now) {
     auto from = std::lower_bound(written_.begin(), written_.end(), c->second.since,
                                  [](const Written& w, Nanos t) { return w.at < t; });
     for (; from != written_.end(); ++from) {
-      if (!from->withdrawn && (from->robot_a == peer || from->robot_b == peer)) seqs.insert(from->seq);
+      if (!from->withdrawn && (from->robot_a == peer || from->robot_b == peer)) ids.insert(from->id);
     }
     c = catchup_.erase(c);
   }
-  stats_.loops_due += seqs.size();
-  return {seqs.begin(), seqs.end()};
+  stats_.loops_due += ids.size();
+  return {ids.begin(), ids.end()};
 }
 
 }  // namespace cdc::loops

@@ -9,7 +9,7 @@ namespace {
 
 using std::chrono::milliseconds;
 using std::chrono::seconds;
-using Seqs = std::vector<uint32_t>;
+using Ids = std::vector<uint64_t>;
 
 PeerReachParams params() {
   PeerReachParams p;
@@ -43,7 +43,7 @@ TEST(PeerReach, APeerHeardAgainAfterASilenceGetsTheLoopsItMayHaveMissed) {
   EXPECT_TRUE(r.due(seconds(12)).empty());
   r.heard(1, seconds(30));             // back after 20 s
   EXPECT_TRUE(r.due(milliseconds(30500)).empty()) << "waits for discovery to match the readers";
-  EXPECT_EQ(r.due(seconds(31)), (Seqs{1, 3}));
+  EXPECT_EQ(r.due(seconds(31)), (Ids{1, 3}));
   EXPECT_TRUE(r.due(seconds(32)).empty()) << "each catch-up goes out once";
   EXPECT_EQ(r.stats().silences, 1u);
   EXPECT_EQ(r.stats().loops_due, 2u);
@@ -69,7 +69,7 @@ TEST(PeerReach, SilencesBeforeTheCatchUpWentOutMerge) {
   r.published(2, 0, 2, 1, 2, false, seconds(13));  // into the second silence
   r.heard(1, milliseconds(14500));    // silent again for 4.5 s: due at 15.5 s
   EXPECT_TRUE(r.due(seconds(15)).empty());
-  EXPECT_EQ(r.due(seconds(16)), (Seqs{0, 2})) << "one catch-up covering both silences";
+  EXPECT_EQ(r.due(seconds(16)), (Ids{0, 2})) << "one catch-up covering both silences";
   EXPECT_EQ(r.stats().silences, 2u);
 }
 
@@ -80,7 +80,7 @@ TEST(PeerReach, ALoopDueForTwoPeersIsWrittenOnce) {
   r.published(0, 1, 0, 2, 0, false, seconds(1));
   r.heard(1, seconds(20));
   r.heard(2, seconds(20));
-  EXPECT_EQ(r.due(seconds(21)), (Seqs{0}));
+  EXPECT_EQ(r.due(seconds(21)), (Ids{0}));
   EXPECT_EQ(r.stats().loops_due, 1u);
 }
 
@@ -93,7 +93,32 @@ TEST(PeerReach, AWithdrawnLoopIsNotWrittenAgainButItsWithdrawalIs) {
   r.published(1, 0, 11, 1, 21, false, seconds(1));
   r.published(2, 0, 10, 1, 20, true, seconds(2));
   r.heard(1, seconds(20));
-  EXPECT_EQ(r.due(seconds(21)), (Seqs{1, 2}));
+  EXPECT_EQ(r.due(seconds(21)), (Ids{1, 2}));
+}
+
+}  // namespace
+}  // namespace cdc::loops
+
+namespace cdc::loops {
+namespace {
+
+// A long mission: only the newest `keep` loops are kept to be written again; the oldest are forgotten,
+// their handles given back so that the caller drops their messages, and counted.
+TEST(PeerReach, OnlyTheNewestLoopsAreKeptToBeWrittenAgain) {
+  PeerReachParams p = params();
+  p.keep = 3;
+  PeerReach r(0, p);
+  r.heard(1, seconds(0));
+  Ids forgotten;
+  for (uint64_t id = 0; id < 5; ++id) {  // all written into peer 1's silence
+    if (const auto gone = r.published(id, 0, static_cast<uint32_t>(id), 1, 0, false, seconds(5 + static_cast<int>(id)))) {
+      forgotten.push_back(*gone);
+    }
+  }
+  EXPECT_EQ(forgotten, (Ids{0, 1}));
+  EXPECT_EQ(r.stats().forgotten, 2u);
+  r.heard(1, seconds(20));
+  EXPECT_EQ(r.due(seconds(21)), (Ids{2, 3, 4}));
 }
 
 }  // namespace
