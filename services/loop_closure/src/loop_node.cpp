@@ -114,7 +114,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
   auto now_ns = [&] { return std::chrono::duration_cast<Nanos>(Clock::now() - t0); };
   LoopCore core(o.core, me);
   // A peer is in reach while heard from within peer_timeout_ms; one heard again after a silence
-  // gets the loops involving it that it may have missed meanwhile (kept here by sequence number).
+  // gets the loops involving it that it may have missed meanwhile (kept here by a handle of their own).
   PeerReach reach(me, o.reach);
   std::map<uint64_t, cdc_msg_LoopClosure> written_loops;  // by handle: numbers start again with each incarnation
   uint64_t next_written = 0;
