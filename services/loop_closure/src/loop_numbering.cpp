@@ -1,7 +1,6 @@
 #include "cdc/loop_closure/loop_numbering.hpp"
 
 #include <cerrno>
-#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
