@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <limits>
+#include <memory>
 #include <string>
 #include <thread>
 #include <unistd.h>
@@ -359,6 +360,39 @@ TEST(PubSub, PartitionsKeepRobotDataFromOtherRobots) {
   tool.write(m);
   size_t got_other = 0;
   ASSERT_TRUE(wait_until([&] { return (got_other += other.take().size()) > 0; }, 5000ms));
+}
+
+// One writer per robot: a sample for robot 1 reaches robot 1's reader only, and a reader that
+// comes back (a new match) shows in readers_ever_matched.
+TEST(PubSub, PerRobotWritersReachOnlyTheirRobot) {
+  Participant p(test_options());
+  Topic<cdc_msg_ModeState> topic(p, unique_topic("per_robot"));
+  PerRobotWriters<cdc_msg_ModeState> to(p, topic, qos::keyed_state(), 3, 0u);
+  EXPECT_EQ(to.size(), 3u);
+  EXPECT_EQ(to.to(0), nullptr);  // the skipped robot (the writer's own)
+  EXPECT_EQ(to.to(3), nullptr);  // beyond the swarm
+  ASSERT_NE(to.to(1), nullptr);
+  ASSERT_NE(to.to(2), nullptr);
+  auto r1 = std::make_unique<Reader<cdc_msg_ModeState>>(p, topic, qos::keyed_state().partitions(partitions::own_reader(1)));
+  Reader<cdc_msg_ModeState> r2(p, topic, qos::keyed_state().partitions(partitions::own_reader(2)));
+  ASSERT_TRUE(to.to(1)->wait_for_readers(1, 5000ms));
+  ASSERT_TRUE(to.to(2)->wait_for_readers(1, 5000ms));
+  EXPECT_EQ(to.to(1)->readers_ever_matched(), 1u);
+  cdc_msg_ModeState m{};
+  m.robot_id = 0;
+  m.mode = cdc_msg_MODE_DISTRIBUTED;
+  m.reason = cdc_msg_REASON_STARTUP;
+  to.to(1)->write(m);
+  size_t got1 = 0;
+  ASSERT_TRUE(wait_until([&] { return (got1 += r1->take().size()) > 0; }, 5000ms));
+  std::this_thread::sleep_for(200ms);
+  EXPECT_EQ(r2.take().size(), 0u) << "robot 2 got a sample meant for robot 1";
+
+  r1.reset();  // robot 1's reader goes and comes back: a second match
+  r1 = std::make_unique<Reader<cdc_msg_ModeState>>(p, topic, qos::keyed_state().partitions(partitions::own_reader(1)));
+  ASSERT_TRUE(wait_until([&] { return to.to(1)->readers_ever_matched() == 2u; }, 5000ms));
+  EXPECT_EQ(to.to(1)->matched_readers(), 1u);
+  EXPECT_EQ(to.to(2)->readers_ever_matched(), 1u);
 }
 
 TEST(WaitSet, GuardConditionWakesTheWaiter) {

@@ -87,11 +87,8 @@ int run(const Options& o) {
   // replay every descriptor ever made to each peer on every reconnection.
   dds::Writer<cdc_msg_Descriptor> w_desc(participant, t_desc, dds::qos::event_stream(256));
   dds::Reader<cdc_msg_DescriptorSync> r_sync(participant, t_sync, dds::qos::event_stream(256));
-  std::vector<std::unique_ptr<dds::Writer<cdc_msg_Descriptor>>> w_resend(o.robots);
-  for (uint32_t r = 0; r < o.robots; ++r) {
-    w_resend[r] = std::make_unique<dds::Writer<cdc_msg_Descriptor>>(
-        participant, t_desc, dds::qos::event_stream(static_cast<int32_t>(o.max_per_sync)).partitions({dds::partitions::robot(r)}));
-  }
+  dds::PerRobotWriters<cdc_msg_Descriptor> w_resend(participant, t_desc,
+                                                    dds::qos::event_stream(static_cast<int32_t>(o.max_per_sync)), o.robots);
   dds::GuardCondition stop;
   dds::ShutdownSignal::add_guard(&stop);
   dds::ReadCondition rc_kf(r_kf.handle()), rc_sync(r_sync.handle());
@@ -128,7 +125,7 @@ int run(const Options& o) {
       uint32_t n = 0;
       for (auto it = store.lower_bound(m.first_keyframe_id);
            it != store.end() && it->first <= m.last_keyframe_id && n < o.max_per_sync; ++it, ++n) {
-        w_resend[m.requester_robot_id]->write(it->second.msg);
+        w_resend.to(m.requester_robot_id)->write(it->second.msg);
         ++resent;
         resent_bytes += dds::serialized_size(it->second.msg);
       }

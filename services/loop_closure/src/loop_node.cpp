@@ -82,14 +82,8 @@ int run_loop_closure(const LoopNodeOptions& o) {
   dds::Reader<cdc_msg_CloudReply> r_rep(participant, t_rep, dds::qos::event_stream(256).partitions(dds::partitions::own_reader(me)));
   dds::Writer<cdc_msg_LoopClosure> w_loop(participant, t_loop, dds::qos::event_stream(4096));
   dds::Writer<cdc_msg_CloudRequest> w_req(participant, t_req, dds::qos::event_stream(256));
-  // Cloud replies go only to the robot that asked: one writer per robot, in that robot's partition
-  // (made up front: a writer's first sample can be lost before it has matched).
-  std::vector<std::unique_ptr<dds::Writer<cdc_msg_CloudReply>>> w_rep_to(o.robots);
-  for (uint32_t r = 0; r < o.robots; ++r) {
-    if (r == me) continue;
-    w_rep_to[r] = std::make_unique<dds::Writer<cdc_msg_CloudReply>>(
-        participant, t_rep, dds::qos::event_stream(256).partitions({dds::partitions::robot(r)}));
-  }
+  // Cloud replies go only to the robot that asked.
+  dds::PerRobotWriters<cdc_msg_CloudReply> w_rep_to(participant, t_rep, dds::qos::event_stream(256), o.robots, me);
   dds::GuardCondition stop;
   dds::ShutdownSignal::add_guard(&stop);
   dds::ReadCondition rc_kf(r_kf.handle()), rc_desc(r_desc.handle()), rc_desc_resent(r_desc_resent.handle()),
@@ -227,8 +221,9 @@ int run_loop_closure(const LoopNodeOptions& o) {
       rep.point_count = packed.count;
       rep.resolution_m = packed.resolution_m;
       dds::borrow(rep.packed_points, packed.bytes);
-      if (m.requester_robot_id >= w_rep_to.size() || !w_rep_to[m.requester_robot_id]) return;  // validated above
-      w_rep_to[m.requester_robot_id]->write(rep);
+      dds::Writer<cdc_msg_CloudReply>* to = w_rep_to.to(m.requester_robot_id);
+      if (to == nullptr) return;  // validated above
+      to->write(rep);
       traffic.out(dds::serialized_size(rep), m.requester_robot_id);
       spdlog::debug("served cloud {}/{} to robot {}: {} points in {} B, request {} ms old", me, m.keyframe_id,
                     m.requester_robot_id, packed.count, packed.bytes.size(), (dds::now_ns() - m.stamp_ns) / 1'000'000);

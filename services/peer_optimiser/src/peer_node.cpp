@@ -135,11 +135,14 @@ int run_peer(const PeerNodeOptions& o) {
   dds::Reader<cdc_msg_OptimizedPoses> r_central(participant, t_central,
                                                 dds::qos::monitored_reader().partitions({dds::partitions::robot(me)}));
   dds::Reader<cdc_msg_Acknowledgement> r_ack(participant, t_ack, dds::qos::keyed_state());
-  dds::Reader<cdc_msg_SeparatorPoses> r_sep(participant, t_sep, dds::qos::event_stream(256));
+  dds::Reader<cdc_msg_SeparatorPoses> r_sep(participant, t_sep,
+                                            dds::qos::event_stream(256).partitions(dds::partitions::own_reader(me)));
   dds::Reader<cdc_msg_RobotStatus> r_status(participant, t_status, dds::qos::keyed_state());
   dds::Writer<cdc_msg_ModeState> w_mode(participant, t_mode, dds::qos::keyed_state(8));
   dds::Writer<cdc_msg_OptimizedPoses> w_corr(local, t_corr_own, dds::qos::event_stream(64).partitions({dds::partitions::robot(me)}));
-  dds::Writer<cdc_msg_SeparatorPoses> w_sep(participant, t_sep, dds::qos::event_stream(256));
+  // Separators go only to the peer they are for (each crosses only the link to it).
+  dds::PerRobotWriters<cdc_msg_SeparatorPoses> w_sep(participant, t_sep, dds::qos::event_stream(256), o.core.robot_count, me);
+  std::vector<uint32_t> sep_matches(o.core.robot_count, 0);  // per peer: its readers ever matched
   dds::Writer<cdc_msg_WorldTransform> w_world(participant, t_world, dds::qos::keyed_state());
   dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096).partitions({dds::partitions::robot(me)}));
   dds::Writer<cdc_msg_LoopClosure> w_loop(participant, t_loop, dds::qos::event_stream(4096));
@@ -321,6 +324,17 @@ int run_peer(const PeerNodeOptions& o) {
       }
     });
 
+    // A peer's reader matched anew (it came back in reach after its lease lapsed, or restarted)
+    // has missed the separators written while it was away: it gets all of them next round.
+    for (uint32_t r = 0; r < w_sep.size(); ++r) {
+      if (const dds::Writer<cdc_msg_SeparatorPoses>* w = w_sep.to(r)) {
+        const uint32_t matched = w->readers_ever_matched();
+        if (matched != sep_matches[r]) {
+          sep_matches[r] = matched;
+          core.resend_separators_to(r);
+        }
+      }
+    }
     const bool alive = central_liveliness.state() == dds::Liveliness::kAlive;
     StepOutput out = core.step(now, alive);
     if (out.transition) {
@@ -390,7 +404,7 @@ int run_peer(const PeerNodeOptions& o) {
       m.round = static_cast<uint32_t>(core.distributed_rounds());
       m.stamp_ns = dds::now_ns();
       dds::borrow(m.poses, pose_storage);
-      w_sep.write(m);
+      w_sep.to(s.target)->write(m);
       ++separators_sent;
     }
     if (out.correction) {

@@ -568,14 +568,16 @@ TEST(PeerCore, SeparatorPosesGoAgainOnlyOnceTheyMovedOrOnRefresh) {
   exact.separator_min_change_m = 0;
   exact.separator_min_change_rad = 0;
   const SwarmRounds all = run_swarm_rounds(s, 300, exact);
-  const SwarmRounds moved = run_swarm_rounds(s, 300, config(0));  // 1 mm / 0.01 deg, refresh 2 s
+  const SwarmRounds moved = run_swarm_rounds(s, 300, config(0));  // 1 mm / 0.01 deg, refresh 30 s
   std::printf("separator poses sent: %zu exactly, %zu when moved; joint cost %.2f / %.2f, optimum %.2f\n",
               all.separator_poses, moved.separator_poses, all.cost, moved.cost, all.optimum);
   EXPECT_LT(moved.separator_poses * 2, all.separator_poses);
   EXPECT_LT(moved.cost, all.cost * 1.05);
 
   // Unit level: a settled pose is not sent again until the refresh; a moved one is.
-  PeerCore r0(config(0));
+  PeerConfig c0 = config(0);
+  c0.separator_refresh = 2s;
+  PeerCore r0(c0);
   for (uint32_t id = 0; id < 10; ++id) r0.add_keyframe(kf_from(s.keyframes[0][id]), 0s);
   LoopRecord l = loop_from(s.loops.front());
   l.robot_a = 0;
@@ -604,6 +606,45 @@ TEST(PeerCore, SeparatorPosesGoAgainOnlyOnceTheyMovedOrOnRefresh) {
     for (const auto& sep : r0.step(t += 100ms, false).separators) moved_sends += sep.poses.size();
   }
   EXPECT_GE(moved_sends, 1u) << "a moved separator pose was held back";
+}
+
+TEST(PeerCore, APeerMatchedAnewGetsEverySeparatorPoseAtTheNextRound) {
+  const auto s = three_robot_stream();
+  PeerCore r0(config(0));  // refresh 30 s: only the first send and the resends below within the test
+  for (uint32_t id = 0; id < 10; ++id) r0.add_keyframe(kf_from(s.keyframes[0][id]), 0s);
+  LoopRecord l = loop_from(s.loops.front());
+  l.robot_a = 0;
+  l.keyframe_a = 5;
+  l.robot_b = 1;
+  l.keyframe_b = 7;
+  r0.add_loop(l, 0s);
+  l.seq += 1;
+  l.keyframe_a = 8;
+  l.robot_b = 2;
+  l.keyframe_b = 3;
+  r0.add_loop(l, 0s);
+  Nanos t = 0s;
+  std::map<uint32_t, std::vector<uint32_t>> sent;  // target -> keyframe ids, in order
+  const auto rounds = [&](int n) {
+    sent.clear();
+    for (int i = 0; i < n; ++i) {
+      for (const auto& sep : r0.step(t += 100ms, false).separators) {
+        for (const auto& [id, T] : sep.poses) sent[sep.target].push_back(id);
+      }
+    }
+  };
+  rounds(20);  // the first send to each peer, then the estimate settles (robot 0 is alone)
+  EXPECT_EQ(sent[1], std::vector<uint32_t>{5});
+  EXPECT_EQ(sent[2], std::vector<uint32_t>{8});
+  rounds(20);
+  EXPECT_TRUE(sent.empty()) << "settled separator poses were sent again";
+
+  r0.resend_separators_to(2);  // robot 2's reader matched anew
+  rounds(1);
+  EXPECT_EQ(sent[2], std::vector<uint32_t>{8}) << "the peer matched anew did not get its separator pose";
+  EXPECT_EQ(sent.count(1), 0u) << "a peer that missed nothing got its separator pose again";
+  rounds(20);
+  EXPECT_TRUE(sent.empty()) << "the resend repeated";
 }
 
 }  // namespace

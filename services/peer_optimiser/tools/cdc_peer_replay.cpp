@@ -147,6 +147,12 @@ int main(int argc, char** argv) {
                  "a separator pose is sent again once it moved this far [m] (separator_min_change_m; the angle scales with it)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
+  double refresh_s = std::chrono::duration<double>(base.separator_refresh).count();
+  app.add_option("--separator-refresh", refresh_s,
+                 "every this many seconds a peer gets all its separator poses (separator_refresh_ms / 1000); it gets "
+                 "them too whenever its link comes back up, as a peer's reader matched anew does")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   app.add_option("--links", links_path,
                  "the run's links.csv: separators cross, and inter-robot loops arrive, only while the pair's link is up "
                  "(default: every link up)")
@@ -154,6 +160,7 @@ int main(int argc, char** argv) {
   app.add_flag("--verbose", verbose, "print the joint cost every 5 s of replayed time");
   CLI11_PARSE(app, argc, argv);
   base.round_period = std::chrono::milliseconds(round_ms);
+  base.separator_refresh = std::chrono::duration_cast<peer::Nanos>(std::chrono::duration<double>(refresh_s));
   base.separator_min_change_rad *= base.separator_min_change_m / peer::PeerConfig{}.separator_min_change_m;
 
   try {
@@ -251,6 +258,7 @@ int main(int argc, char** argv) {
     size_t next_loop = 0;
     std::vector<Stamped> realtime(robots), odom(robots);
     std::vector<size_t> separator_poses(robots, 0);
+    std::vector<std::vector<bool>> link_up(robots, std::vector<bool>(robots, true));
     std::vector<std::optional<peer::Correction>> last(robots);
     const auto joint_cost = [&] {
       graph::PoseGraph joint = central;
@@ -286,6 +294,17 @@ int main(int argc, char** argv) {
         const peer::LoopRecord& l = loops[next_loop].record;
         cores[l.robot_a].add_loop(l, now);
         if (l.robot_b != l.robot_a) cores[l.robot_b].add_loop(l, now);
+      }
+      // A link back up: each end's reader matches anew, and the other end sends it every separator.
+      for (uint32_t a = 0; a < robots; ++a) {
+        for (uint32_t b = a + 1; b < robots; ++b) {
+          const bool up = radio.up(a, b, t);
+          if (up && !link_up[a][b]) {
+            cores[a].resend_separators_to(b);
+            cores[b].resend_separators_to(a);
+          }
+          link_up[a][b] = up;
+        }
       }
       std::vector<peer::StepOutput> out;
       for (auto& c : cores) out.push_back(c.step(now, false));

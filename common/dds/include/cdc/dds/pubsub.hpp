@@ -15,6 +15,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <thread>
 #include <utility>
@@ -130,6 +131,14 @@ class Writer {
     return st.current_count;
   }
 
+  // Readers ever matched (a reader that went out of reach and came back counts again): a rise
+  // means a reader may have missed samples written while it was away.
+  uint32_t readers_ever_matched() const {
+    dds_publication_matched_status_t st{};
+    check(dds_get_publication_matched_status(writer_.handle(), &st), "publication matched status");
+    return st.total_count;
+  }
+
   // Waits until at least n readers match. The first sample written before matching is lost
   // on a volatile topic: call this before the first write where that matters.
   bool wait_for_readers(uint32_t n, std::chrono::milliseconds timeout) const {
@@ -156,6 +165,28 @@ class Writer {
   Entity publisher_;  // own publisher when the QoS names partitions (deleted after the writer)
   Entity writer_;
   std::atomic<uint64_t> samples_written_{0};
+};
+
+// One writer of a topic per robot, each in that robot's partition, so that a sample meant for one
+// robot crosses only the radio link to it (readers take it with partitions::own_reader). Made up
+// front: a writer's first sample can be lost before it has matched. `skip` (this robot) gets none.
+template <class T>
+class PerRobotWriters {
+ public:
+  PerRobotWriters(const Participant& participant, const Topic<T>& topic, const Qos& qos, uint32_t robots,
+                  std::optional<uint32_t> skip = std::nullopt)
+      : writers_(robots) {
+    for (uint32_t r = 0; r < robots; ++r) {
+      if (skip && *skip == r) continue;
+      writers_[r] = std::make_unique<Writer<T>>(participant, topic, Qos(qos).partitions({partitions::robot(r)}));
+    }
+  }
+  // The writer to robot r; nullptr for `skip` and for ids beyond the swarm.
+  Writer<T>* to(uint32_t r) const noexcept { return r < writers_.size() ? writers_[r].get() : nullptr; }
+  uint32_t size() const noexcept { return static_cast<uint32_t>(writers_.size()); }
+
+ private:
+  std::vector<std::unique_ptr<Writer<T>>> writers_;
 };
 
 template <class>

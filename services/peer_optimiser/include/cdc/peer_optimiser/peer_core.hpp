@@ -39,11 +39,13 @@ struct PeerConfig {
   // joint cost stayed 1.5-40 times the optimum, 30 s after the last keyframe. Damped it reaches it.
   double relaxation = 0.7;
   // A separator pose goes to a peer again only once it has moved this far since it was last sent
-  // there (the rounds settle, and most poses stop moving); every `separator_refresh` the peer gets all
-  // of them, so that one that missed a message (a radio cut) is whole again soon after.
+  // there (the rounds settle, and most poses stop moving). The topic is reliable, so a peer misses
+  // one only when it was out of reach long enough to be unmatched (or restarted): the node then
+  // calls resend_separators_to() when the peer's reader matches again. Every `separator_refresh`
+  // the peer gets all of them anyway, a safety net.
   double separator_min_change_m = 0.001;
   double separator_min_change_rad = 0.01 * M_PI / 180.0;
-  Nanos separator_refresh{std::chrono::milliseconds(2000)};
+  Nanos separator_refresh{std::chrono::seconds(30)};
   // Loops through one keyframe share its cloud's errors: each loop's information is divided by the
   // most loops either of its keyframes takes part in (graph::share_loop_information).
   bool share_loop_information = true;
@@ -124,6 +126,12 @@ class PeerCore {
   void on_separator(uint32_t from, const std::vector<std::pair<uint32_t, Eigen::Isometry3d>>& poses);
   void on_central_position(const Eigen::Vector3d& p) { central_position_ = p; }
   void on_peer_position(uint32_t robot, const Eigen::Vector3d& p) { peer_positions_[robot] = p; }
+  // The peer may have missed separators sent to it (its reader matched anew): the next round sends
+  // it all of them.
+  void resend_separators_to(uint32_t peer) {
+    separators_sent_.erase(peer);
+    separators_refreshed_.erase(peer);
+  }
 
   // One tick of the agent.
   StepOutput step(Nanos now, bool central_alive);
