@@ -18,6 +18,20 @@ cdc_msg_Pose to_msg(const Eigen::Isometry3d& T) {
   return p;
 }
 
+Eigen::Isometry3d to_eigen(const cdc_msg_PoseF& pose) {
+  const cdc_msg_Quatf& q = pose.orientation;
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().toRotationMatrix();
+  T.translation() = Eigen::Vector3d(pose.position.x, pose.position.y, pose.position.z);
+  return T;
+}
+
+cdc_msg_PoseF to_msg_f(const Eigen::Isometry3d& T) {
+  const Eigen::Vector3f p = T.translation().cast<float>();
+  const Eigen::Quaternionf q = Eigen::Quaterniond(T.rotation()).normalized().cast<float>();
+  return cdc_msg_PoseF{{p.x(), p.y(), p.z()}, {q.x(), q.y(), q.z(), q.w()}};
+}
+
 Matrix6d information_to_eigen(const cdc_msg_Information6& info) {
   Matrix6d m;
   for (int r = 0; r < 6; ++r) {

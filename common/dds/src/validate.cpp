@@ -64,7 +64,8 @@ Validation check_finite(double v, std::string_view field) {
   return Validation::ok();
 }
 
-Validation check_vec3(const cdc_msg_Vec3& v, std::string_view field) {
+template <class Vec>
+Validation check_vec3(const Vec& v, std::string_view field) {
   if (!finite(v.x) || !finite(v.y) || !finite(v.z)) {
     return Validation::fail(cat(field, ": non-finite component (" + num(v.x) + ", " + num(v.y) + ", " + num(v.z) + ")"));
   }
@@ -136,18 +137,31 @@ Validation validate_robot_id(uint32_t id, std::string_view field, const Validati
   return Validation::ok();
 }
 
-Validation validate_pose(const cdc_msg_Pose& pose, std::string_view field, const ValidationLimits& limits) {
+namespace {
+// Both precisions of Pose.
+template <class PoseMsg>
+Validation check_pose(const PoseMsg& pose, std::string_view field, const ValidationLimits& limits) {
   CDC_CHECK(check_vec3(pose.position, cat(field, ".position")));
-  const cdc_msg_Quat& q = pose.orientation;
+  const auto& q = pose.orientation;
   if (!finite(q.x) || !finite(q.y) || !finite(q.z) || !finite(q.w)) {
     return Validation::fail(cat(field, ".orientation: non-finite quaternion component"));
   }
-  const double norm = std::sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
+  const double x = q.x, y = q.y, z = q.z, w = q.w;
+  const double norm = std::sqrt(x * x + y * y + z * z + w * w);
   if (std::abs(norm - 1.0) > limits.quaternion_tolerance) {
     return Validation::fail(cat(field, ".orientation: not a unit quaternion (norm " + num(norm) + ", tolerance " +
                                            num(limits.quaternion_tolerance) + ")"));
   }
   return Validation::ok();
+}
+}  // namespace
+
+Validation validate_pose(const cdc_msg_Pose& pose, std::string_view field, const ValidationLimits& limits) {
+  return check_pose(pose, field, limits);
+}
+
+Validation validate_pose(const cdc_msg_PoseF& pose, std::string_view field, const ValidationLimits& limits) {
+  return check_pose(pose, field, limits);
 }
 
 Validation validate_information(const cdc_msg_Information6& info, std::string_view field) {
@@ -325,7 +339,11 @@ Validation validate(const cdc_msg_OptimizedPoses& m, const ValidationLimits& lim
 Validation validate(const cdc_msg_SeparatorPoses& m, const ValidationLimits& limits) {
   CDC_CHECK(validate_robot_id(m.robot_id, "robot_id", limits));
   CDC_CHECK(validate_robot_id(m.target_robot_id, "target_robot_id", limits));
-  return check_keyframe_poses(m.poses, limits, "poses", &m.robot_id);
+  CDC_CHECK(check_sequence_max(m.poses, limits.max_poses, "poses"));
+  for (uint32_t i = 0; i < m.poses._length; ++i) {
+    CDC_CHECK(validate_pose(m.poses._buffer[i].pose, "poses[" + std::to_string(i) + "].pose", limits));
+  }
+  return Validation::ok();
 }
 
 Validation validate(const cdc_msg_WorldTransform& m, const ValidationLimits& limits) {

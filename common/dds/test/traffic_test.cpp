@@ -94,8 +94,8 @@ TEST(Traffic, MessagesWithSequencesAreWalkedExactly) {
     expect_same_size_with<uint8_t>(&cdc_msg_CloudReply_desc, &cdc_msg_CloudReply::packed_points, n, "CloudReply");
     expect_same_size_with<cdc_msg_KeyframePose>(&cdc_msg_OptimizedPoses_desc, &cdc_msg_OptimizedPoses::poses, n,
                                                 "OptimizedPoses");
-    expect_same_size_with<cdc_msg_KeyframePose>(&cdc_msg_SeparatorPoses_desc, &cdc_msg_SeparatorPoses::poses, n,
-                                                "SeparatorPoses");
+    expect_same_size_with<cdc_msg_KeyframePoseF>(&cdc_msg_SeparatorPoses_desc, &cdc_msg_SeparatorPoses::poses, n,
+                                                 "SeparatorPoses");
     // Two sequences, of floats then of bytes whose odd length needs the payload padded.
     std::vector<float> ring(n);
     std::vector<uint8_t> cells(n * 3 + 1);

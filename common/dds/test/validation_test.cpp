@@ -240,6 +240,24 @@ TEST(Validation, OptimizedPosesMustBelongToTheirRobot) {
   EXPECT_TRUE(validate(m, ValidationLimits{}));
 }
 
+TEST(Validation, SeparatorPosesInSinglePrecision) {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = Eigen::Vector3d(812.3456, -97.25, 4.5);
+  std::vector<cdc_msg_KeyframePoseF> poses{{4, to_msg_f(T)}, {9, to_msg_f(T)}};
+  cdc_msg_SeparatorPoses m{};
+  m.robot_id = 1;
+  m.target_robot_id = 2;
+  borrow(m.poses, poses);
+  EXPECT_TRUE(validate(m, ValidationLimits{}));
+  poses[1].pose.orientation.w = 0.5f;
+  EXPECT_THAT(validate(m, ValidationLimits{}).reason(), HasSubstr("poses[1].pose.orientation: not a unit quaternion"));
+  poses[1].pose.orientation.w = 1.0f;
+  poses[0].pose.position.y = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_THAT(validate(m, ValidationLimits{}).reason(), HasSubstr("poses[0].pose.position: non-finite component"));
+  m.target_robot_id = 77;
+  EXPECT_THAT(validate(m, ValidationLimits{}).reason(), HasSubstr("target_robot_id"));
+}
+
 TEST(Validation, ExtraNodeIdsAreAccepted) {
   cdc_msg_RobotStatus s{};
   s.robot_id = 200;  // a ground-station central
@@ -272,6 +290,13 @@ TEST(Convert, PoseAndInformationRoundTrip) {
   EXPECT_DOUBLE_EQ(p.orientation.w, q.w());
   EXPECT_DOUBLE_EQ(p.orientation.x, q.x());
   EXPECT_LT((to_eigen(p).matrix() - T.matrix()).norm(), 1e-12);
+
+  // Single precision (separators): within float rounding, 0.1 mm at 1 km from the origin.
+  T.translation() = Eigen::Vector3d(987.654321, -123.456789, 12.345678);
+  const Eigen::Isometry3d back = to_eigen(to_msg_f(T));
+  EXPECT_LT((back.translation() - T.translation()).norm(), 1e-4);
+  EXPECT_LT(Eigen::AngleAxisd(back.linear().transpose() * T.linear()).angle(), 1e-6);
+  EXPECT_NEAR(Eigen::Quaterniond(back.rotation()).norm(), 1.0, 1e-12);
 
   Matrix6d info = Matrix6d::Identity();
   info(0, 5) = info(5, 0) = 0.25;

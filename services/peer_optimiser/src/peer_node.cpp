@@ -183,6 +183,7 @@ int run_peer(const PeerNodeOptions& o) {
   auto last_status = Clock::now() - std::chrono::hours(1);
   auto last_mode = last_status;
   std::vector<cdc_msg_KeyframePose> pose_storage;
+  std::vector<cdc_msg_KeyframePoseF> separator_storage;
   std::map<uint32_t, Eigen::Isometry3d> latest_world;  // own keyframes, T_world, as last corrected
   int64_t sim_stamp_ns = 0;                            // newest own keyframe's data time
   std::ofstream mode_log;
@@ -393,9 +394,9 @@ int run_peer(const PeerNodeOptions& o) {
                    out.resend_keyframes.size(), out.resend_loops.size());
     }
     for (const SeparatorOut& s : out.separators) {
-      pose_storage.clear();
+      separator_storage.clear();
       for (const auto& [id, T] : s.poses) {
-        pose_storage.push_back(cdc_msg_KeyframePose{me, id, dds::to_msg(T)});
+        separator_storage.push_back(cdc_msg_KeyframePoseF{id, dds::to_msg_f(T)});
       }
       cdc_msg_SeparatorPoses m{};
       m.robot_id = me;
@@ -403,7 +404,7 @@ int run_peer(const PeerNodeOptions& o) {
       m.incarnation = incarnation;
       m.round = static_cast<uint32_t>(core.distributed_rounds());
       m.stamp_ns = dds::now_ns();
-      dds::borrow(m.poses, pose_storage);
+      dds::borrow(m.poses, separator_storage);
       w_sep.to(s.target)->write(m);
       ++separators_sent;
     }

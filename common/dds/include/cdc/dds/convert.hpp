@@ -22,6 +22,9 @@ inline cdc_msg_Quat to_msg(const Eigen::Quaterniond& q) { return {q.x(), q.y(), 
 // The quaternion is normalised: callers validate first (validate.hpp) and convert after.
 Eigen::Isometry3d to_eigen(const cdc_msg_Pose& pose);
 cdc_msg_Pose to_msg(const Eigen::Isometry3d& T);
+// Single precision (separators): rounded to float on the way out, normalised in double on the way in.
+Eigen::Isometry3d to_eigen(const cdc_msg_PoseF& pose);
+cdc_msg_PoseF to_msg_f(const Eigen::Isometry3d& T);
 
 Matrix6d information_to_eigen(const cdc_msg_Information6& info);
 void information_to_msg(const Matrix6d& info, cdc_msg_Information6& out);

@@ -44,6 +44,7 @@ class Validation {
 };
 
 Validation validate_pose(const cdc_msg_Pose& pose, std::string_view field, const ValidationLimits& limits);
+Validation validate_pose(const cdc_msg_PoseF& pose, std::string_view field, const ValidationLimits& limits);
 Validation validate_information(const cdc_msg_Information6& info, std::string_view field);
 Validation validate_robot_id(uint32_t id, std::string_view field, const ValidationLimits& limits);
 

@@ -32,8 +32,8 @@ struct DistributedResult {
   std::map<uint32_t, uint64_t> poses_sent;
 };
 
-// Bytes of one separator pose on the wire: 8-byte key + position and quaternion (7 doubles).
-inline constexpr uint64_t kSeparatorPoseBytes = 8 + 7 * 8;
+// Bytes of one separator pose on the wire (cdc_msg_KeyframePoseF): keyframe id + position and quaternion in 7 floats.
+inline constexpr uint64_t kSeparatorPoseBytes = 4 + 7 * 4;
 
 // Each robot initialises its own subgraph (chordal), then is placed in the world by a rigid fit
 // to all its inter-robot factors with already placed robots (robot of the smallest key anchors).
