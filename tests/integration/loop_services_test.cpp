@@ -137,7 +137,12 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096));
   dds::Writer<cdc_msg_Descriptor> w_desc(participant, t_desc, dds::qos::event_stream(256));  // as cdc-descriptor
   dds::Writer<cdc_msg_CloudReply> w_rep(participant, t_rep, dds::qos::event_stream(256));
-  dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop, dds::qos::event_stream(4096));
+  // As the central reads loops (every robot's partition), and as a third robot's peer optimiser
+  // would (its own): loops between robots 0 and 1 must not reach it.
+  dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop,
+                                          dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
+  dds::Reader<cdc_msg_LoopClosure> r_third(participant, t_loop,
+                                           dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(2)));
 
   std::vector<test::ChildProcess> procs;
   for (uint32_t r = 0; r < 2; ++r) {
@@ -145,7 +150,7 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
     procs.push_back(spawn_service("CDC_LOOP_CLOSURE_BIN", "loops", r, ws.loops_config, dir));
   }
   ASSERT_TRUE(w_kf.wait_for_readers(4, 15s)) << "services did not subscribe to keyframes";
-  ASSERT_TRUE(r_loop.wait_for_writers(2, 15s));
+  ASSERT_TRUE(r_loop.wait_for_writers(4, 15s));
   ASSERT_TRUE(w_desc.wait_for_readers(2, 15s));
   ASSERT_TRUE(w_rep.wait_for_readers(2, 15s)) << "services did not subscribe to cloud replies";  // else the bad reply is lost
 
@@ -180,8 +185,10 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
 
   std::map<std::pair<uint32_t, uint32_t>, Eigen::Isometry3d> truth;
   std::vector<cdc_msg_LoopClosure> loops;
+  size_t third_robot_loops = 0;
   auto poll = [&] {
     r_loop.take(256).for_each_valid([&](const cdc_msg_LoopClosure& m, const dds_sample_info_t&) { loops.push_back(m); });
+    third_robot_loops += r_third.take(256).size();
   };
   std::vector<cdc_msg_PointXYZI> storage;
   auto write = [&](uint32_t r, uint32_t k, const Eigen::Isometry3d& T) {
@@ -219,6 +226,7 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
     inter += l.robot_a != l.robot_b ? 1 : 0;
   }
   EXPECT_GE(inter, 4u) << loops.size() << " loops in all";
+  EXPECT_EQ(third_robot_loops, 0u) << "loops between robots 0 and 1 reached robot 2's partition";
   // Each loop robot 1 wrote before robot 0's silence came again, the same message (sender, sequence number).
   std::map<uint32_t, int> copies;  // robot 1's loops by sequence number
   for (const auto& l : loops) {
@@ -299,7 +307,8 @@ TEST(LoopServices, ARestartedServiceNumbersItsLoopsOnUnderTheSameIncarnation) {
   dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
   dds::Topic<cdc_msg_LoopClosure> t_loop(participant, dds::topics::kLoopClosure);
   dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096));
-  dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop, dds::qos::event_stream(4096));
+  dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop,
+                                          dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
   const std::vector<std::string> with_state = {"--state-file", state};
   test::ChildProcess descriptor = spawn_service("CDC_DESCRIPTOR_BIN", "descriptor", 0, ws.descriptor_config, dir);
   test::ChildProcess loops_first = spawn_service("CDC_LOOP_CLOSURE_BIN", "loops_first", 0, ws.loops_config, dir, with_state);

@@ -119,7 +119,8 @@ int run_central(const CentralNodeOptions& o) {
   dds::Topic<cdc_msg_RobotStatus> t_status(participant, topics::kRobotStatus);
 
   dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
-  dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop, dds::qos::event_stream(4096));
+  dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop,
+                                          dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
   dds::Reader<cdc_msg_WorldTransform> r_world(participant, t_world, dds::qos::keyed_state());
   // The optimiser's liveliness, asserted from the loop below (a hung optimiser lapses too), on a
   // topic of its own that every robot's monitor reads. It also carries the central's status, written

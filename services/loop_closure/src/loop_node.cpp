@@ -80,7 +80,17 @@ int run_loop_closure(const LoopNodeOptions& o) {
   DescriptorSequencer sequencer(o.sequencer);
   dds::Reader<cdc_msg_CloudRequest> r_req(participant, t_req, dds::qos::event_stream(256));
   dds::Reader<cdc_msg_CloudReply> r_rep(participant, t_rep, dds::qos::event_stream(256).partitions(dds::partitions::own_reader(me)));
-  dds::Writer<cdc_msg_LoopClosure> w_loop(participant, t_loop, dds::qos::event_stream(4096));
+  // Loops go only where they are needed: an own-robot loop in this robot's partition (its peer
+  // optimiser, the central), a loop with peer r in both robots' partitions; never to a third robot.
+  dds::Writer<cdc_msg_LoopClosure> w_loop(participant, t_loop,
+                                          dds::qos::event_stream(4096).partitions({dds::partitions::robot(me)}));
+  dds::PerRobotWriters<cdc_msg_LoopClosure> w_loop_with(participant, t_loop, dds::qos::event_stream(4096), o.robots, me,
+                                                        {dds::partitions::robot(me)});
+  const auto write_loop = [&](const cdc_msg_LoopClosure& m) {
+    const uint32_t other = m.robot_a == me ? m.robot_b : m.robot_a;
+    dds::Writer<cdc_msg_LoopClosure>* to = w_loop_with.to(other);
+    (to != nullptr ? *to : w_loop).write(m);
+  };
   dds::Writer<cdc_msg_CloudRequest> w_req(participant, t_req, dds::qos::event_stream(256));
   // Cloud replies go only to the robot that asked.
   dds::PerRobotWriters<cdc_msg_CloudReply> w_rep_to(participant, t_rep, dds::qos::event_stream(256), o.robots, me);
@@ -173,7 +183,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
       m.T_a_b = dds::to_msg(l.T_a_b);
       dds::information_to_msg(l.information, m.information);
       m.fitness = static_cast<float>(l.fitness);
-      w_loop.write(m);
+      write_loop(m);
       if (w_loop_local) w_loop_local->write(m);
       ++loops_sent;
       const uint64_t id = next_written++;
@@ -334,7 +344,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
     });
     handle(core.tick(now_ns()));
     if (const std::vector<uint64_t> again = reach.due(now_ns()); !again.empty()) {
-      for (uint64_t id : again) w_loop.write(written_loops.at(id));
+      for (uint64_t id : again) write_loop(written_loops.at(id));
       spdlog::info("wrote {} loops again (loops {}..{}) for a peer heard again after a silence", again.size(),
                    written_loops.at(again.front()).loop_seq, written_loops.at(again.back()).loop_seq);
     }

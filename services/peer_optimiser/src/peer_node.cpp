@@ -87,6 +87,7 @@ PeerNodeOptions load_options(const std::string& path) {
   o.central_id = static_cast<uint32_t>(central_id);
   r.get<int>("tick_ms", o.tick_ms, positive_i, "> 0");
   r.get<int>("status_period_ms", o.status_period_ms, positive_i, "> 0");
+  r.get<int>("radio_status_period_ms", o.radio_status_period_ms, positive_i, "> 0");
   r.get<std::string>("log_level", o.log_level);
   if (o.core.rtdos.hysteresis_m >= o.core.rtdos.range_m) {
     r.error("hysteresis_m must be smaller than range_m");
@@ -130,7 +131,8 @@ int run_peer(const PeerNodeOptions& o) {
   const dds::Topic<cdc_msg_Keyframe>& t_kf_own = t_kf_local ? *t_kf_local : t_kf;
   const dds::Topic<cdc_msg_OptimizedPoses>& t_corr_own = t_corr_local ? *t_corr_local : t_corr;
   dds::Reader<cdc_msg_Keyframe> r_kf(local, t_kf_own, dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(me)));
-  dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop, dds::qos::event_stream(4096));
+  dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop,
+                                          dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(me)));
   // The central's results for this robot only (its partition); liveliness is watched below.
   dds::Reader<cdc_msg_OptimizedPoses> r_central(participant, t_central,
                                                 dds::qos::monitored_reader().partitions({dds::partitions::robot(me)}));
@@ -145,7 +147,9 @@ int run_peer(const PeerNodeOptions& o) {
   std::vector<uint32_t> sep_matches(o.core.robot_count, 0);  // per peer: its readers ever matched
   dds::Writer<cdc_msg_WorldTransform> w_world(participant, t_world, dds::qos::keyed_state());
   dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096).partitions({dds::partitions::robot(me)}));
-  dds::Writer<cdc_msg_LoopClosure> w_loop(participant, t_loop, dds::qos::event_stream(4096));
+  // Own loops re-sent for the central: in the robot's partition, so that they do not cross to peers.
+  dds::Writer<cdc_msg_LoopClosure> w_loop(participant, t_loop,
+                                          dds::qos::event_stream(4096).partitions({dds::partitions::robot(me)}));
   dds::Writer<cdc_msg_RobotStatus> w_status(participant, t_status, dds::qos::keyed_state());
   dds::Topic<cdc_msg_RobotStatus> t_alive(participant, topics::kCentralAlive);
   dds::LivelinessMonitor central_liveliness(participant, t_alive.handle(), "central optimiser");
@@ -182,6 +186,7 @@ int run_peer(const PeerNodeOptions& o) {
            withheld_keyframes = 0, kf_writer_discards = 0;
   auto last_status = Clock::now() - std::chrono::hours(1);
   auto last_mode = last_status;
+  auto last_radio_status = last_status;
   std::vector<cdc_msg_KeyframePose> pose_storage;
   std::vector<cdc_msg_KeyframePoseF> separator_storage;
   std::map<uint32_t, Eigen::Isometry3d> latest_world;  // own keyframes, T_world, as last corrected
@@ -439,7 +444,7 @@ int run_peer(const PeerNodeOptions& o) {
                       w.y(), w.z(), l.x(), l.y(), l.z());
       }
     }
-    if (Clock::now() - last_status >= std::chrono::milliseconds(o.status_period_ms)) {
+    if (Clock::now() - last_radio_status >= std::chrono::milliseconds(o.radio_status_period_ms)) {
       cdc_msg_RobotStatus s{};
       s.robot_id = me;
       s.incarnation = incarnation;
@@ -451,6 +456,9 @@ int run_peer(const PeerNodeOptions& o) {
       s.mode = core.mode() == Mode::kCentralized ? cdc_msg_MODE_CENTRALIZED : cdc_msg_MODE_DISTRIBUTED;
       s.is_central = false;
       w_status.write(s);
+      last_radio_status = Clock::now();
+    }
+    if (Clock::now() - last_status >= std::chrono::milliseconds(o.status_period_ms)) {
       last_status = Clock::now();
       write_now(alive);
     }

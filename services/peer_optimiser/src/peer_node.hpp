@@ -16,7 +16,10 @@ struct PeerNodeOptions {
   PeerConfig core;
   uint32_t central_id = 200;   // the central's node id in status messages
   int tick_ms = 50;
-  int status_period_ms = 250;
+  int status_period_ms = 250;        // the launcher's status file (--mode-out FILE.now)
+  // The robot's status on the radio (cdc/status/robot: its pose for peers' peer_range_m); each
+  // sample costs every peer in reach ~0.2 KB with its headers and acknowledgement.
+  int radio_status_period_ms = 1000;
   int mode_period_ms = 1000;   // the mode is re-published this often besides every transition
   std::string stats_out;
   std::string mode_out;        // CSV of every mode transition, written as it happens

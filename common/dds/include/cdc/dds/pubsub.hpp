@@ -167,18 +167,21 @@ class Writer {
   std::atomic<uint64_t> samples_written_{0};
 };
 
-// One writer of a topic per robot, each in that robot's partition, so that a sample meant for one
-// robot crosses only the radio link to it (readers take it with partitions::own_reader). Made up
-// front: a writer's first sample can be lost before it has matched. `skip` (this robot) gets none.
+// One writer of a topic per robot, each in that robot's partition (plus `also`, e.g. the writer's
+// own), so that a sample meant for one robot crosses only the radio link to it (readers take it with
+// partitions::own_reader). Made up front: a writer's first sample can be lost before it has matched.
+// `skip` (this robot) gets none.
 template <class T>
 class PerRobotWriters {
  public:
   PerRobotWriters(const Participant& participant, const Topic<T>& topic, const Qos& qos, uint32_t robots,
-                  std::optional<uint32_t> skip = std::nullopt)
+                  std::optional<uint32_t> skip = std::nullopt, const std::vector<std::string>& also = {})
       : writers_(robots) {
     for (uint32_t r = 0; r < robots; ++r) {
       if (skip && *skip == r) continue;
-      writers_[r] = std::make_unique<Writer<T>>(participant, topic, Qos(qos).partitions({partitions::robot(r)}));
+      std::vector<std::string> names{partitions::robot(r)};
+      names.insert(names.end(), also.begin(), also.end());
+      writers_[r] = std::make_unique<Writer<T>>(participant, topic, Qos(qos).partitions(names));
     }
   }
   // The writer to robot r; nullptr for `skip` and for ids beyond the swarm.
