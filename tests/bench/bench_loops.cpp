@@ -202,12 +202,7 @@ int main(int argc, char** argv) {
     sc.sectors = params.scan_context.sectors;
     sc.cells.resize(static_cast<size_t>(sc.rings * sc.sectors));
     for (auto& c : sc.cells) c = u(rng) < 0.4f ? 20 * u(rng) : 0.0f;
-    sc.ring_key.resize(static_cast<size_t>(sc.rings));
-    for (int r = 0; r < sc.rings; ++r) {
-      float s = 0;
-      for (int k = 0; k < sc.sectors; ++k) s += sc.at(r, k);
-      sc.ring_key[static_cast<size_t>(r)] = s / static_cast<float>(sc.sectors);
-    }
+    lidar::compute_ring_key(sc);
     return sc;
   };
   for (int i = 0; i < 3000; ++i) db.add(random_sc());

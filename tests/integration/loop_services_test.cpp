@@ -154,7 +154,7 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   ASSERT_TRUE(w_desc.wait_for_readers(2, 15s));
   ASSERT_TRUE(w_rep.wait_for_readers(2, 15s)) << "services did not subscribe to cloud replies";  // else the bad reply is lost
 
-  // Bad input first: a descriptor with a NaN in its ring key, and a cloud reply whose declared
+  // Bad input first: a descriptor with a NaN quantisation step, and a cloud reply whose declared
   // point count disagrees with its points, addressed to robot 1.
   {
     cdc_msg_Descriptor d{};
@@ -163,13 +163,11 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
     d.rings = 2;
     d.sectors = 4;
     d.max_range = 80;
-    d.quant_scale = 0.1f;
-    std::vector<float> key = {1.0f, std::nanf("")};
+    d.quant_scale = std::nanf("");
     const std::vector<uint8_t> raw_cells(8, 1);
     std::vector<uint8_t> cells = dds::compact::deflate_bytes(raw_cells.data(), raw_cells.size());
-    dds::borrow(d.ring_key, key);
     dds::borrow(d.packed_cells, cells);
-    d.pose_hint = dds::to_msg(Eigen::Isometry3d::Identity());
+    d.pose_hint = dds::to_msg_f(Eigen::Isometry3d::Identity());
     w_desc.write(d);
     cdc_msg_CloudReply rep{};
     rep.requester_robot_id = 1;
@@ -277,7 +275,7 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   EXPECT_GE(l1["rejected"].value(dds::topics::kCloudReply, 0), 1);
   std::ifstream log1(dir / "loops1.log");
   const std::string text((std::istreambuf_iterator<char>(log1)), std::istreambuf_iterator<char>());
-  EXPECT_NE(text.find("ring_key[1]: not a finite number"), std::string::npos);
+  EXPECT_NE(text.find("quant_scale: must be a positive finite number (got nan)"), std::string::npos);
   EXPECT_NE(text.find("packed_points: unpacks to 12 bytes, 30 expected"), std::string::npos);
   if (!HasFailure()) {
     fs::remove_all(dir);
@@ -471,21 +469,20 @@ TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
   EXPECT_EQ(to1, 0u) << "robot 1 did not ask for robot 0's descriptors, and must not get them again";
 
   // Part 2: as robot 2, the test sends descriptors 0, 1 and 4 live: robot 1's loop closure asks for 2..3.
-  auto descriptor = [&](uint32_t k, cdc_msg_Descriptor& d, std::vector<float>& key, std::vector<uint8_t>& cells) {
+  auto descriptor = [&](uint32_t k, cdc_msg_Descriptor& d, std::vector<uint8_t>& cells) {
     lidar::ScanContextParams sc;
     d = cdc_msg_Descriptor{};
     d.robot_id = 2;
     d.keyframe_id = k;
     d.incarnation = 1;
-    d.pose_hint = dds::to_msg(Eigen::Isometry3d::Identity());
+    d.pose_hint = dds::to_msg_f(Eigen::Isometry3d::Identity());
     dds::descriptor_to_msg(lidar::quantize(lidar::make_scan_context(cloud(k), sc)), static_cast<float>(sc.max_range_m), d,
-                           key, cells);
+                           cells);
   };
-  std::vector<float> key;
   std::vector<uint8_t> cells;
   cdc_msg_Descriptor d{};
   for (uint32_t k : {0u, 1u, 4u}) {
-    descriptor(k, d, key, cells);
+    descriptor(k, d, cells);
     w_desc.write(d);
   }
   std::vector<cdc_msg_DescriptorSync> asked;
@@ -498,7 +495,7 @@ TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
   EXPECT_EQ(asked[0].last_keyframe_id, 3u);
   // The test answers as robot 2's descriptor service would; robot 1 then stops asking.
   for (uint32_t k : {2u, 3u}) {
-    descriptor(k, d, key, cells);
+    descriptor(k, d, cells);
     w_desc_to1.write(d);
   }
   std::this_thread::sleep_for(500ms);

@@ -259,10 +259,6 @@ Validation validate(const cdc_msg_Descriptor& m, const ValidationLimits& limits)
     const std::string err = compact::inflate_bytes(m.packed_cells._buffer, m.packed_cells._length, cells, scratch);
     if (!err.empty()) return Validation::fail("packed_cells: " + err);
   }
-  CDC_CHECK(check_sequence(m.ring_key, m.rings, limits.max_descriptor_cells, "ring_key"));
-  for (uint32_t i = 0; i < m.ring_key._length; ++i) {
-    CDC_CHECK(check_finite(m.ring_key._buffer[i], "ring_key[" + std::to_string(i) + "]"));
-  }
   if (!(m.max_range > 0.0f) || !finite(m.max_range)) {
     return Validation::fail("max_range: must be a positive finite number (got " + num(m.max_range) + ")");
   }

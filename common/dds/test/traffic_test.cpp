@@ -96,11 +96,9 @@ TEST(Traffic, MessagesWithSequencesAreWalkedExactly) {
                                                 "OptimizedPoses");
     expect_same_size_with<cdc_msg_KeyframePoseF>(&cdc_msg_SeparatorPoses_desc, &cdc_msg_SeparatorPoses::poses, n,
                                                  "SeparatorPoses");
-    // Two sequences, of floats then of bytes whose odd length needs the payload padded.
-    std::vector<float> ring(n);
+    // A sequence of bytes whose odd length needs the payload padded before the struct after it.
     std::vector<uint8_t> cells(n * 3 + 1);
     cdc_msg_Descriptor descriptor{};
-    point_at(descriptor.ring_key, ring);
     point_at(descriptor.packed_cells, cells);
     expect_same_size(&cdc_msg_Descriptor_desc, &descriptor, "Descriptor of " + std::to_string(n));
   }

@@ -150,7 +150,6 @@ TEST(Validation, ImuStampsMustIncrease) {
 }
 
 TEST(Validation, DescriptorShape) {
-  std::vector<float> key(20, 1.0f);
   std::vector<uint8_t> cells(20 * 60, 3);
   cdc_msg_Descriptor d{};
   d.robot_id = 2;
@@ -158,11 +157,13 @@ TEST(Validation, DescriptorShape) {
   d.sectors = 60;
   d.max_range = 80.0f;
   d.quant_scale = 0.1f;
-  d.pose_hint = identity_pose();
+  d.pose_hint = to_msg_f(Eigen::Isometry3d::Identity());
   std::vector<uint8_t> packed = compact::deflate_bytes(cells.data(), cells.size());
-  borrow(d.ring_key, key);
   borrow(d.packed_cells, packed);
   EXPECT_TRUE(validate(d, ValidationLimits{}));
+  d.pose_hint.orientation.w = 2.0f;
+  EXPECT_THAT(validate(d, ValidationLimits{}).reason(), HasSubstr("pose_hint.orientation: not a unit quaternion"));
+  d.pose_hint.orientation.w = 1.0f;
   d.sectors = 61;
   EXPECT_THAT(validate(d, ValidationLimits{}).reason(), HasSubstr("packed_cells: unpacks to 1200 bytes, 1220 expected"));
   d.sectors = 59;

@@ -23,13 +23,17 @@ ScanContext make_scan_context(const std::vector<Eigen::Vector3f>& points, const 
     float& cell = sc.cells[static_cast<size_t>(ring * p.sectors + sector)];
     cell = std::max(cell, h);
   }
-  sc.ring_key.resize(static_cast<size_t>(p.rings));
-  for (int r = 0; r < p.rings; ++r) {
-    double sum = 0;
-    for (int s = 0; s < p.sectors; ++s) sum += sc.at(r, s);
-    sc.ring_key[static_cast<size_t>(r)] = static_cast<float>(sum / p.sectors);
-  }
+  compute_ring_key(sc);
   return sc;
+}
+
+void compute_ring_key(ScanContext& sc) {
+  sc.ring_key.assign(static_cast<size_t>(sc.rings), 0.0f);
+  for (int r = 0; r < sc.rings; ++r) {
+    double sum = 0;
+    for (int s = 0; s < sc.sectors; ++s) sum += sc.at(r, s);
+    sc.ring_key[static_cast<size_t>(r)] = static_cast<float>(sum / sc.sectors);
+  }
 }
 
 ScanContextMatch compare(const ScanContext& q, const ScanContext& c) {
@@ -87,7 +91,6 @@ QuantizedScanContext quantize(const ScanContext& sc) {
     const long lo = sc.cells[i] > 0.0f ? 1L : 0L;
     q.cells[i] = static_cast<uint8_t>(std::clamp(std::lround(std::sqrt(std::max(sc.cells[i], 0.0f)) / scale), lo, 255L));
   }
-  q.ring_key = sc.ring_key;
   return q;
 }
 
@@ -100,7 +103,7 @@ ScanContext dequantize(const QuantizedScanContext& q) {
     const float r = static_cast<float>(q.cells[i]) * q.scale;
     sc.cells[i] = r * r;
   }
-  sc.ring_key = q.ring_key;
+  compute_ring_key(sc);
   return sc;
 }
 

@@ -92,6 +92,16 @@ TEST(ScanContext, QuantisedDescriptorFitsTheWireBudgetAndMatchesAlike) {
     const float root = std::sqrt(a.cells[i]);
     EXPECT_NEAR(std::sqrt(back.cells[i]), root, a.cells[i] > 0 && root < qa.scale ? qa.scale : qa.scale / 2 + 1e-6);
   }
+  // The ring key is recomputed from the dequantised cells: each ring's mean height, near the original's.
+  ASSERT_EQ(back.ring_key.size(), a.ring_key.size());
+  for (int r = 0; r < back.rings; ++r) {
+    double mean = 0;
+    for (int s = 0; s < back.sectors; ++s) mean += back.at(r, s);
+    mean /= back.sectors;
+    EXPECT_NEAR(back.ring_key[static_cast<size_t>(r)], mean, 1e-5) << "ring " << r;
+    EXPECT_NEAR(back.ring_key[static_cast<size_t>(r)], a.ring_key[static_cast<size_t>(r)],
+                0.02 * a.ring_key[static_cast<size_t>(r)] + 0.01) << "ring " << r;
+  }
   const ScanContextMatch m = compare(b, a), mq = compare(b, back);
   EXPECT_EQ(m.shift, mq.shift);
   EXPECT_NEAR(m.distance, mq.distance, 0.01);

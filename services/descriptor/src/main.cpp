@@ -43,7 +43,6 @@ struct Options {
 // (a map node never moves, so they stay valid).
 struct Stored {
   cdc_msg_Descriptor msg{};
-  std::vector<float> ring_key;
   std::vector<uint8_t> packed_cells;
 };
 
@@ -106,7 +105,6 @@ int run(const Options& o) {
   // (incarnation, keyframe) is described once (peers that missed it ask for it).
   std::set<std::pair<uint32_t, uint32_t>> described;
   std::vector<Eigen::Vector3f> points;
-  std::vector<float> ring_key;
   std::vector<uint8_t> cells;
   spdlog::info("descriptor service of robot {} up: Scan Context {}x{} to {} m, domain {}{}", o.robot, o.sc.rings,
                o.sc.sectors, o.sc.max_range_m, o.domain,
@@ -154,8 +152,8 @@ int run(const Options& o) {
       d.keyframe_id = m.keyframe_id;
       d.incarnation = m.incarnation;
       d.stamp_ns = m.stamp_ns;
-      d.pose_hint = m.T_odom_keyframe;
-      dds::descriptor_to_msg(q, static_cast<float>(o.sc.max_range_m), d, ring_key, cells);
+      d.pose_hint = dds::to_msg_f(dds::to_eigen(m.T_odom_keyframe));
+      dds::descriptor_to_msg(q, static_cast<float>(o.sc.max_range_m), d, cells);
       w_desc.write(d);
       if (w_desc_local) w_desc_local->write(d);
       ++published;
@@ -166,9 +164,7 @@ int run(const Options& o) {
       }
       Stored& st = store[m.keyframe_id];
       st.msg = d;
-      st.ring_key = ring_key;
       st.packed_cells = cells;
-      dds::borrow(st.msg.ring_key, st.ring_key);
       dds::borrow(st.msg.packed_cells, st.packed_cells);
     });
   }

@@ -12,17 +12,15 @@
 
 namespace cdc::dds {
 
-// Fills the descriptor fields of `m` from `q`, borrowing the caller-owned storage (kept alive until
-// the write): the ring key and the packed cell bytes.
+// Fills the descriptor fields of `m` from `q`, borrowing the caller-owned storage for the packed
+// cell bytes (kept alive until the write).
 inline void descriptor_to_msg(const lidar::QuantizedScanContext& q, float max_range_m, cdc_msg_Descriptor& m,
-                              std::vector<float>& ring_key, std::vector<uint8_t>& cells) {
+                              std::vector<uint8_t>& cells) {
   m.rings = static_cast<uint16_t>(q.rings);
   m.sectors = static_cast<uint16_t>(q.sectors);
   m.max_range = max_range_m;
   m.quant_scale = q.scale;
-  ring_key = q.ring_key;
   cells = compact::deflate_bytes(q.cells.data(), q.cells.size());
-  borrow(m.ring_key, ring_key);
   borrow(m.packed_cells, cells);
 }
 
@@ -36,7 +34,6 @@ inline lidar::ScanContext descriptor_from_msg(const cdc_msg_Descriptor& m) {
   const std::string err = compact::inflate_bytes(m.packed_cells._buffer, m.packed_cells._length,
                                                  size_t{m.rings} * size_t{m.sectors}, q.cells);
   if (!err.empty()) throw std::invalid_argument("descriptor packed_cells: " + err);
-  q.ring_key.assign(m.ring_key._buffer, m.ring_key._buffer + m.ring_key._length);
   return lidar::dequantize(q);
 }
 

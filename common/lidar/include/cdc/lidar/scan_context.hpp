@@ -28,6 +28,9 @@ struct ScanContext {
 
 ScanContext make_scan_context(const std::vector<Eigen::Vector3f>& points, const ScanContextParams& p);
 
+// Sets sc.ring_key from its cells: each ring's mean height (rotation invariant).
+void compute_ring_key(ScanContext& sc);
+
 struct ScanContextMatch {
   double distance = 1.0;  // 0 identical .. 1 unrelated (mean column cosine distance)
   int shift = 0;          // columns: query column c matches candidate column (c + shift) mod sectors
@@ -38,13 +41,13 @@ ScanContextMatch compare(const ScanContext& query, const ScanContext& candidate)
 
 // Quantised form for the wire: one byte per cell holding the square root of the cell height in
 // steps of `scale` (height = (byte * scale)^2), the step chosen per descriptor so that its highest
-// cell is 255; occupied cells never become empty. Ring key kept as float.
+// cell is 255; occupied cells never become empty. The ring key does not travel: dequantize computes
+// it from the cells, so that every robot's database holds the same key for a descriptor.
 struct QuantizedScanContext {
   int rings = 0, sectors = 0;
   float scale = 0.02f;  // [sqrt(m)] per step
   std::vector<uint8_t> cells;
-  std::vector<float> ring_key;
-  size_t bytes() const { return cells.size() + ring_key.size() * sizeof(float) + 3 * sizeof(float); }
+  size_t bytes() const { return cells.size() + 3 * sizeof(float); }
 };
 QuantizedScanContext quantize(const ScanContext& sc);
 ScanContext dequantize(const QuantizedScanContext& q);
