@@ -562,6 +562,17 @@ TEST(PeerCore, PeersSolvingAtOnceSettleOnTheCentralizedOptimum) {
   EXPECT_GE(r.cost, r.optimum * (1 - 1e-6));
 }
 
+// Robot 0 alone with its first ten keyframes and a loop from its keyframe 5 to robot 1's 7.
+void add_robot0_with_a_loop_to_robot1(const test::SwarmStream& s, PeerCore& r0) {
+  for (uint32_t id = 0; id < 10; ++id) r0.add_keyframe(kf_from(s.keyframes[0][id]), 0s);
+  LoopRecord l = loop_from(s.loops.front());
+  l.robot_a = 0;
+  l.keyframe_a = 5;
+  l.robot_b = 1;
+  l.keyframe_b = 7;
+  r0.add_loop(l, 0s);
+}
+
 TEST(PeerCore, SeparatorPosesGoAgainOnlyOnceTheyMovedOrOnRefresh) {
   const auto s = three_robot_stream();
   PeerConfig exact = config(0);
@@ -578,13 +589,7 @@ TEST(PeerCore, SeparatorPosesGoAgainOnlyOnceTheyMovedOrOnRefresh) {
   PeerConfig c0 = config(0);
   c0.separator_refresh = 2s;
   PeerCore r0(c0);
-  for (uint32_t id = 0; id < 10; ++id) r0.add_keyframe(kf_from(s.keyframes[0][id]), 0s);
-  LoopRecord l = loop_from(s.loops.front());
-  l.robot_a = 0;
-  l.keyframe_a = 5;
-  l.robot_b = 1;
-  l.keyframe_b = 7;
-  r0.add_loop(l, 0s);
+  add_robot0_with_a_loop_to_robot1(s, r0);
   size_t sent = 0;
   Nanos t = 0s;
   for (int i = 0; i < 20; ++i) {  // 0.1-2.0 s: the first send, then the estimate settles (robot 0 is alone)
@@ -611,14 +616,10 @@ TEST(PeerCore, SeparatorPosesGoAgainOnlyOnceTheyMovedOrOnRefresh) {
 TEST(PeerCore, APeerMatchedAnewGetsEverySeparatorPoseAtTheNextRound) {
   const auto s = three_robot_stream();
   PeerCore r0(config(0));  // refresh 30 s: only the first send and the resends below within the test
-  for (uint32_t id = 0; id < 10; ++id) r0.add_keyframe(kf_from(s.keyframes[0][id]), 0s);
-  LoopRecord l = loop_from(s.loops.front());
-  l.robot_a = 0;
-  l.keyframe_a = 5;
-  l.robot_b = 1;
-  l.keyframe_b = 7;
-  r0.add_loop(l, 0s);
+  add_robot0_with_a_loop_to_robot1(s, r0);
+  LoopRecord l = loop_from(s.loops.front());  // and one from its keyframe 8 to robot 2's 3
   l.seq += 1;
+  l.robot_a = 0;
   l.keyframe_a = 8;
   l.robot_b = 2;
   l.keyframe_b = 3;
