@@ -399,6 +399,8 @@ int run_peer(const PeerNodeOptions& o) {
                    out.resend_keyframes.size(), out.resend_loops.size());
     }
     for (const SeparatorOut& s : out.separators) {
+      dds::Writer<cdc_msg_SeparatorPoses>* to = w_sep.to(s.target);
+      if (to == nullptr) continue;  // targets are robots of validated loops, never this robot
       separator_storage.clear();
       for (const auto& [id, T] : s.poses) {
         separator_storage.push_back(cdc_msg_KeyframePoseF{id, dds::to_msg_f(T)});
@@ -410,7 +412,7 @@ int run_peer(const PeerNodeOptions& o) {
       m.round = static_cast<uint32_t>(core.distributed_rounds());
       m.stamp_ns = dds::now_ns();
       dds::borrow(m.poses, separator_storage);
-      w_sep.to(s.target)->write(m);
+      to->write(m);
       ++separators_sent;
     }
     if (out.correction) {
