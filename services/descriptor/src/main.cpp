@@ -23,7 +23,6 @@
 #include <fstream>
 #include <iostream>
 #include <map>
-#include <memory>
 #include <optional>
 #include <set>
 
@@ -120,10 +119,12 @@ int run(const Options& o) {
         return;
       }
       ++syncs;
+      dds::Writer<cdc_msg_Descriptor>* to = w_resend.to(m.requester_robot_id);
+      if (to == nullptr) return;  // validated above: a robot of the swarm
       uint32_t n = 0;
       for (auto it = store.lower_bound(m.first_keyframe_id);
            it != store.end() && it->first <= m.last_keyframe_id && n < o.max_per_sync; ++it, ++n) {
-        w_resend.to(m.requester_robot_id)->write(it->second.msg);
+        to->write(it->second.msg);
         ++resent;
         resent_bytes += dds::serialized_size(it->second.msg);
       }

@@ -24,7 +24,6 @@
 #include <fstream>
 #include <functional>
 #include <map>
-#include <memory>
 #include <optional>
 
 namespace cdc::loops {
