@@ -96,12 +96,6 @@ TEST(PeerReach, AWithdrawnLoopIsNotWrittenAgainButItsWithdrawalIs) {
   EXPECT_EQ(r.due(seconds(21)), (Ids{1, 2}));
 }
 
-}  // namespace
-}  // namespace cdc::loops
-
-namespace cdc::loops {
-namespace {
-
 // A long mission: only the newest `keep` loops are kept to be written again; the oldest are forgotten,
 // their handles given back so that the caller drops their messages, and counted.
 TEST(PeerReach, OnlyTheNewestLoopsAreKeptToBeWrittenAgain) {
