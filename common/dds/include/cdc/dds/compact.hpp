@@ -24,8 +24,9 @@ std::string inflate_bytes(const uint8_t* data, size_t n, size_t expected, std::v
 size_t packed_bound(size_t raw);
 
 // A point cloud packed for the wire. Points are rounded to a grid of `resolution_m` (int16 per
-// axis, so coordinates must lie within +-32767 steps), sorted, stored as per-axis deltas in byte
-// planes and deflated. The point order is not kept. Rounding moves a point by at most half a
+// axis, so coordinates must lie within +-32767 steps), interleaved into 48-bit Morton codes, sorted,
+// stored as deltas between consecutive codes in byte planes and deflated. The point order is not
+// kept (points come back in Morton order). Rounding moves a point by at most half a
 // step per axis.
 struct PackedCloud {
   float resolution_m = 0.01f;
