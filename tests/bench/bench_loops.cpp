@@ -4,6 +4,7 @@
 // pose; odometry has noise. A loop is true when its relative pose is within 1 m / 5 deg of the truth;
 // a keyframe is a true revisit when an earlier keyframe (any robot, not this robot's recent ones)
 // lies within 5 m. Last output line: one JSON object.
+#include "cdc/dds/compact.hpp"
 #include "cdc/lidar/scan_context.hpp"
 #include "cdc/loop_closure/evaluation.hpp"
 #include "cdc/loop_closure/loop_core.hpp"
@@ -20,6 +21,8 @@
 #include <filesystem>
 #include <iostream>
 #include <map>
+#include <memory>
+#include <stdexcept>
 #include <random>
 
 namespace {
@@ -32,13 +35,28 @@ struct Kf {
   Eigen::Isometry3d truth;
 };
 
-double median(std::vector<double> v) {
+double quantile(std::vector<double> v, double q) {
   std::sort(v.begin(), v.end());
-  return v.empty() ? 0 : v[v.size() / 2];
+  return v.empty() ? 0 : v[std::min(v.size() - 1, static_cast<size_t>(q * static_cast<double>(v.size())))];
 }
 
+double median(std::vector<double> v) { return quantile(std::move(v), 0.5); }
+
+// How a run moves clouds between robots: offline, one loop-closure core holds every robot's clouds
+// (no requests); on the wire, each robot has its own core (as its service does), descriptors reach
+// every robot and a verification against a peer's keyframe asks the owner's core for its cloud,
+// which crosses packed as the service packs it (cdc::dds::compact, `resolution_m`).
+struct WireOptions {
+  bool enabled = false;
+  float resolution_m = 0.02f;  // the service's default
+};
+
+struct WireCounters {
+  size_t replies = 0, missing = 0, bytes = 0, points = 0;
+};
+
 nlohmann::json run_sequence(const std::string& data, const std::string& seq, const loops::LoopParams& params,
-                            uint32_t exclude_recent) {
+                            uint32_t exclude_recent, const WireOptions& wire) {
   const auto full = sim::kitti_lidar_trajectory(data + "/kitti/poses/" + seq + ".txt",
                                                 sim::read_kitti_calib(data + "/kitti/calib_Tr.txt", "Tr_04_10"));
   const auto robots = sim::split_robots(full, sim::SplitOptions{3, 0.15, 0.0});
@@ -65,9 +83,58 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
   std::mt19937_64 rng(9);
   std::normal_distribution<double> nt(0, 0.02), nr(0, 0.002);
   loops::LoopCore core(params);
+  std::vector<std::unique_ptr<loops::LoopCore>> robot_cores;  // the wire run's, one per robot
+  for (uint32_t r = 0; wire.enabled && r < robots.size(); ++r) {
+    robot_cores.push_back(std::make_unique<loops::LoopCore>(params, r));
+  }
+  WireCounters wc;
   std::map<std::pair<uint32_t, uint32_t>, Eigen::Isometry3d> truth;
-  std::map<uint32_t, Eigen::Isometry3d> prev_truth;
+  std::map<uint32_t, Eigen::Isometry3d> prev_truth, odom;
+  // Accepted loops, one per keyframe pair whichever robot's core found it.
   std::map<std::tuple<uint32_t, uint32_t, uint32_t, uint32_t>, loops::LoopOut> accepted;
+  auto take = [&](const loops::LoopOut& l) {
+    const bool swap = std::make_pair(l.robot_a, l.keyframe_a) > std::make_pair(l.robot_b, l.keyframe_b);
+    const auto key = swap ? std::make_tuple(l.robot_b, l.keyframe_b, l.robot_a, l.keyframe_a)
+                          : std::make_tuple(l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b);
+    if (std::getenv("CDC_BENCH_TRACE") != nullptr && l.robot_a != l.robot_b) {
+      const Eigen::Isometry3d gt = truth.at({l.robot_a, l.keyframe_a}).inverse() * truth.at({l.robot_b, l.keyframe_b});
+      const Eigen::Isometry3d e = gt.inverse() * l.T_a_b;
+      Eigen::Matrix<double, 6, 1> r;
+      r << e.translation(), Eigen::AngleAxisd(e.rotation()).angle() * Eigen::AngleAxisd(e.rotation()).axis();
+      std::printf("%s %u/%u - %u/%u  error %.3f m %.2f deg  nees %.1f  fitness %.4f\n", l.withdrawn ? "withdraw" : "publish",
+                  l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b, e.translation().norm(),
+                  Eigen::AngleAxisd(e.rotation()).angle() * 180 / M_PI, r.dot(l.information * r), l.fitness);
+    }
+    if (l.withdrawn) accepted.erase(key);
+    else accepted[key] = l;
+  };
+  // The wire run: events of robot r's core; a cloud request is answered from its owner's core.
+  auto settle = [&](uint32_t r, loops::LoopEvents ev, loops::Nanos now) {
+    std::vector<std::pair<uint32_t, loops::LoopEvents>> todo;
+    todo.emplace_back(r, std::move(ev));
+    while (!todo.empty()) {
+      auto [who, e] = std::move(todo.back());
+      todo.pop_back();
+      for (const auto& l : e.loops) take(l);
+      for (const auto& q : e.requests) {
+        const std::vector<Eigen::Vector3f>* held = robot_cores.at(q.robot)->cloud(q.robot, q.id);
+        if (held == nullptr) {
+          ++wc.missing;
+          robot_cores[who]->on_cloud_missing(q.robot, q.id, now);
+          continue;
+        }
+        const dds::compact::PackedCloud packed = dds::compact::pack_points(*held, wire.resolution_m);
+        std::vector<Eigen::Vector3f> got;
+        const std::string err = dds::compact::unpack_points(packed.bytes.data(), packed.bytes.size(), packed.count,
+                                                            packed.resolution_m, got);
+        if (!err.empty()) throw std::runtime_error("cdc-bench-loops: a packed cloud did not unpack: " + err);
+        ++wc.replies;
+        wc.bytes += packed.bytes.size();
+        wc.points += packed.count;
+        todo.emplace_back(who, robot_cores[who]->on_cloud(q.robot, q.id, std::move(got), now));
+      }
+    }
+  };
   std::vector<lidar::ScanContext> contexts;
   const auto t0 = std::chrono::steady_clock::now();
   for (const Kf& k : kfs) {
@@ -87,20 +154,22 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
     for (const auto& p : pts) in.cloud.emplace_back(p.x, p.y, p.z);
     prev_truth[k.robot] = k.truth;
     truth[{k.robot, k.id}] = k.truth;
+    odom[k.robot] = k.id == 0 ? k.truth : odom[k.robot] * in.T_prev;
     contexts.push_back(lidar::make_scan_context(in.cloud, params.scan_context));
-    for (const auto& l : core.add_keyframe(std::move(in))) {
-      const auto key = std::make_tuple(l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b);
-      if (std::getenv("CDC_BENCH_TRACE") != nullptr && l.robot_a != l.robot_b) {
-        const Eigen::Isometry3d gt = truth.at({l.robot_a, l.keyframe_a}).inverse() * truth.at({l.robot_b, l.keyframe_b});
-        const Eigen::Isometry3d e = gt.inverse() * l.T_a_b;
-        Eigen::Matrix<double, 6, 1> r;
-        r << e.translation(), Eigen::AngleAxisd(e.rotation()).angle() * Eigen::AngleAxisd(e.rotation()).axis();
-        std::printf("%s %u/%u - %u/%u  error %.3f m %.2f deg  nees %.1f  fitness %.4f\n", l.withdrawn ? "withdraw" : "publish",
-                    l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b, e.translation().norm(),
-                    Eigen::AngleAxisd(e.rotation()).angle() * 180 / M_PI, r.dot(l.information * r), l.fitness);
-      }
-      if (l.withdrawn) accepted.erase(key);
-      else accepted[key] = l;
+    if (!wire.enabled) {
+      for (const auto& l : core.add_keyframe(std::move(in))) take(l);
+      continue;
+    }
+    const loops::Nanos now(k.stamp);
+    loops::DescriptorIn d;
+    d.robot = k.robot;
+    d.id = k.id;
+    d.context = lidar::dequantize(lidar::quantize(contexts.back()));
+    d.pose_hint = odom[k.robot];
+    settle(k.robot, robot_cores[k.robot]->add_keyframe_data(std::move(in), now), now);
+    for (uint32_t r = 0; r < robot_cores.size(); ++r) {
+      settle(r, robot_cores[r]->add_descriptor(d, now), now);
+      settle(r, robot_cores[r]->tick(now), now);
     }
   }
   const double run_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -137,6 +206,19 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
       changed += a != b ? 1 : 0;
     }
   }
+  // How well the true inter-robot loops register (a coarser cloud on the wire shows here first).
+  std::vector<double> inter_m, inter_deg;
+  for (const auto& v : ev.loops) {
+    if (v.correct && v.loop.robot_a != v.loop.robot_b) {
+      inter_m.push_back(v.error_m);
+      inter_deg.push_back(v.error_deg);
+    }
+  }
+  auto stat = [&](uint64_t loops::LoopStats::*field) {
+    uint64_t n = core.stats().*field;
+    for (const auto& c : robot_cores) n += c->stats().*field;
+    return n;
+  };
   nlohmann::json j{{"keyframes", kfs.size()},
                    {"accepted", accepted.size()},
                    {"true_positives", tp},
@@ -145,20 +227,39 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
                    {"precision", accepted.empty() ? 1.0 : static_cast<double>(tp) / static_cast<double>(accepted.size())},
                    {"revisits", revisits},
                    {"recall", ev.recall()},
-                   {"verified", core.stats().verified},
-                   {"verification_failed", core.stats().verification_failed},
-                   {"inter_accepted", core.stats().inter_accepted},
-                   {"intra_accepted", core.stats().intra_accepted},
-                   {"intra_inconsistent", core.stats().intra_inconsistent},
-                   {"inter_proposed", core.stats().inter_proposed},
-                   {"withdrawn", core.stats().withdrawn},
+                   {"verified", stat(&loops::LoopStats::verified)},
+                   {"verification_failed", stat(&loops::LoopStats::verification_failed)},
+                   {"inter_accepted", stat(&loops::LoopStats::inter_accepted)},
+                   {"intra_accepted", stat(&loops::LoopStats::intra_accepted)},
+                   {"intra_inconsistent", stat(&loops::LoopStats::intra_inconsistent)},
+                   {"inter_proposed", stat(&loops::LoopStats::inter_proposed)},
+                   {"withdrawn", stat(&loops::LoopStats::withdrawn)},
                    {"quantization_decisions", decisions},
                    {"quantization_changed", changed},
                    {"quantization_max_distance_change", max_change},
+                   {"inter_true", inter_m.size()},
+                   {"inter_error_m_median", median(inter_m)},
+                   {"inter_error_m_p90", quantile(inter_m, 0.9)},
+                   {"inter_error_deg_median", median(inter_deg)},
+                   {"inter_error_deg_p90", quantile(inter_deg, 0.9)},
                    {"run_s", run_s}};
   std::printf("KITTI %s: %zu keyframes, %zu loops accepted (%zu true), precision %.3f, recall %.3f of %zu revisits, %.1f s\n",
               seq.c_str(), kfs.size(), accepted.size(), tp, j["precision"].get<double>(), j["recall"].get<double>(),
               revisits, run_s);
+  std::printf("  %zu true inter-robot loops: error median %.3f m / %.3f deg, 90th percentile %.3f m / %.3f deg\n",
+              inter_m.size(), median(inter_m), median(inter_deg), quantile(inter_m, 0.9), quantile(inter_deg, 0.9));
+  if (wire.enabled) {
+    j["wire"] = {{"resolution_m", wire.resolution_m},
+                 {"cloud_replies", wc.replies},
+                 {"cloud_missing", wc.missing},
+                 {"cloud_bytes", wc.bytes},
+                 {"bytes_per_reply", wc.replies == 0 ? 0.0 : static_cast<double>(wc.bytes) / static_cast<double>(wc.replies)},
+                 {"points_per_reply", wc.replies == 0 ? 0.0 : static_cast<double>(wc.points) / static_cast<double>(wc.replies)},
+                 {"cloud_bytes_per_keyframe", static_cast<double>(wc.bytes) / static_cast<double>(kfs.size())}};
+    std::printf("  on the wire (%.3f m): %zu cloud replies, %.0f B each (%.0f points), %.0f B per keyframe\n",
+                wire.resolution_m, wc.replies, j["wire"]["bytes_per_reply"].get<double>(),
+                j["wire"]["points_per_reply"].get<double>(), j["wire"]["cloud_bytes_per_keyframe"].get<double>());
+  }
   return j;
 }
 
@@ -178,6 +279,13 @@ int main(int argc, char** argv) {
   app.add_option("--max-fitness", defaults.max_fitness, "verification: largest fitness [m^2]")->capture_default_str();
   app.add_option("--max-sc-distance", defaults.max_sc_distance, "retrieval: Scan Context distance")->capture_default_str();
   app.add_option("--max-verify", defaults.max_verify, "candidates verified per keyframe")->capture_default_str();
+  WireOptions wire;
+  app.add_flag("--wire", wire.enabled,
+               "one loop-closure core per robot, peers' clouds requested and packed as the service sends them");
+  app.add_option("--reply-resolution", wire.resolution_m,
+                 "with --wire: quantisation of the packed clouds [m] (loop_closure.yaml's verification.reply_resolution_m)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   CLI11_PARSE(app, argc, argv);
   if (!std::filesystem::exists(data + "/kitti/poses")) {
     std::cerr << "cdc-bench-loops: " << data << "/kitti/poses not found (set --data or CDC_DATA_DIR)\n";
@@ -188,7 +296,7 @@ int main(int argc, char** argv) {
   nlohmann::json out;
   double precision = 1, recall = 1;
   for (const auto& s : seqs) {
-    out[s] = run_sequence(data, s, params, params.exclude_recent);
+    out[s] = run_sequence(data, s, params, params.exclude_recent, wire);
     precision = std::min(precision, out[s]["precision"].get<double>());
     recall = std::min(recall, out[s]["recall"].get<double>());
   }

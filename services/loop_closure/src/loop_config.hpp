@@ -18,7 +18,7 @@ struct LoopNodeOptions {
   LoopParams core;
   PeerReachParams reach;        // a peer unheard of reach.silence is out of range: no cloud requests to it
   int tick_ms = 100;
-  float reply_resolution_m = 0.01f;  // quantisation of the clouds sent in cloud replies
+  float reply_resolution_m = 0.02f;  // quantisation of the clouds sent in cloud replies
   SequencerParams sequencer;         // asking for missed descriptors
 };
 
