@@ -234,6 +234,12 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
                    {"intra_inconsistent", stat(&loops::LoopStats::intra_inconsistent)},
                    {"inter_proposed", stat(&loops::LoopStats::inter_proposed)},
                    {"withdrawn", stat(&loops::LoopStats::withdrawn)},
+                   {"failed_not_converged", stat(&loops::LoopStats::failed_not_converged)},
+                   {"failed_fitness", stat(&loops::LoopStats::failed_fitness)},
+                   {"failed_overlap", stat(&loops::LoopStats::failed_overlap)},
+                   {"skipped_near_requested", stat(&loops::LoopStats::skipped_near_requested)},
+                   {"verified_with_neighbour", stat(&loops::LoopStats::verified_with_neighbour)},
+                   {"reverse_queries", stat(&loops::LoopStats::reverse_queries)},
                    {"quantization_decisions", decisions},
                    {"quantization_changed", changed},
                    {"quantization_max_distance_change", max_change},
@@ -279,6 +285,9 @@ int main(int argc, char** argv) {
   app.add_option("--max-fitness", defaults.max_fitness, "verification: largest fitness [m^2]")->capture_default_str();
   app.add_option("--max-sc-distance", defaults.max_sc_distance, "retrieval: Scan Context distance")->capture_default_str();
   app.add_option("--max-verify", defaults.max_verify, "candidates verified per keyframe")->capture_default_str();
+  app.add_option("--peer-request-spacing", defaults.peer_request_spacing,
+                 "with --wire: no cloud request within this many keyframes of a peer keyframe already requested (0: none)")
+      ->capture_default_str();
   WireOptions wire;
   app.add_flag("--wire", wire.enabled,
                "one loop-closure core per robot, peers' clouds requested and packed as the service sends them");

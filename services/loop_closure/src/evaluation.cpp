@@ -18,7 +18,11 @@ LoopEvaluation evaluate_loops(const std::vector<TruthKeyframe>& order, const std
                               const EvaluationOptions& o) {
   LoopEvaluation ev;
   std::map<std::pair<uint32_t, uint32_t>, Eigen::Isometry3d> truth;
-  for (const auto& k : order) truth[{k.robot, k.id}] = k.T_world;
+  std::map<std::pair<uint32_t, uint32_t>, size_t> position;  // in the order the keyframes were made
+  for (size_t i = 0; i < order.size(); ++i) {
+    truth[{order[i].robot, order[i].id}] = order[i].T_world;
+    position[{order[i].robot, order[i].id}] = i;
+  }
   std::set<std::pair<uint32_t, uint32_t>> recalled;
   for (const LoopOut& l : accepted) {
     LoopVerdict v;
@@ -32,7 +36,10 @@ LoopEvaluation evaluate_loops(const std::vector<TruthKeyframe>& order, const std
     }
     if (v.correct) {
       ++ev.true_positives;
-      recalled.insert({l.robot_b, l.keyframe_b});  // b is the later keyframe, the one that revisits
+      // The later of the two keyframes is the one that revisits (a robot's service may publish a
+      // loop either way round: its own keyframe first, whichever is newer).
+      const bool b_later = position.at({l.robot_b, l.keyframe_b}) > position.at({l.robot_a, l.keyframe_a});
+      recalled.insert(b_later ? std::make_pair(l.robot_b, l.keyframe_b) : std::make_pair(l.robot_a, l.keyframe_a));
     } else {
       (l.robot_a == l.robot_b ? ev.false_intra : ev.false_inter) += 1;
     }

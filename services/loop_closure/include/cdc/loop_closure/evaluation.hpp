@@ -2,7 +2,7 @@
 // cdc-bench-loops. A loop is true when its relative pose is within max_error of the truth; a
 // keyframe is a true revisit when an earlier keyframe (any robot; of its own robot only outside
 // the `exclude_recent` most recent ones) lies within revisit_m; a revisit is recalled when some
-// true accepted loop ends at it.
+// true accepted loop joins it to an earlier keyframe (either way round).
 #pragma once
 
 #include "cdc/loop_closure/loop_core.hpp"
