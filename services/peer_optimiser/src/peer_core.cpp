@@ -355,7 +355,7 @@ StepOutput PeerCore::step(Nanos now, bool central_alive) {
     }
   }
 
-  // Separators for peers in range: the poses of own keyframes that their loops touch. A robot
+  // Separators for DISTRIBUTED peers in range: the poses of own keyframes that their loops touch. A robot
   // sends them only once its estimate is in the group's frame (central estimate, lowest robot of
   // its group, or placed through a peer), so that it never drags its neighbours into its own frame.
   const bool in_group_frame = (central_ && !central_->poses.empty()) || placed_by_peers_ || lowest_in_group();
@@ -383,8 +383,14 @@ StepOutput PeerCore::step(Nanos now, bool central_alive) {
     const auto me = world_pose();
     for (const auto& [target, ids] : wanted) {
       auto peer = peer_positions_.find(target);
-      if (me && peer != peer_positions_.end() && (me->translation() - peer->second).norm() > config_.peer_range_m) {
-        separators_sent_.erase(target);  // out of radio range of that peer: all of them when it is back
+      const bool out_of_range =
+          me && peer != peer_positions_.end() && (me->translation() - peer->second).norm() > config_.peer_range_m;
+      const auto peer_mode = peer_modes_.find(target);
+      const bool centralized = peer_mode != peer_modes_.end() && peer_mode->second == Mode::kCentralized;
+      if (out_of_range || centralized) {
+        // Out of radio range of that peer, or it does not use them now: all of them when it is
+        // back, or DISTRIBUTED.
+        separators_sent_.erase(target);
         separators_refreshed_.erase(target);
         continue;
       }

@@ -319,9 +319,13 @@ int run_peer(const PeerNodeOptions& o) {
       core.on_separator(m.robot_id, poses);
     });
     r_status.take(64).for_each_valid([&](const cdc_msg_RobotStatus& m, const dds_sample_info_t&) {
-      if (m.robot_id == me || !m.world_valid || rejected.record(topics::kRobotStatus, dds::validate(m, limits))) {
+      if (m.robot_id == me || rejected.record(topics::kRobotStatus, dds::validate(m, limits))) {
         return;
       }
+      if (!m.is_central) {
+        core.on_peer_mode(m.robot_id, m.mode == cdc_msg_MODE_CENTRALIZED ? Mode::kCentralized : Mode::kDistributed);
+      }
+      if (!m.world_valid) return;
       const Eigen::Vector3d p = dds::to_eigen(m.T_world_base.position);
       if (m.is_central) {
         core.on_central_position(p);
@@ -349,6 +353,7 @@ int run_peer(const PeerNodeOptions& o) {
                    out.transition->distance_m ? std::to_string(*out.transition->distance_m) + " m" : "unknown");
       publish_mode(out.transition->reason, out.transition->distance_m);
       last_mode = Clock::now();
+      last_radio_status = Clock::time_point{};  // peers learn the new mode at once (separators follow it)
       write_now(alive);
       if (out.transition->to == Mode::kDistributed && domains.split()) {
         // Keyframes forwarded since the link to the central was cut (until its lease lapsed) are

@@ -648,5 +648,37 @@ TEST(PeerCore, APeerMatchedAnewGetsEverySeparatorPoseAtTheNextRound) {
   EXPECT_TRUE(sent.empty()) << "the resend repeated";
 }
 
+TEST(PeerCore, ACentralizedPeerGetsNoSeparatorPosesUntilItReportsDistributed) {
+  const auto s = three_robot_stream();
+  PeerCore r0(config(0));  // refresh 30 s
+  add_robot0_with_a_loop_to_robot1(s, r0);
+  Nanos t = 0s;
+  std::vector<uint32_t> sent;  // keyframe ids sent to robot 1
+  const auto rounds = [&](int n) {
+    sent.clear();
+    for (int i = 0; i < n; ++i) {
+      for (const auto& sep : r0.step(t += 100ms, false).separators) {
+        ASSERT_EQ(sep.target, 1u);
+        for (const auto& [id, T] : sep.poses) sent.push_back(id);
+      }
+    }
+  };
+  r0.on_peer_mode(1, Mode::kCentralized);
+  rounds(20);
+  EXPECT_TRUE(sent.empty()) << "a CENTRALIZED peer got separator poses";
+  r0.on_peer_mode(1, Mode::kDistributed);
+  rounds(1);
+  EXPECT_EQ(sent, std::vector<uint32_t>{5}) << "the peer gone DISTRIBUTED did not get its separator pose at once";
+  rounds(20);
+  EXPECT_TRUE(sent.empty()) << "settled separator poses were sent again";
+  // Back to CENTRALIZED and DISTRIBUTED again: it may have missed moves meanwhile, so all of them again.
+  r0.on_peer_mode(1, Mode::kCentralized);
+  rounds(5);
+  EXPECT_TRUE(sent.empty());
+  r0.on_peer_mode(1, Mode::kDistributed);
+  rounds(1);
+  EXPECT_EQ(sent, std::vector<uint32_t>{5});
+}
+
 }  // namespace
 }  // namespace cdc::peer

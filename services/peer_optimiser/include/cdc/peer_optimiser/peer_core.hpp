@@ -126,6 +126,10 @@ class PeerCore {
   void on_separator(uint32_t from, const std::vector<std::pair<uint32_t, Eigen::Isometry3d>>& poses);
   void on_central_position(const Eigen::Vector3d& p) { central_position_ = p; }
   void on_peer_position(uint32_t robot, const Eigen::Vector3d& p) { peer_positions_[robot] = p; }
+  // The back-end mode a peer reports. A CENTRALIZED peer solves with the central's poses, not with
+  // separators: it gets none, and all of them at the first round after it reports DISTRIBUTED.
+  // A peer not heard of yet gets them.
+  void on_peer_mode(uint32_t robot, Mode mode) { peer_modes_[robot] = mode; }
   // The peer may have missed separators sent to it (its reader matched anew): the next round sends
   // it all of them.
   void resend_separators_to(uint32_t peer) {
@@ -177,6 +181,7 @@ class PeerCore {
   std::optional<Eigen::Isometry3d> published_;         // what the front-end has been told
   std::optional<Eigen::Vector3d> central_position_;
   std::map<uint32_t, Eigen::Vector3d> peer_positions_;
+  std::map<uint32_t, Mode> peer_modes_;
   Nanos last_round_{0};
   Nanos last_resend_{0};
   bool rejoining_ = false;
