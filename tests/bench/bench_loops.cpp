@@ -240,6 +240,7 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
                    {"skipped_near_requested", stat(&loops::LoopStats::skipped_near_requested)},
                    {"verified_with_neighbour", stat(&loops::LoopStats::verified_with_neighbour)},
                    {"reverse_queries", stat(&loops::LoopStats::reverse_queries)},
+                   {"left_to_lower_robot", stat(&loops::LoopStats::left_to_lower_robot)},
                    {"quantization_decisions", decisions},
                    {"quantization_changed", changed},
                    {"quantization_max_distance_change", max_change},
@@ -295,7 +296,11 @@ int main(int argc, char** argv) {
                  "with --wire: quantisation of the packed clouds [m] (loop_closure.yaml's verification.reply_resolution_m)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  bool both_verify = false;
+  app.add_flag("--both-robots-verify", both_verify,
+               "with --wire: both robots of a pair verify it (lower_robot_verifies: false)");
   CLI11_PARSE(app, argc, argv);
+  defaults.lower_robot_verifies = !both_verify;
   if (!std::filesystem::exists(data + "/kitti/poses")) {
     std::cerr << "cdc-bench-loops: " << data << "/kitti/poses not found (set --data or CDC_DATA_DIR)\n";
     return 2;

@@ -1,8 +1,9 @@
 // The place-recognition services over DDS with real processes (loopback configuration): for two
 // robots lapping the same block, cdc-descriptor and cdc-loop-closure of each robot, fed keyframes
 // with simulated VLP-16 clouds by the test.
-//  * Only descriptors travel until a candidate is found; robot 1 asks robot 0 for clouds, robot 0
-//    serves them, and the inter-robot loops published are true (1 m / 5 deg).
+//  * Only descriptors travel until a candidate is found; robot 0, the lower-numbered robot, which
+//    verifies every pair of their keyframes, asks robot 1 for clouds and robot 1 serves them (robot 1
+//    asks for none), and the inter-robot loops published are true (1 m / 5 deg).
 //  * A peer heard again after a silence gets the loops involving it again (the same messages).
 //  * A malformed descriptor and a malformed cloud reply are rejected with a reason and counted,
 //    and the services carry on; traffic is counted per topic and per peer.
@@ -199,15 +200,15 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
     std::this_thread::sleep_for(150ms);
     poll();
   }
-  // Let the last verifications finish: robot 0 falls silent (no descriptors) for 10 s, longer than
+  // Let the last verifications finish: the robots fall silent (no descriptors) for 10 s, longer than
   // the loop-closure services' peer_timeout_ms.
   for (int i = 0; i < 40; ++i) {
     std::this_thread::sleep_for(250ms);
     poll();
   }
   const std::vector<cdc_msg_LoopClosure> before_silence_ended = loops;
-  // Robot 0 is heard again: robot 1's service writes its loops with robot 0 again, a second later.
-  write(0, k, lap[k * 10 + 40 - lap.size()].pose);
+  // Robot 1 is heard again: robot 0's service writes its loops with robot 1 again, a second later.
+  write(1, k, lap[k * 10].pose);
   for (int i = 0; i < 16; ++i) {
     std::this_thread::sleep_for(250ms);
     poll();
@@ -225,16 +226,19 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   }
   EXPECT_GE(inter, 4u) << loops.size() << " loops in all";
   EXPECT_EQ(third_robot_loops, 0u) << "loops between robots 0 and 1 reached robot 2's partition";
-  // Each loop robot 1 wrote before robot 0's silence came again, the same message (sender, sequence number).
-  std::map<uint32_t, int> copies;  // robot 1's loops by sequence number
+  // Each loop robot 0 wrote before robot 1's silence came again, the same message (sender, sequence number).
+  std::map<uint32_t, int> copies;  // robot 0's loops by sequence number
+  size_t from_robot1 = 0;
   for (const auto& l : loops) {
-    if (l.sender_robot_id == 1) ++copies[l.loop_seq];
+    if (l.sender_robot_id == 0) ++copies[l.loop_seq];
+    if (l.sender_robot_id == 1 && l.robot_a != l.robot_b) ++from_robot1;
   }
+  EXPECT_EQ(from_robot1, 0u) << "robot 1 verified pairs with robot 0, the lower-numbered robot";
   size_t written_again = 0;
   for (const auto& l : before_silence_ended) {
-    if (l.sender_robot_id != 1) continue;
-    if (l.robot_a != 0 && l.robot_b != 0) continue;
-    EXPECT_GE(copies[l.loop_seq], 2) << "robot 1's loop " << l.loop_seq;
+    if (l.sender_robot_id != 0) continue;
+    if (l.robot_a != 1 && l.robot_b != 1) continue;
+    EXPECT_GE(copies[l.loop_seq], 2) << "robot 0's loop " << l.loop_seq;
     ++written_again;
   }
   EXPECT_GE(written_again, 1u);
@@ -248,14 +252,16 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   EXPECT_GE(d0.value("descriptors", 0), 10);
   // Packed descriptors fit one DDSI fragment (1344 B) with their RTPS headers: never fragmented.
   EXPECT_LE(d0.value("bytes_per_descriptor", 1e9), 1100.0);
-  // Robot 1 asked robot 0 for clouds, robot 0 served them; both counted the bytes per peer.
-  EXPECT_GT(l1.value("cloud_requests", 0), 0);
-  EXPECT_GT(l1.value("cloud_replies", 0), 0);
-  EXPECT_GE(l1.value("peer_silences", 0), 1);
-  EXPECT_GE(l1.value("loops_written_again", 0), static_cast<int>(written_again));
-  EXPECT_GT(l0.value("requests_served", 0), 0);
+  // Robot 0 asked robot 1 for clouds, robot 1 served them; both counted the bytes per peer. Robot 1
+  // left every pair to robot 0 and asked for none.
+  EXPECT_GT(l0.value("cloud_requests", 0), 0);
+  EXPECT_GT(l0.value("cloud_replies", 0), 0);
+  EXPECT_EQ(l1.value("cloud_requests", -1), 0);
+  EXPECT_GE(l0.value("peer_silences", 0), 1);
+  EXPECT_GE(l0.value("loops_written_again", 0), static_cast<int>(written_again));
+  EXPECT_GT(l1.value("requests_served", 0), 0);
   // Served clouds travel packed: at most 5 bytes per point (16 as floats), headers included.
-  EXPECT_GT(l0.value("points_served", 0), 0);
+  EXPECT_GT(l1.value("points_served", 0), 0);
   // Per-topic bytes as the DDS layer counted them, summed over the domains the service uses.
   auto topic_bytes = [](const nlohmann::json& s, const char* topic, const char* field) {
     double sum = 0;
@@ -264,11 +270,11 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
     }
     return sum;
   };
-  EXPECT_GT(topic_bytes(l0, dds::topics::kCloudReply, "bytes_written"), 0);
-  EXPECT_LE(topic_bytes(l0, dds::topics::kCloudReply, "bytes_written"), 5.0 * l0.value("points_served", 0));
-  EXPECT_GT(l1["bytes_per_peer"]["0"].value("received", 0), 0);
-  EXPECT_GT(l0["bytes_per_peer"]["1"].value("sent", 0), 0);
-  EXPECT_GT(topic_bytes(l1, dds::topics::kDescriptor, "bytes_taken"), 0);
+  EXPECT_GT(topic_bytes(l1, dds::topics::kCloudReply, "bytes_written"), 0);
+  EXPECT_LE(topic_bytes(l1, dds::topics::kCloudReply, "bytes_written"), 5.0 * l1.value("points_served", 0));
+  EXPECT_GT(l0["bytes_per_peer"]["1"].value("received", 0), 0);
+  EXPECT_GT(l1["bytes_per_peer"]["0"].value("sent", 0), 0);
+  EXPECT_GT(topic_bytes(l0, dds::topics::kDescriptor, "bytes_taken"), 0);
   // The bad samples were rejected with a reason and counted.
   EXPECT_EQ(l0["rejected"].value(dds::topics::kDescriptor, 0), 1);
   EXPECT_EQ(l1["rejected"].value(dds::topics::kDescriptor, 0), 1);

@@ -113,6 +113,11 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
   size_t taken = 0;
   for (const auto& c : candidates) {
     if (c.match.distance > p_.max_sc_distance || taken >= p_.max_verify) break;
+    const uint32_t other = reverse ? d.robot : owner_[c.id].first;
+    if (p_.lower_robot_verifies && query_robot_ && other < *query_robot_) {
+      ++stats_.left_to_lower_robot;
+      continue;
+    }
     ++taken;
     ++stats_.candidates;
     // The job's query is always one of this robot's keyframes and its candidate the other one: for

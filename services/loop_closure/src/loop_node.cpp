@@ -380,6 +380,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
                      {"reverse_queries", s.reverse_queries},
                      {"intra_gated", s.intra_gated},
                      {"skipped_near_requested", s.skipped_near_requested},
+                     {"left_to_lower_robot", s.left_to_lower_robot},
                      {"verified_with_neighbour", s.verified_with_neighbour},
                      {"clouds_prepared", s.prepared},
                      {"prepared_clouds_reused", s.prepared_reused},

@@ -179,6 +179,7 @@ TEST(LoopCore, RequestsPeerCloudsAndVerifiesWhenTheyArrive) {
   LoopParams params;
   params.exclude_recent = 1000;  // inter-robot loops only
   params.peer_request_spacing = 0;  // every candidate's cloud is asked for
+  params.lower_robot_verifies = false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
   LoopCore core(params, 1u);
   std::vector<LoopOut> loops;
   std::set<std::pair<uint32_t, uint32_t>> asked;
@@ -223,6 +224,7 @@ TEST(LoopCore, ASetOfLoopsThroughOneKeyframeIsNotPublished) {
   params.exclude_recent = 1000;
   params.peer_request_spacing = 0;
   params.max_verify = 4;  // several of robot 0's keyframes against each of robot 1's
+  params.lower_robot_verifies = false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
   LoopCore core(params, 1u);
   Nanos now{0};
   for (uint32_t k = 0; c.truth.count({0, k}) != 0; ++k) core.add_descriptor(c.descriptor(0, k, params), now);
@@ -252,6 +254,7 @@ TEST(LoopCore, DescriptorsOfAPeerBackInRangeAreSearchedAmongOwnKeyframes) {
   LoopParams params;
   params.exclude_recent = 1000;  // inter-robot loops only
   params.peer_request_spacing = 0;
+  params.lower_robot_verifies = false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
   LoopCore core(params, 1u);
   Nanos now{0};
   for (uint32_t k = 0; c.truth.count({1, k}) != 0; ++k) {
@@ -281,6 +284,54 @@ TEST(LoopCore, DescriptorsOfAPeerBackInRangeAreSearchedAmongOwnKeyframes) {
   }
 }
 
+// Each pair of two robots' keyframes is met by both robots' services (the newer keyframe's robot
+// searches forward, the other searches that descriptor among its own keyframes): only the lower-
+// numbered robot verifies it, so that one cloud crosses instead of one each way.
+TEST(LoopCore, APairWithALowerRobotIsLeftToItAndItVerifiesItBothWays) {
+  const Circle c(30, 2);
+  LoopParams params;
+  params.exclude_recent = 1000;  // inter-robot loops only
+  params.peer_request_spacing = 0;
+  LoopCore core0(params, 0u), core1(params, 1u);
+  std::vector<LoopOut> loops0, loops1;
+  size_t asked_by_1 = 0;
+  std::set<uint32_t> asked_of_1;
+  Nanos now{0};
+  auto settle = [&](LoopCore& core, LoopEvents ev, std::vector<LoopOut>& loops, uint32_t me) {
+    for (size_t i = 0; i < ev.requests.size(); ++i) {
+      const CloudWanted r = ev.requests[i];
+      EXPECT_NE(r.robot, me);
+      if (me == 1) ++asked_by_1;
+      if (me == 0) asked_of_1.insert(r.id);
+      ev.append(core.on_cloud(r.robot, r.id, c.clouds.at({r.robot, r.id}), now));
+    }
+    loops.insert(loops.end(), ev.loops.begin(), ev.loops.end());
+  };
+  for (uint32_t k = 0; c.truth.count({0, k}) != 0 && c.truth.count({1, k}) != 0; ++k) {
+    now += std::chrono::milliseconds(200);
+    for (uint32_t r : {0u, 1u}) {
+      LoopCore& own = r == 0 ? core0 : core1;
+      settle(own, own.add_keyframe_data(c.keyframe(r, k), now), r == 0 ? loops0 : loops1, r);
+      for (uint32_t to : {0u, 1u}) {  // every descriptor reaches both services
+        LoopCore& core = to == 0 ? core0 : core1;
+        settle(core, core.add_descriptor(c.descriptor(r, k, params), now), to == 0 ? loops0 : loops1, to);
+      }
+    }
+  }
+  EXPECT_EQ(asked_by_1, 0u) << "robot 1 asked robot 0 for clouds";
+  EXPECT_TRUE(loops1.empty()) << "robot 1 verified pairs with robot 0";
+  EXPECT_EQ(core1.stats().verified, 0u);
+  EXPECT_GE(core1.stats().left_to_lower_robot, 10u);
+  EXPECT_EQ(core0.stats().left_to_lower_robot, 0u);
+  EXPECT_GE(core0.stats().reverse_queries, 10u);
+  EXPECT_GE(asked_of_1.size(), 5u);
+  ASSERT_GE(loops0.size(), 4u);
+  for (const auto& l : loops0) {
+    EXPECT_NE(l.robot_a, l.robot_b);
+    c.expect_true(l);
+  }
+}
+
 TEST(LoopCore, AnUnansweredRequestTimesOutWithoutBlockingOtherCandidates) {
   // Robot 2's service; robot 0 never answers, robot 1 does.
   const Circle c(30, 3);
@@ -290,6 +341,7 @@ TEST(LoopCore, AnUnansweredRequestTimesOutWithoutBlockingOtherCandidates) {
   params.peer_request_spacing = 0;
   params.request_timeout = std::chrono::seconds(1);
   params.request_attempts = 1;  // given up at the first timeout
+  params.lower_robot_verifies = false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
   LoopCore core(params, 2u);
   std::vector<LoopOut> loops;
   size_t to_silent = 0;
@@ -331,6 +383,7 @@ LoopParams retrying(int attempts) {
   p.request_timeout = std::chrono::seconds(1);
   p.request_retry = std::chrono::seconds(1);
   p.request_attempts = attempts;
+  p.lower_robot_verifies = false;  // robot 1's service verifies its pairs with robot 0 too
   return p;
 }
 
@@ -412,6 +465,7 @@ TEST(LoopCore, PeerCloudRequestsAreSpacedAlongThePeersKeyframes) {
   LoopParams params;
   params.exclude_recent = 1000;
   params.peer_request_spacing = 5;
+  params.lower_robot_verifies = false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
   LoopCore core(params, 1u);
   std::vector<uint32_t> asked;
   std::vector<LoopOut> loops;
@@ -445,6 +499,7 @@ TEST(LoopCore, UnreachableOwnersAreNotAsked) {
   const Circle c(16, 2);
   LoopParams params;
   params.exclude_recent = 1000;
+  params.lower_robot_verifies = false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
   LoopCore core(params, 1u);
   core.set_reachable([](uint32_t robot) { return robot != 0; });
   size_t requests = 0;

@@ -79,6 +79,11 @@ struct LoopParams {
   // on the radio. The candidate is verified against that neighbour's cloud instead (held or on its
   // way), started from the offset between the two in the peer's pose hints. 0: request every candidate.
   uint32_t peer_request_spacing = 10;
+  // A robot's service (query robot) leaves every pair of keyframes with a lower-numbered robot to
+  // that robot: each pair is met twice, by the newer keyframe's robot searching forward and by the
+  // older one's searching the newer descriptor among its own (reverse), and verifying it on both
+  // sides sends a cloud each way for one loop. The lower robot verifies it, forward or reverse.
+  bool lower_robot_verifies = true;
   // Nominal odometry noise for robots chained through pose hints: per step, sigma = a + b * length.
   double hint_sigma_m = 0.02, hint_sigma_m_per_m = 0.01;
   double hint_sigma_rad = 0.002, hint_sigma_rad_per_m = 0.0005;
@@ -136,6 +141,7 @@ struct LoopStats {
   uint64_t reverse_queries = 0;  // peers' descriptors searched among this robot's own keyframes
   uint64_t intra_gated = 0;      // same-robot candidates too far by the robot's odometry (not verified)
   uint64_t skipped_near_requested = 0;  // candidates next to a peer keyframe whose cloud was requested
+  uint64_t left_to_lower_robot = 0;     // candidates with a lower-numbered robot, verified by that robot
   uint64_t verified_with_neighbour = 0; // candidates sent to a neighbouring keyframe's cloud (held or requested)
   uint64_t prepared = 0, prepared_reused = 0;  // clouds made ready for registration; look-ups (two per registration) that found one ready
 };
