@@ -121,8 +121,8 @@ PackedCloud pack_points(const std::vector<Eigen::Vector3f>& points, float resolu
   std::sort(codes.begin(), codes.end());
   pc.count = static_cast<uint32_t>(codes.size());
   // Byte planes of the deltas between consecutive sorted codes: a cloud of surfaces gives mostly
-  // small deltas, so the high planes are nearly all zero, which DEFLATE packs well (about a third
-  // smaller than per-axis deltas of points sorted by x, measured on keyframe clouds).
+  // small deltas, so the high planes are nearly all zero, which DEFLATE packs well (on simulated
+  // KITTI-05 verification clouds 14 % smaller at 1 cm than per-axis deltas of points sorted by x).
   std::vector<uint8_t> raw(kPlanes * codes.size());
   uint64_t prev = 0;
   for (size_t i = 0; i < codes.size(); ++i) {
