@@ -22,8 +22,8 @@
 #include <iostream>
 #include <map>
 #include <memory>
-#include <stdexcept>
 #include <random>
+#include <stdexcept>
 
 namespace {
 
