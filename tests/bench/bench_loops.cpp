@@ -164,7 +164,7 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
     loops::DescriptorIn d;
     d.robot = k.robot;
     d.id = k.id;
-    d.context = lidar::dequantize(lidar::quantize(contexts.back()));
+    d.context = loops::wire_form(contexts.back());
     d.pose_hint = odom[k.robot];
     settle(k.robot, robot_cores[k.robot]->add_keyframe_data(std::move(in), now), now);
     for (uint32_t r = 0; r < robot_cores.size(); ++r) {
@@ -195,9 +195,9 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
   size_t decisions = 0, changed = 0;
   double max_change = 0;
   for (size_t i = 0; i + 1 < contexts.size(); i += 7) {
-    const lidar::ScanContext qi = lidar::dequantize(lidar::quantize(contexts[i]));
+    const lidar::ScanContext qi = loops::wire_form(contexts[i]);
     for (size_t j = i + 1; j < contexts.size(); j += 13) {
-      const lidar::ScanContext qj = lidar::dequantize(lidar::quantize(contexts[j]));
+      const lidar::ScanContext qj = loops::wire_form(contexts[j]);
       const double da = lidar::compare(contexts[j], contexts[i]).distance, db = lidar::compare(qj, qi).distance;
       max_change = std::max(max_change, std::abs(da - db));
       const bool a = da <= params.max_sc_distance;
