@@ -44,6 +44,14 @@ Vector6d residual(const Eigen::Isometry3d& E) {
   return r;
 }
 
+// The nearest rigid transform (rotation renormalised through its quaternion). Measurements may
+// be orthonormal only to a few digits; composed along a chain of hundreds of them unchecked, the
+// rotation's scale drifts, Isometry3d::inverse (a transpose) stops inverting, and the relative
+// covariances below, differences of large cumulative ones, turn indefinite.
+Eigen::Isometry3d rigid(const Eigen::Isometry3d& T) {
+  return geometry::make_pose(T.translation(), Eigen::Quaterniond(T.linear()).normalized());
+}
+
 // Odometry of one robot: cumulative pose T_0k and covariance of T_0k (right perturbation, frame k),
 // propagated to first order along its odometry factors.
 struct Chain {
@@ -82,8 +90,9 @@ std::map<uint32_t, Chain> odometry_chains(const PoseGraph& g) {
     for (auto it = edges.find(idx); it != edges.end(); it = edges.find(idx)) {
       const Factor& f = *it->second;
       const uint64_t next = index_of(f.b);
-      const Matrix6d A = adjoint(f.measurement.inverse());
-      c.pose[next] = c.pose[idx] * f.measurement;
+      const Eigen::Isometry3d m = rigid(f.measurement);
+      const Matrix6d A = adjoint(m.inverse());
+      c.pose[next] = rigid(c.pose[idx] * m);
       c.cov[next] = A * c.cov[idx] * A.transpose() + f.information.inverse();
       idx = next;
     }
@@ -100,11 +109,12 @@ struct Oriented {
 
 Oriented orient(const Factor& f) {
   const Matrix6d cov = f.information.inverse();
+  const Eigen::Isometry3d T = rigid(f.measurement);
   if (robot_of(f.a) <= robot_of(f.b)) {
-    return {f.a, f.b, f.measurement, cov};
+    return {f.a, f.b, T, cov};
   }
-  const Matrix6d A = adjoint(f.measurement);
-  return {f.b, f.a, f.measurement.inverse(), A * cov * A.transpose()};
+  const Matrix6d A = adjoint(T);
+  return {f.b, f.a, T.inverse(), A * cov * A.transpose()};
 }
 
 double cycle_distance_with(const std::map<uint32_t, Chain>& chains, const Factor& fk, const Factor& fl) {
@@ -153,9 +163,9 @@ double Pcm::odometry_distance(const PoseGraph& g, const Factor& loop) {
     return std::numeric_limits<double>::infinity();
   }
   const auto [T_odo, S_odo] = it->second.relative(index_of(loop.a), index_of(loop.b));
-  const Vector6d r = residual(T_odo.inverse() * loop.measurement);
+  const Eigen::Isometry3d E = T_odo.inverse() * rigid(loop.measurement);
+  const Vector6d r = residual(E);
   // First order: the residual moves like the loop's right perturbation and against the odometry's.
-  const Eigen::Isometry3d E = T_odo.inverse() * loop.measurement;
   const Matrix6d A = adjoint(E.inverse());
   const Matrix6d S = loop.information.inverse() + A * S_odo * A.transpose();
   return r.dot(S.ldlt().solve(r));

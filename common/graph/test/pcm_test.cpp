@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <random>
@@ -130,6 +131,47 @@ TEST(Pcm, RejectsEveryPlantedOutlier) {
   const OutlierDecision d = Pcm().decide(g);
   EXPECT_EQ(d.accepted, inliers);
   EXPECT_EQ(d.rejected, outliers);
+}
+
+// Odometry whose rotations are orthonormal only to about 1e-4 (as a chain of relative poses taken
+// between absolute poses that were printed to a few digits, or composed without renormalising,
+// comes out): the chains PCM composes from it must stay rigid, or every relative pose far from a
+// chain's start, and its covariance (a difference of two large cumulative ones), comes out wrong
+// and true loops there look inconsistent with each other (a negative or huge cycle distance).
+TEST(Pcm, TrueLoopsFarAlongAChainOfSlightlyNonOrthonormalOdometryStayConsistent) {
+  std::vector<Eigen::Isometry3d> truth_a, truth_b;
+  for (int i = 0; i < 300; ++i) {
+    truth_a.push_back(pose(2.0 * i, 0.5 * std::sin(0.05 * i), 0.1 * std::sin(0.02 * i)));
+  }
+  for (int i = 0; i < 20; ++i) {  // robot 1 starts where robot 0 is at its keyframe 280
+    truth_b.push_back(truth_a[280] * pose(2.0 * i, 1.0, 0.01 * i));
+  }
+  PoseGraph g;
+  Matrix6d info = Matrix6d::Zero();
+  info.diagonal() << 600, 600, 600, 1e5, 1e5, 1e5;  // 4 cm, 3 mrad a step
+  auto chain = [&](uint32_t robot, const std::vector<Eigen::Isometry3d>& truth) {
+    for (size_t i = 0; i + 1 < truth.size(); ++i) {
+      Eigen::Isometry3d m = truth[i].inverse() * truth[i + 1];
+      m.linear() *= 1.0 + 1e-4;
+      g.add_between(make_key(robot, i), make_key(robot, i + 1), m, info);
+    }
+  };
+  chain(0, truth_a);
+  chain(1, truth_b);
+  std::vector<size_t> loops;
+  for (size_t j = 0; j < 6; ++j) {
+    const size_t i = 280 + 2 * j;
+    g.add_between(make_key(0, i), make_key(1, 2 * j), truth_a[i].inverse() * truth_b[2 * j], info);
+    loops.push_back(g.factors.size() - 1);
+  }
+  for (size_t x = 0; x < loops.size(); ++x) {
+    for (size_t y = x + 1; y < loops.size(); ++y) {
+      const double d2 = Pcm::cycle_distance(g, g.factors[loops[x]], g.factors[loops[y]]);
+      EXPECT_GE(d2, 0.0) << x << "-" << y;
+      EXPECT_LT(d2, 1.0) << x << "-" << y;
+    }
+  }
+  EXPECT_EQ(Pcm().decide(g).accepted, loops);
 }
 
 class PcmData : public ::testing::Test {
