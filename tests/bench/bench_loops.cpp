@@ -5,6 +5,7 @@
 // a keyframe is a true revisit when an earlier keyframe (any robot, not this robot's recent ones)
 // lies within 5 m. Last output line: one JSON object.
 #include "cdc/dds/compact.hpp"
+#include "cdc/dds/convert.hpp"
 #include "cdc/lidar/scan_context.hpp"
 #include "cdc/loop_closure/evaluation.hpp"
 #include "cdc/loop_closure/loop_core.hpp"
@@ -147,7 +148,9 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
       noise.translation() = Eigen::Vector3d(nt(rng), nt(rng), nt(rng));
       noise.linear() = (Eigen::AngleAxisd(nr(rng), Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(nr(rng), Eigen::Vector3d::UnitY()))
                            .toRotationMatrix();
-      in.T_prev = prev_truth[k.robot].inverse() * k.truth * noise;
+      // As the keyframe message carries it (a rotation renormalised from its quaternion: the
+      // ground truth's rotations are orthonormal only to the digits KITTI prints).
+      in.T_prev = dds::to_eigen(dds::to_msg(prev_truth[k.robot].inverse() * k.truth * noise));
     }
     in.information.diagonal() << 2500, 2500, 2500, 250000, 250000, 250000;
     in.T_odom = k.truth;  // a levelled odometry's tilt: the truth's (world z is up)
@@ -165,7 +168,7 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
     d.robot = k.robot;
     d.id = k.id;
     d.context = loops::wire_form(contexts.back());
-    d.pose_hint = odom[k.robot];
+    d.pose_hint = dds::to_eigen(dds::to_msg_f(odom[k.robot]));  // as the descriptor message carries it
     settle(k.robot, robot_cores[k.robot]->add_keyframe_data(std::move(in), now), now);
     for (uint32_t r = 0; r < robot_cores.size(); ++r) {
       settle(r, robot_cores[r]->add_descriptor(d, now), now);
@@ -263,6 +266,10 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
                  {"bytes_per_reply", wc.replies == 0 ? 0.0 : static_cast<double>(wc.bytes) / static_cast<double>(wc.replies)},
                  {"points_per_reply", wc.replies == 0 ? 0.0 : static_cast<double>(wc.points) / static_cast<double>(wc.replies)},
                  {"cloud_bytes_per_keyframe", static_cast<double>(wc.bytes) / static_cast<double>(kfs.size())}};
+    // How the registrations spread over the robots (the lower robot of a pair verifies it).
+    nlohmann::json per_robot = nlohmann::json::array();
+    for (const auto& c : robot_cores) per_robot.push_back(c->stats().verified);
+    j["wire"]["verified_per_robot"] = per_robot;
     std::printf("  on the wire (%.3f m): %zu cloud replies, %.0f B each (%.0f points), %.0f B per keyframe\n",
                 wire.resolution_m, wc.replies, j["wire"]["bytes_per_reply"].get<double>(),
                 j["wire"]["points_per_reply"].get<double>(), j["wire"]["cloud_bytes_per_keyframe"].get<double>());
