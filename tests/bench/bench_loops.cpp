@@ -242,6 +242,7 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
                    {"failed_overlap", stat(&loops::LoopStats::failed_overlap)},
                    {"skipped_near_requested", stat(&loops::LoopStats::skipped_near_requested)},
                    {"verified_with_neighbour", stat(&loops::LoopStats::verified_with_neighbour)},
+                   {"reaim_too_far", stat(&loops::LoopStats::reaim_too_far)},
                    {"reverse_queries", stat(&loops::LoopStats::reverse_queries)},
                    {"left_to_lower_robot", stat(&loops::LoopStats::left_to_lower_robot)},
                    {"quantization_decisions", decisions},
@@ -293,6 +294,10 @@ int main(int argc, char** argv) {
   app.add_option("--max-fitness", defaults.max_fitness, "verification: largest fitness [m^2]")->capture_default_str();
   app.add_option("--max-sc-distance", defaults.max_sc_distance, "retrieval: Scan Context distance")->capture_default_str();
   app.add_option("--max-verify", defaults.max_verify, "candidates verified per keyframe")->capture_default_str();
+  app.add_option("--reaim-max", defaults.reaim_max_m,
+                 "with --wire: largest offset [m] at which a candidate is verified against a neighbour's cloud (0: any)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--peer-request-spacing", defaults.peer_request_spacing,
                  "with --wire: no cloud request within this many keyframes of a peer keyframe already requested (0: none)")
       ->capture_default_str();

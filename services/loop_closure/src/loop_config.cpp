@@ -24,6 +24,7 @@ LoopNodeOptions load_loop_options(const std::string& path) {
   r.get<int>("retrieval.peer_request_spacing", spacing, [](const int& v) { return v >= 0; }, ">= 0");
   p.peer_request_spacing = static_cast<uint32_t>(spacing);
   r.get<bool>("retrieval.lower_robot_verifies", p.lower_robot_verifies);
+  r.get<double>("retrieval.reaim_max_m", p.reaim_max_m, [](const double& v) { return v >= 0; }, ">= 0");
   r.get<double>("retrieval.max_sc_distance", p.max_sc_distance, [](const double& v) { return v > 0 && v <= 1; }, "(0, 1]");
   r.get<int>("retrieval.exclude_recent", recent, [](const int& v) { return v >= 0; }, ">= 0");
   r.get<int>("retrieval.max_verify", verify, positive_i, "> 0");

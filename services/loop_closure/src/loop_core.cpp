@@ -130,7 +130,8 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
       if (tried_.insert({job.query, job.candidate}).second) out.append(verify(job));
       continue;
     }
-    if (const std::optional<Job> n = neighbour_job(job)) {
+    bool too_far = false;
+    if (const std::optional<Job> n = neighbour_job(job, too_far)) {
       // Several candidates of one query can share a neighbour: that pair is verified once.
       if (!tried_.insert({n->query, n->candidate}).second) continue;
       ++stats_.verified_with_neighbour;
@@ -139,6 +140,10 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
       } else {
         pending_.at(n->candidate).jobs.push_back(*n);
       }
+      continue;
+    }
+    if (too_far) {
+      ++stats_.reaim_too_far;
       continue;
     }
     if (!reachable_(job.candidate.first)) {
@@ -178,7 +183,8 @@ bool LoopCore::intra_plausible(const Id& query, const Id& candidate) const {
   return apart <= p_.intra_gate_m + p_.intra_gate_per_m * std::abs(q->second.path_m - c->second.path_m);
 }
 
-std::optional<LoopCore::Job> LoopCore::neighbour_job(const Job& job) const {
+std::optional<LoopCore::Job> LoopCore::neighbour_job(const Job& job, bool& too_far) const {
+  too_far = false;
   const auto [robot, id] = job.candidate;
   const auto asked = requested_.find(robot);
   const auto hint = hints_.find(job.candidate);
@@ -186,22 +192,29 @@ std::optional<LoopCore::Job> LoopCore::neighbour_job(const Job& job) const {
     return std::nullopt;
   }
   const auto gap = [id = id](uint32_t other) { return other > id ? other - id : id - other; };
-  std::optional<uint32_t> best;
+  std::optional<Job> best;
+  uint32_t best_gap = 0;
   const auto consider = [&](std::set<uint32_t>::const_iterator it) {
     if (it == asked->second.end()) return;
     const Id n{robot, *it};
-    if (gap(*it) == 0 || gap(*it) > p_.peer_request_spacing || hints_.count(n) == 0) return;
+    const auto n_hint = hints_.find(n);
+    if (gap(*it) == 0 || gap(*it) > p_.peer_request_spacing || n_hint == hints_.end()) return;
     if (clouds_.count(n) == 0 && pending_.count(n) == 0) return;  // evicted, missing or timed out
-    if (!best || gap(*it) < gap(*best)) best = *it;
+    const Eigen::Isometry3d guess = n_hint->second.inverse() * hint->second * job.guess;
+    if (p_.reaim_max_m > 0 && guess.translation().norm() > p_.reaim_max_m) {
+      too_far = true;
+      return;
+    }
+    if (!best || gap(*it) < best_gap) {
+      best = Job{job.query, n, guess};
+      best_gap = gap(*it);
+    }
   };
   const auto above = asked->second.lower_bound(id);
   consider(above);
   if (above != asked->second.begin()) consider(std::prev(above));
-  if (!best) {
-    return std::nullopt;
-  }
-  const Id n{robot, *best};
-  return Job{job.query, n, hints_.at(n).inverse() * hint->second * job.guess};
+  if (best) too_far = false;
+  return best;
 }
 
 LoopEvents LoopCore::on_cloud(uint32_t robot, uint32_t id, std::vector<Eigen::Vector3f> cloud, Nanos) {

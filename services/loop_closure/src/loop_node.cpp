@@ -382,6 +382,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
                      {"skipped_near_requested", s.skipped_near_requested},
                      {"left_to_lower_robot", s.left_to_lower_robot},
                      {"verified_with_neighbour", s.verified_with_neighbour},
+                     {"reaim_too_far", s.reaim_too_far},
                      {"clouds_prepared", s.prepared},
                      {"prepared_clouds_reused", s.prepared_reused},
                      {"verified", s.verified},

@@ -495,6 +495,48 @@ TEST(LoopCore, PeerCloudRequestsAreSpacedAlongThePeersKeyframes) {
   }
 }
 
+// A candidate is only verified against a neighbour's cloud that starts registration within
+// reaim_max_m of it; farther ones are left, without a request of their own either.
+TEST(LoopCore, ACandidateIsNotReAimedAtANeighbourBeyondTheLimit) {
+  const Circle c(30, 2);  // keyframes 2 m apart: with a spacing of 5, neighbours up to 10 m away
+  std::vector<Verification> open_seen, gated_seen;
+  std::vector<LoopOut> gated_loops;
+  auto run = [&](double limit, std::vector<Verification>& seen, std::vector<LoopOut>& loops) {
+    LoopParams params;
+    params.exclude_recent = 1000;
+    params.peer_request_spacing = 5;
+    params.reaim_max_m = limit;
+    params.lower_robot_verifies = false;  // this robot verifies its pairs with robot 0 too
+    LoopCore core(params, 1u);
+    Nanos now{0};
+    for (uint32_t k = 0; c.truth.count({1, k}) != 0; ++k) {
+      now += std::chrono::milliseconds(200);
+      LoopEvents ev = c.feed_step(core, k, params, now);
+      for (size_t i = 0; i < ev.requests.size(); ++i) {
+        const CloudWanted r = ev.requests[i];
+        ev.append(core.on_cloud(r.robot, r.id, c.clouds.at({r.robot, r.id}), now));
+      }
+      seen.insert(seen.end(), ev.verifications.begin(), ev.verifications.end());
+      for (const auto& l : ev.loops) {
+        if (!l.withdrawn) loops.push_back(l);
+      }
+    }
+    return core.stats();
+  };
+  std::vector<LoopOut> open_loops;
+  const LoopStats open = run(0, open_seen, open_loops);
+  const LoopStats gated = run(3, gated_seen, gated_loops);
+  EXPECT_EQ(open.reaim_too_far, 0u);
+  EXPECT_TRUE(std::any_of(open_seen.begin(), open_seen.end(), [](const Verification& v) { return v.guess_m > 3; }))
+      << "no neighbour beyond 3 m without the limit: the test shows nothing";
+  EXPECT_GE(gated.reaim_too_far, 1u);
+  EXPECT_LT(gated.verified, open.verified);
+  EXPECT_EQ(gated.requests, open.requests);
+  for (const Verification& v : gated_seen) EXPECT_LE(v.guess_m, 3.0) << v.candidate_id << " for " << v.query_id;
+  EXPECT_GE(gated_loops.size(), 2u);
+  for (const LoopOut& l : gated_loops) c.expect_true(l);
+}
+
 TEST(LoopCore, UnreachableOwnersAreNotAsked) {
   const Circle c(16, 2);
   LoopParams params;
