@@ -44,6 +44,10 @@ cdc_msg_SwitchReason to_msg(SwitchReason r) {
   return cdc_msg_REASON_STARTUP;
 }
 
+// The back-end mode as the mode and status messages carry it, and back.
+cdc_msg_BackendMode to_msg(Mode m) { return m == Mode::kCentralized ? cdc_msg_MODE_CENTRALIZED : cdc_msg_MODE_DISTRIBUTED; }
+Mode from_msg(cdc_msg_BackendMode m) { return m == cdc_msg_MODE_CENTRALIZED ? Mode::kCentralized : Mode::kDistributed; }
+
 }  // namespace
 
 PeerNodeOptions load_options(const std::string& path) {
@@ -209,7 +213,7 @@ int run_peer(const PeerNodeOptions& o) {
     m.robot_id = me;
     m.incarnation = incarnation;
     m.stamp_ns = dds::now_ns();
-    m.mode = core.mode() == Mode::kCentralized ? cdc_msg_MODE_CENTRALIZED : cdc_msg_MODE_DISTRIBUTED;
+    m.mode = to_msg(core.mode());
     m.reason = to_msg(reason);
     m.distance_to_central = distance.value_or(-1.0);
     m.transition_count = core.rtdos().transitions();
@@ -323,7 +327,7 @@ int run_peer(const PeerNodeOptions& o) {
         return;
       }
       if (!m.is_central) {
-        core.on_peer_mode(m.robot_id, m.mode == cdc_msg_MODE_CENTRALIZED ? Mode::kCentralized : Mode::kDistributed);
+        core.on_peer_mode(m.robot_id, from_msg(m.mode));
       }
       if (!m.world_valid) return;
       const Eigen::Vector3d p = dds::to_eigen(m.T_world_base.position);
@@ -460,7 +464,7 @@ int run_peer(const PeerNodeOptions& o) {
       s.world_valid = pose.has_value();
       s.T_world_base = dds::to_msg(pose.value_or(Eigen::Isometry3d::Identity()));
       s.last_keyframe_id = core.last_keyframe_id();
-      s.mode = core.mode() == Mode::kCentralized ? cdc_msg_MODE_CENTRALIZED : cdc_msg_MODE_DISTRIBUTED;
+      s.mode = to_msg(core.mode());
       s.is_central = false;
       w_status.write(s);
       last_radio_status = Clock::now();
