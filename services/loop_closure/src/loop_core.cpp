@@ -138,16 +138,12 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
       if (clouds_.count(n->candidate) != 0) {
         out.append(verify(*n));
       } else {
-        pending_.at(n->candidate).jobs.push_back(*n);
+        wait_for_cloud(*n, now, out);
       }
       continue;
     }
     if (too_far) {
       ++stats_.reaim_too_far;
-      continue;
-    }
-    if (!reachable_(job.candidate.first)) {
-      ++stats_.unreachable;
       continue;
     }
     if (tried_.count({job.query, job.candidate}) != 0) {
@@ -164,15 +160,34 @@ LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {
       asked.insert(id);
     }
     tried_.insert({job.query, job.candidate});
-    auto [it, fresh] = pending_.try_emplace(job.candidate);
-    it->second.jobs.push_back(job);
-    if (fresh) {
-      it->second.deadline = now + p_.request_timeout;
-      out.requests.push_back({job.candidate.first, job.candidate.second});
-      ++stats_.requests;
-    }
+    wait_for_cloud(job, now, out);
   }
   return out;
+}
+
+void LoopCore::wait_for_cloud(const Job& job, Nanos now, LoopEvents& out) {
+  for (std::map<Id, Pending>* waiting : {&pending_, &parked_}) {
+    if (auto it = waiting->find(job.candidate); it != waiting->end()) {
+      it->second.jobs.push_back(job);
+      return;
+    }
+  }
+  Pending p;
+  p.jobs.push_back(job);
+  if (!reachable_(job.candidate.first)) {
+    // Its owner is out of range: the request waits, parked, until the owner is back in reach (tick
+    // asks it then, with all its attempts still to come). Dropping it lost every loop with a place
+    // a peer passed while out of range, unless the peer came back in range at that very moment.
+    ++stats_.unreachable;
+    p.attempts = 0;
+    p.deadline = now;
+    parked_.emplace(job.candidate, std::move(p));
+    return;
+  }
+  p.deadline = now + p_.request_timeout;
+  pending_.emplace(job.candidate, std::move(p));
+  out.requests.push_back({job.candidate.first, job.candidate.second});
+  ++stats_.requests;
 }
 
 bool LoopCore::intra_plausible(const Id& query, const Id& candidate) const {
@@ -199,7 +214,7 @@ std::optional<LoopCore::Job> LoopCore::neighbour_job(const Job& job, bool& too_f
     const Id n{robot, *it};
     const auto n_hint = hints_.find(n);
     if (gap(*it) == 0 || gap(*it) > p_.peer_request_spacing || n_hint == hints_.end()) return;
-    if (clouds_.count(n) == 0 && pending_.count(n) == 0) return;  // evicted, missing or timed out
+    if (clouds_.count(n) == 0 && pending_.count(n) == 0 && parked_.count(n) == 0) return;  // evicted or abandoned
     const Eigen::Isometry3d guess = n_hint->second.inverse() * hint->second * job.guess;
     if (p_.reaim_max_m > 0 && guess.translation().norm() > p_.reaim_max_m) {
       too_far = true;

@@ -537,21 +537,43 @@ TEST(LoopCore, ACandidateIsNotReAimedAtANeighbourBeyondTheLimit) {
   for (const LoopOut& l : gated_loops) c.expect_true(l);
 }
 
-TEST(LoopCore, UnreachableOwnersAreNotAsked) {
+// A peer passes a place this robot saw while the two are out of range of each other: its candidates
+// wait, parked, and are asked for once the peer is back in reach, so that their loops are found then.
+TEST(LoopCore, CandidatesOfAnUnreachableOwnerAreAskedForWhenItIsBackInReach) {
   const Circle c(16, 2);
   LoopParams params;
   params.exclude_recent = 1000;
   params.lower_robot_verifies = false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
   LoopCore core(params, 1u);
-  core.set_reachable([](uint32_t robot) { return robot != 0; });
+  bool in_reach = false;
+  core.set_reachable([&](uint32_t robot) { return robot != 0 || in_reach; });
   size_t requests = 0;
+  Nanos now{0};
   for (uint32_t k = 0; c.truth.count({1, k}) != 0; ++k) {
-    core.add_descriptor(c.descriptor(0, k, params), Nanos(0));
-    core.add_keyframe_data(c.keyframe(1, k), Nanos(0));
-    requests += core.add_descriptor(c.descriptor(1, k, params), Nanos(0)).requests.size();
+    now += std::chrono::milliseconds(10);
+    core.add_descriptor(c.descriptor(0, k, params), now);
+    core.add_keyframe_data(c.keyframe(1, k), now);
+    requests += core.add_descriptor(c.descriptor(1, k, params), now).requests.size();
+    requests += core.tick(now).requests.size();
   }
-  EXPECT_EQ(requests, 0u);
-  EXPECT_GE(core.stats().unreachable, 3u);
+  EXPECT_EQ(requests, 0u);  // nothing asked of an owner out of range
+  EXPECT_EQ(core.pending_requests(), 0u);
+  const uint64_t parked = core.stats().unreachable;
+  ASSERT_GE(parked, 2u);
+  in_reach = true;  // back in range: each parked request is asked once, and its loops are found
+  const LoopEvents asked = core.tick(now += std::chrono::milliseconds(10));
+  EXPECT_EQ(asked.requests.size(), parked);
+  EXPECT_TRUE(core.tick(now += std::chrono::milliseconds(10)).requests.empty());
+  std::vector<LoopOut> loops;
+  for (const auto& r : asked.requests) {
+    EXPECT_EQ(r.robot, 0u);
+    for (const auto& l : core.on_cloud(r.robot, r.id, c.clouds.at({r.robot, r.id}), now).loops) loops.push_back(l);
+  }
+  ASSERT_GE(loops.size(), 2u);
+  for (const auto& l : loops) c.expect_true(l);
+  EXPECT_EQ(core.stats().requests, parked);
+  EXPECT_EQ(core.stats().replies, parked);
+  EXPECT_EQ(core.stats().requests_abandoned, 0u);
 }
 
 }  // namespace

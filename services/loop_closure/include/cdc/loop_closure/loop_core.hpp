@@ -141,6 +141,7 @@ struct LoopStats {
   // Why verifications failed (each failure counts under its first reason).
   uint64_t failed_not_converged = 0, failed_fitness = 0, failed_overlap = 0;
   uint64_t intra_accepted = 0, intra_inconsistent = 0, inter_proposed = 0, inter_accepted = 0, withdrawn = 0;
+  // unreachable: requests parked at once because their owner was out of range (asked when it is back)
   uint64_t requests = 0, replies = 0, replies_unexpected = 0, missing = 0, timed_out = 0, unreachable = 0;
   uint64_t requests_retried = 0, requests_abandoned = 0;  // asked again; given up after request_attempts
   uint64_t duplicate_descriptors = 0, deferred_dropped = 0;
@@ -202,6 +203,9 @@ class LoopCore {
   };
   // A request not answered with a cloud: park it for another attempt, or abandon it.
   void park(const Id& candidate, Pending p, Nanos now);
+  // The job waits for its candidate's cloud: joins a request pending or parked for it, or makes one,
+  // asked now (in `out`) when the owner is in reach and parked until it is otherwise.
+  void wait_for_cloud(const Job& job, Nanos now, LoopEvents& out);
   LoopEvents verify(const Job& job);
   // A keyframe of the candidate's robot within peer_request_spacing of it whose cloud is held or
   // requested, with the job re-aimed at it (the offset from the robot's pose hints), if any within
