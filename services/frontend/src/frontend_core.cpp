@@ -284,6 +284,12 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
       };
       map_ = odometry::VoxelMap(p_.map);
       select(first_stamp_, first_points_, over(first_points_), nullptr);
+      if (held_first_keyframe_) {
+        held_first_keyframe_->cloud.clear();
+        for (const auto& p : odometry::voxel_filter(deskewed, p_.keyframe_voxel_m)) {
+          held_first_keyframe_->cloud.push_back(p.cast<float>());
+        }
+      }
       std::vector<Eigen::Vector3d> world = odometry::voxel_filter(deskewed, p_.map_voxel_m);
       for (auto& p : world) p = T_last_ * p;
       map_.add(world);
@@ -340,7 +346,13 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
     if (ldlt.info() == Eigen::Success) cov_since_keyframe_ += ldlt.solve(Matrix6d::Identity());
   }
   const Eigen::Isometry3d since = T_last_keyframe_.inverse() * T_out;
-  if (!have_keyframe_ || since.translation().norm() >= p_.keyframe_distance_m || angle_of(since) >= p_.keyframe_angle_rad) {
+  if (held_first_keyframe_) {
+    // The second sweep: the first keyframe goes out now, deskewed if the motion was found (above);
+    // this sweep cuts none, the next one is measured from the first.
+    out.keyframe = std::move(held_first_keyframe_);
+    held_first_keyframe_.reset();
+  } else if (!have_keyframe_ || since.translation().norm() >= p_.keyframe_distance_m ||
+             angle_of(since) >= p_.keyframe_angle_rad) {
     KeyframeOut k;
     k.id = next_keyframe_++;
     k.stamp_ns = stamp_ns;
@@ -356,7 +368,11 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
     cov_since_keyframe_.setZero();
     have_keyframe_ = true;
     ++stats_.keyframes;
-    out.keyframe = std::move(k);
+    if (first_ && p_.deskew) {
+      held_first_keyframe_ = std::move(k);
+    } else {
+      out.keyframe = std::move(k);
+    }
   }
   // Corrections: the published pose follows the odometry's own increment and is pulled towards
   // the corrected pose by at most the fusion thresholds per scan (eq. 8-14).

@@ -200,6 +200,10 @@ class FrontendCore {
   std::deque<double> model_errors_;
   std::vector<ScanPoint> first_points_;  // kept until the second sweep tells their motion
   int64_t first_stamp_ = 0;
+  // The first keyframe (the first sweep's), held back until the second sweep tells the first one's
+  // motion and its cloud can be deskewed: sent undeskewed, it carried the sweep's motion (half a metre
+  // at 10 m/s) into every loop verified against it (0.5 m loop errors on simulated KITTI 09).
+  std::optional<KeyframeOut> held_first_keyframe_;
   // Keyframes.
   bool have_keyframe_ = false;
   uint32_t next_keyframe_ = 0;
