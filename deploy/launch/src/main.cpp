@@ -62,6 +62,14 @@ RobotNow read_now(const fs::path& p) {
   return r;
 }
 
+// A loop-closure service's --backlog-out (services/loop_closure/src/loop_config.hpp): "<descriptors
+// waiting> <requests pending> <requests parked> <loops published>". Caught up: nothing waiting.
+bool loop_closure_caught_up(const fs::path& p) {
+  std::istringstream in(read_file(p));
+  uint64_t waiting = 0, pending = 0, parked = 0;
+  return static_cast<bool>(in >> waiting >> pending >> parked) && waiting == 0 && pending == 0 && parked == 0;
+}
+
 struct Options {
   std::string swarm, out, bin_dir = "build/release", root = ".", network;
   int max_scans = -1;
@@ -199,7 +207,8 @@ void Launcher::start_services() {
                       slam, "--stats-out", (rd / "descriptor.stats.json").string()}));
     spawn("robot" + id + "/loop-closure", r,
           with_local({bin("services/loop_closure/cdc-loop-closure"), "--robot", id, "--config", c_.loop_closure_config,
-                      "--domain", slam, "--stats-out", (rd / "loop_closure.stats.json").string()}));
+                      "--domain", slam, "--stats-out", (rd / "loop_closure.stats.json").string(), "--backlog-out",
+                      (rd / "loop_closure.now").string()}));
     spawn("robot" + id + "/peer-optimiser", r,
           with_local({bin("services/peer_optimiser/cdc-peer-optimiser"), "--robot", id, "--config", c_.peer_config,
                       "--domain", slam, "--mode-out", (rd / "modes.csv").string(), "--trajectory-out",
@@ -529,12 +538,17 @@ int Launcher::run() {
     }
     if (rendezvous_start && !settle_until) {
       // The rendezvous ends once every robot has been CENTRALIZED, with all its keyframes held by
-      // the central, for settle_s (a robot cut just before the last sweep still reads CENTRALIZED
-      // until the central's lease lapses), or after rendezvous_s + settle_s.
+      // the central and its loop closure caught up (the descriptors of peers' keyframes made out of
+      // range searched, the clouds their candidates need received), for settle_s (a robot cut just
+      // before the last sweep still reads CENTRALIZED until the central's lease lapses), or after
+      // rendezvous_s + settle_s.
       std::vector<uint32_t> out;
       for (uint32_t r : robots_) {
-        const RobotNow n = read_now(run_ / ("robot_" + std::to_string(r)) / "modes.csv.now");
-        if (n.mode != "CENTRALIZED" || n.acknowledged < n.keyframes) out.push_back(r);
+        const fs::path rd = run_ / ("robot_" + std::to_string(r));
+        const RobotNow n = read_now(rd / "modes.csv.now");
+        if (n.mode != "CENTRALIZED" || n.acknowledged < n.keyframes || !loop_closure_caught_up(rd / "loop_closure.now")) {
+          out.push_back(r);
+        }
       }
       if (out.empty() && !all_central) all_central_at = Clock::now();
       all_central = out.empty();
@@ -543,12 +557,14 @@ int Launcher::run() {
         info_.rendezvous_s = std::chrono::duration<double>((all_central ? all_central_at : Clock::now()) - *rendezvous_start).count();
         info_.not_rejoined = out;
         if (out.empty()) {
-          std::cout << "cdc-launch: rendezvous: every robot CENTRALIZED and all keyframes with the central "
+          std::cout << "cdc-launch: rendezvous: every robot CENTRALIZED, all keyframes with the central and every loop "
+                       "closure caught up "
                     << std::fixed << std::setprecision(1) << *info_.rendezvous_s << " s after the last sweep" << std::endl;
         } else {
           std::cout << "cdc-launch: rendezvous: robot(s)";
           for (uint32_t r : out) std::cout << ' ' << r;
-          std::cout << " not CENTRALIZED, or some keyframes not with the central, " << c_.rendezvous_s + c_.settle_s
+          std::cout << " not CENTRALIZED, some keyframes not with the central, or loop closure not caught up, "
+                    << c_.rendezvous_s + c_.settle_s
                     << " s after the last sweep" << std::endl;
         }
         settle_until = Clock::now();

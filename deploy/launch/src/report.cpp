@@ -422,12 +422,14 @@ json write_report(const RunInfo& info) {
   if (info.rendezvous_s) {
     md << "- final rendezvous: ";
     if (info.not_rejoined.empty()) {
-      md << "every robot CENTRALIZED, the central holding all its keyframes, " << fixed(*info.rendezvous_s, 1)
+      md << "every robot CENTRALIZED, the central holding all its keyframes, every loop closure caught up, "
+         << fixed(*info.rendezvous_s, 1)
          << " s after the last sweep\n";
     } else {
       md << "**robot";
       for (uint32_t r : info.not_rejoined) md << ' ' << r;
-      md << " not CENTRALIZED, or some of its keyframes not with the central, after " << fixed(*info.rendezvous_s, 1)
+      md << " not CENTRALIZED, some of its keyframes not with the central, or its loop closure not caught up, after "
+         << fixed(*info.rendezvous_s, 1)
          << " s**\n";
     }
   }

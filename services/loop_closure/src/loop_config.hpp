@@ -14,6 +14,10 @@ struct LoopNodeOptions {
   uint32_t robot = 0, robots = 3, domain = 0;
   int local_domain = -1;  // the robot's own domain (see cdc/dds/robot_domains.hpp); -1: none
   std::string dds_config, local_dds_config, stats_out, log_level = "info";
+  // Rewritten (atomically) as the work left changes: "<descriptors waiting to be searched> <cloud
+  // requests pending> <cloud requests parked> <loops published>", for a launcher that ends a mission
+  // once every loop-closure service has caught up. Empty: not written.
+  std::string backlog_out;
   std::string state_file;  // where the loop numbering is kept across restarts (LoopNumbering); empty: nowhere
   LoopParams core;
   PeerReachParams reach;        // a peer unheard of reach.silence is out of range: no cloud requests to it

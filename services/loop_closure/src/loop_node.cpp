@@ -20,6 +20,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <deque>
 #include <fstream>
 #include <functional>
@@ -81,6 +82,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
   DescriptorSequencer sequencer(o.sequencer);
   std::deque<DescriptorIn> to_search;  // delivered in order by the sequencer, searched one per pass
   uint64_t to_search_peak = 0;
+
   dds::Reader<cdc_msg_CloudRequest> r_req(participant, t_req, dds::qos::event_stream(256));
   dds::Reader<cdc_msg_CloudReply> r_rep(participant, t_rep, dds::qos::event_stream(256).partitions(dds::partitions::own_reader(me)));
   // Loops go only where they are needed: an own-robot loop in this robot's partition (its peer
@@ -128,7 +130,18 @@ int run_loop_closure(const LoopNodeOptions& o) {
   const std::function<bool(uint32_t)> in_reach = [&](uint32_t robot) { return reach.in_reach(robot, now_ns()); };
   core.set_reachable(in_reach);
   uint64_t next_request = 1, duplicate_replies = 0, requests_served = 0, requests_unknown = 0, loops_sent = 0, points_served = 0;
-  uint32_t incarnation = 0;
+  std::string last_backlog;
+  // The work left, for --backlog-out (LoopNodeOptions::backlog_out), written when it changes.
+  auto write_backlog = [&] {
+    if (o.backlog_out.empty()) return;
+    const std::string line = std::to_string(to_search.size()) + ' ' + std::to_string(core.pending_requests()) + ' ' +
+                             std::to_string(core.parked_requests()) + ' ' + std::to_string(loops_sent) + '\n';
+    if (line == last_backlog) return;
+    const std::string tmp = o.backlog_out + ".tmp";
+    std::ofstream(tmp, std::ios::trunc) << line;
+    std::rename(tmp.c_str(), o.backlog_out.c_str());
+    last_backlog = line;
+  };  uint32_t incarnation = 0;
   // Loop numbers per incarnation, kept in the state file across restarts of this service alone.
   LoopNumbering numbering(o.state_file);
   if (!numbering.last_error().empty()) {
@@ -353,6 +366,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
       handle(core.on_cloud(m.owner_robot_id, m.keyframe_id, std::move(cloud), now));
     });
     handle(core.tick(now_ns()));
+    write_backlog();
     if (const std::vector<uint64_t> again = reach.due(now_ns()); !again.empty()) {
       for (uint64_t id : again) write_loop(written_loops.at(id));
       spdlog::info("wrote {} loops again (loops {}..{}) for a peer heard again after a silence", again.size(),

@@ -18,7 +18,7 @@ int main(int argc, char** argv) {
       "of its owner), keeps inter-robot loops that PCM finds consistent, and publishes them (withdrawals are\n"
       "explicit). Serves its own keyframes' clouds to peers. Stops cleanly on SIGINT/SIGTERM. SIGUSR1/SIGUSR2 cut and\n"
       "restore its SLAM domain (deaf and mute), the loopback launcher's emulated radio."};
-  std::string config_path, dds_config, stats_out, log_level;
+  std::string config_path, dds_config, stats_out, backlog_out, log_level;
   std::string local_dds_config, state_file;
   int domain = -1, local_domain = -1;
   uint32_t robot = 0;
@@ -33,6 +33,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 232));
   app.add_option("--local-dds-config", local_dds_config, "Cyclone DDS configuration of the local domain (default: as --dds-config)");
   app.add_option("--stats-out", stats_out, "write counters and bytes per topic and peer (JSON) here at shutdown");
+  app.add_option("--backlog-out", backlog_out,
+                 "keep the work left here: descriptors waiting to be searched, cloud requests pending and parked, "
+                 "loops published (one line, replaced as it changes)");
   app.add_option("--state-file", state_file,
                  "keep the loop numbering here, so that a restart under the same incarnation never reuses a loop's "
                  "sequence number (receivers would drop the new loop as a copy); default: none");
@@ -51,6 +54,7 @@ int main(int argc, char** argv) {
     o.local_domain = local_domain;
     o.local_dds_config = local_dds_config;
     o.stats_out = stats_out;
+    o.backlog_out = backlog_out;
     o.state_file = state_file;
     if (!log_level.empty()) o.log_level = log_level;
     cdc::runtime::init_logging("cdc-loop-closure-" + std::to_string(robot), o.log_level);

@@ -184,6 +184,7 @@ class LoopCore {
   // A locally held cloud (downsampled), or null.
   const std::vector<Eigen::Vector3f>* cloud(uint32_t robot, uint32_t id) const;
   size_t pending_requests() const noexcept { return pending_.size(); }
+  size_t parked_requests() const noexcept { return parked_.size(); }  // waiting to be asked (again)
   // Requested and not yet answered with a cloud: pending, or parked to be asked again.
   bool is_wanted(uint32_t robot, uint32_t id) const { return pending_.count({robot, id}) != 0 || parked_.count({robot, id}) != 0; }
   const LoopStats& stats() const noexcept { return stats_; }
