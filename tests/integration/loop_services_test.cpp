@@ -148,7 +148,8 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   std::vector<test::ChildProcess> procs;
   for (uint32_t r = 0; r < 2; ++r) {
     procs.push_back(spawn_service("CDC_DESCRIPTOR_BIN", "descriptor", r, ws.descriptor_config, dir));
-    procs.push_back(spawn_service("CDC_LOOP_CLOSURE_BIN", "loops", r, ws.loops_config, dir));
+    procs.push_back(spawn_service("CDC_LOOP_CLOSURE_BIN", "loops", r, ws.loops_config, dir,
+                                  {"--backlog-out", (dir / ("backlog" + std::to_string(r))).string()}));
   }
   ASSERT_TRUE(w_kf.wait_for_readers(4, 15s)) << "services did not subscribe to keyframes";
   ASSERT_TRUE(r_loop.wait_for_writers(4, 15s));
@@ -207,6 +208,20 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
     poll();
   }
   const std::vector<cdc_msg_LoopClosure> before_silence_ended = loops;
+  // Robot 0's service has caught up (what a launcher ends a mission on): nothing waiting to be searched,
+  // no cloud request open, every loop it published counted.
+  {
+    size_t written = 0;
+    for (const auto& l : loops) written += l.sender_robot_id == 0 ? 1 : 0;
+    std::ifstream in(dir / "backlog0");
+    uint64_t waiting = 1, pending = 1, parked = 1, published = 0;
+    ASSERT_TRUE(in >> waiting >> pending >> parked >> published) << "robot 0's --backlog-out missing or unreadable";
+    EXPECT_EQ(waiting, 0u);
+    EXPECT_EQ(pending, 0u);
+    EXPECT_EQ(parked, 0u);
+    EXPECT_EQ(published, written);
+    EXPECT_GE(published, 4u);
+  }
   // Robot 1 is heard again: robot 0's service writes its loops with robot 1 again, a second later.
   write(1, k, lap[k * 10].pose);
   for (int i = 0; i < 16; ++i) {

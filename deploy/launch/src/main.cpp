@@ -502,6 +502,8 @@ int Launcher::run() {
   std::optional<Clock::time_point> settle_until, rendezvous_start;
   bool all_central = false;  // in the rendezvous: every robot CENTRALIZED since all_central_at
   Clock::time_point all_central_at{};
+  bool caught_up = false;  // ... and every loop closure caught up since caught_up_at
+  Clock::time_point caught_up_at{};
   const auto seconds = [](double s) { return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s)); };
   std::string failure;
   while (!interrupted()) {
@@ -538,34 +540,41 @@ int Launcher::run() {
     }
     if (rendezvous_start && !settle_until) {
       // The rendezvous ends once every robot has been CENTRALIZED, with all its keyframes held by
-      // the central and its loop closure caught up (the descriptors of peers' keyframes made out of
-      // range searched, the clouds their candidates need received), for settle_s (a robot cut just
-      // before the last sweep still reads CENTRALIZED until the central's lease lapses), or after
-      // rendezvous_s + settle_s.
-      std::vector<uint32_t> out;
+      // the central, and every loop-closure service has caught up (the descriptors of peers' keyframes
+      // made out of range searched, the clouds their candidates need received), for settle_s (a robot
+      // cut just before the last sweep still reads CENTRALIZED until the central's lease lapses), or
+      // after rendezvous_s + settle_s.
+      std::vector<uint32_t> out, busy;
       for (uint32_t r : robots_) {
         const fs::path rd = run_ / ("robot_" + std::to_string(r));
         const RobotNow n = read_now(rd / "modes.csv.now");
-        if (n.mode != "CENTRALIZED" || n.acknowledged < n.keyframes || !loop_closure_caught_up(rd / "loop_closure.now")) {
-          out.push_back(r);
-        }
+        if (n.mode != "CENTRALIZED" || n.acknowledged < n.keyframes) out.push_back(r);
+        if (!loop_closure_caught_up(rd / "loop_closure.now")) busy.push_back(r);
       }
       if (out.empty() && !all_central) all_central_at = Clock::now();
       all_central = out.empty();
-      const bool settled = all_central && Clock::now() - all_central_at >= seconds(c_.settle_s);
+      if (busy.empty() && !caught_up) caught_up_at = Clock::now();
+      caught_up = busy.empty();
+      const bool settled = all_central && caught_up &&
+                           Clock::now() - std::max(all_central_at, caught_up_at) >= seconds(c_.settle_s);
       if (settled || Clock::now() >= *rendezvous_start + seconds(c_.rendezvous_s + c_.settle_s)) {
         info_.rendezvous_s = std::chrono::duration<double>((all_central ? all_central_at : Clock::now()) - *rendezvous_start).count();
         info_.not_rejoined = out;
+        info_.loop_closure_busy = busy;
+        if (caught_up) info_.caught_up_s = std::chrono::duration<double>(caught_up_at - *rendezvous_start).count();
         if (out.empty()) {
-          std::cout << "cdc-launch: rendezvous: every robot CENTRALIZED, all keyframes with the central and every loop "
-                       "closure caught up "
+          std::cout << "cdc-launch: rendezvous: every robot CENTRALIZED and all keyframes with the central "
                     << std::fixed << std::setprecision(1) << *info_.rendezvous_s << " s after the last sweep" << std::endl;
         } else {
           std::cout << "cdc-launch: rendezvous: robot(s)";
           for (uint32_t r : out) std::cout << ' ' << r;
-          std::cout << " not CENTRALIZED, some keyframes not with the central, or loop closure not caught up, "
-                    << c_.rendezvous_s + c_.settle_s
+          std::cout << " not CENTRALIZED, or some keyframes not with the central, " << c_.rendezvous_s + c_.settle_s
                     << " s after the last sweep" << std::endl;
+        }
+        if (!busy.empty()) {
+          std::cout << "cdc-launch: rendezvous: the loop closure of robot(s)";
+          for (uint32_t r : busy) std::cout << ' ' << r;
+          std::cout << " had not caught up" << std::endl;
         }
         settle_until = Clock::now();
       }

@@ -218,7 +218,11 @@ json write_report(const RunInfo& info) {
   j["sim_s"] = info.sim_end_s;
   j["interrupted"] = info.interrupted;
   j["notes"] = info.notes;
-  if (info.rendezvous_s) j["rendezvous"] = {{"waited_s", *info.rendezvous_s}, {"not_rejoined", info.not_rejoined}};
+  if (info.rendezvous_s) {
+    j["rendezvous"] = {{"waited_s", *info.rendezvous_s}, {"not_rejoined", info.not_rejoined},
+                       {"loop_closure_busy", info.loop_closure_busy}};
+    if (info.caught_up_s) j["rendezvous"]["loop_closure_caught_up_s"] = *info.caught_up_s;
+  }
   j["domains"] = {{"slam", info.slam_domain}, {"sim", info.sim_domain}};
   std::vector<eval::Evaluation> kf_evals;
   std::vector<eval::SvgMarker> markers;
@@ -422,15 +426,21 @@ json write_report(const RunInfo& info) {
   if (info.rendezvous_s) {
     md << "- final rendezvous: ";
     if (info.not_rejoined.empty()) {
-      md << "every robot CENTRALIZED, the central holding all its keyframes, every loop closure caught up, "
-         << fixed(*info.rendezvous_s, 1)
-         << " s after the last sweep\n";
+      md << "every robot CENTRALIZED, the central holding all its keyframes, " << fixed(*info.rendezvous_s, 1)
+         << " s after the last sweep";
     } else {
       md << "**robot";
       for (uint32_t r : info.not_rejoined) md << ' ' << r;
-      md << " not CENTRALIZED, some of its keyframes not with the central, or its loop closure not caught up, after "
-         << fixed(*info.rendezvous_s, 1)
-         << " s**\n";
+      md << " not CENTRALIZED, or some of its keyframes not with the central, after " << fixed(*info.rendezvous_s, 1)
+         << " s**";
+    }
+    if (info.caught_up_s) {
+      md << "; every loop closure caught up (peers' descriptors searched, their clouds received) "
+         << fixed(*info.caught_up_s, 1) << " s after the last sweep\n";
+    } else {
+      md << "; **loop closure of robot";
+      for (uint32_t r : info.loop_closure_busy) md << ' ' << r;
+      md << " not caught up at the end**\n";
     }
   }
   md << "\n## Accuracy (SE(3)-aligned per robot)\n\n"

@@ -42,7 +42,9 @@ struct RunInfo {
   std::map<uint32_t, ModeTraffic> traffic;  // per robot
   std::vector<std::string> notes;           // shown in the report (e.g. limits of the network mode)
   std::optional<double> rendezvous_s;       // how long the final rendezvous waited for the rejoins
-  std::vector<uint32_t> not_rejoined;       // robots not CENTRALIZED, not all keyframes with the central, or loop closure not caught up, at its end
+  std::vector<uint32_t> not_rejoined;       // robots not CENTRALIZED, or not all keyframes with the central, at its end
+  std::optional<double> caught_up_s;        // when every loop-closure service had caught up (after the last sweep)
+  std::vector<uint32_t> loop_closure_busy;  // robots whose loop closure had not caught up at its end
 };
 
 // "central" or "robotN": how reports and traffic.csv name a node.
