@@ -83,6 +83,10 @@ int run_loop_closure(const LoopNodeOptions& o) {
   std::deque<DescriptorIn> to_search;  // delivered in order by the sequencer, searched one per pass
   uint64_t to_search_peak = 0;
 
+  // Peers' periodic status (their peer optimisers'): a peer that makes no keyframes (stopped, or at
+  // the end of a mission) is still heard through it, so that the clouds parked for it are asked for.
+  dds::Topic<cdc_msg_RobotStatus> t_status(participant, topics::kRobotStatus);
+  dds::Reader<cdc_msg_RobotStatus> r_status(participant, t_status, dds::qos::keyed_state());
   dds::Reader<cdc_msg_CloudRequest> r_req(participant, t_req, dds::qos::event_stream(256));
   dds::Reader<cdc_msg_CloudReply> r_rep(participant, t_rep, dds::qos::event_stream(256).partitions(dds::partitions::own_reader(me)));
   // Loops go only where they are needed: an own-robot loop in this robot's partition (its peer
@@ -217,6 +221,15 @@ int run_loop_closure(const LoopNodeOptions& o) {
     const Nanos now = now_ns();
     // Peers' cloud requests first: serving one is cheap, and a requester gives up after its timeout
     // (descriptor bursts after a reconnection can take seconds to search and verify).
+    r_status.take(64).for_each_valid([&](const cdc_msg_RobotStatus& m, const dds_sample_info_t&) {
+      if (m.robot_id == me || m.is_central) return;
+      if (rejected.record(topics::kRobotStatus, dds::validate(m, limits))) {
+        spdlog::warn("rejected robot status: {}", rejected.last_reason());
+        return;
+      }
+      traffic.in(dds::serialized_size(m), m.robot_id);
+      reach.heard(m.robot_id, now_ns());
+    });
     r_req.take(64).for_each_valid([&](const cdc_msg_CloudRequest& m, const dds_sample_info_t&) {
       if (m.owner_robot_id != me) {
         return;
