@@ -180,6 +180,12 @@ std::vector<Eigen::Vector3d> FrontendCore::prepare(int64_t stamp_ns, const std::
   return out;
 }
 
+std::vector<Eigen::Vector3f> FrontendCore::keyframe_cloud(const std::vector<Eigen::Vector3d>& deskewed) const {
+  std::vector<Eigen::Vector3f> cloud;
+  for (const auto& p : odometry::voxel_filter(deskewed, p_.keyframe_voxel_m)) cloud.push_back(p.cast<float>());
+  return cloud;
+}
+
 ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& points) {
   ScanOut out;
   out.stamp_ns = stamp_ns;
@@ -284,12 +290,7 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
       };
       map_ = odometry::VoxelMap(p_.map);
       select(first_stamp_, first_points_, over(first_points_), nullptr);
-      if (held_first_keyframe_) {
-        held_first_keyframe_->cloud.clear();
-        for (const auto& p : odometry::voxel_filter(deskewed, p_.keyframe_voxel_m)) {
-          held_first_keyframe_->cloud.push_back(p.cast<float>());
-        }
-      }
+      if (held_first_keyframe_) held_first_keyframe_->cloud = keyframe_cloud(deskewed);
       std::vector<Eigen::Vector3d> world = odometry::voxel_filter(deskewed, p_.map_voxel_m);
       for (auto& p : world) p = T_last_ * p;
       map_.add(world);
@@ -362,7 +363,7 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
     cov.diagonal().array() += 1e-8;
     k.information = have_keyframe_ ? Matrix6d(cov.inverse()) : Matrix6d::Identity() * 1e6;
     k.information = 0.5 * (k.information + k.information.transpose());
-    for (const auto& p : odometry::voxel_filter(deskewed, p_.keyframe_voxel_m)) k.cloud.push_back(p.cast<float>());
+    k.cloud = keyframe_cloud(deskewed);
     keyframe_poses_.emplace_back(k.id, T_out);
     T_last_keyframe_ = T_out;
     cov_since_keyframe_.setZero();

@@ -13,8 +13,8 @@
 #include <gtest/gtest.h>
 
 #include <array>
-#include <map>
 #include <cmath>
+#include <map>
 #include <random>
 
 namespace cdc::frontend {

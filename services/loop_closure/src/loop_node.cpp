@@ -145,7 +145,8 @@ int run_loop_closure(const LoopNodeOptions& o) {
     std::ofstream(tmp, std::ios::trunc) << line;
     std::rename(tmp.c_str(), o.backlog_out.c_str());
     last_backlog = line;
-  };  uint32_t incarnation = 0;
+  };
+  uint32_t incarnation = 0;
   // Loop numbers per incarnation, kept in the state file across restarts of this service alone.
   LoopNumbering numbering(o.state_file);
   if (!numbering.last_error().empty()) {
@@ -219,8 +220,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
   while (!dds::ShutdownSignal::requested()) {
     ws.wait(std::chrono::milliseconds(to_search.empty() ? o.tick_ms : 0));
     const Nanos now = now_ns();
-    // Peers' cloud requests first: serving one is cheap, and a requester gives up after its timeout
-    // (descriptor bursts after a reconnection can take seconds to search and verify).
+    // Peers' status: who is in reach (for the parked cloud requests).
     r_status.take(64).for_each_valid([&](const cdc_msg_RobotStatus& m, const dds_sample_info_t&) {
       if (m.robot_id == me || m.is_central) return;
       if (rejected.record(topics::kRobotStatus, dds::validate(m, limits))) {
@@ -230,6 +230,8 @@ int run_loop_closure(const LoopNodeOptions& o) {
       traffic.in(dds::serialized_size(m), m.robot_id);
       reach.heard(m.robot_id, now_ns());
     });
+    // Peers' cloud requests before descriptors: serving one is cheap, and a requester gives up after its timeout
+    // (descriptor bursts after a reconnection can take seconds to search and verify).
     r_req.take(64).for_each_valid([&](const cdc_msg_CloudRequest& m, const dds_sample_info_t&) {
       if (m.owner_robot_id != me) {
         return;

@@ -170,6 +170,8 @@ class FrontendCore {
   // Deskews and crops a sweep: each point moved into the sensor frame at the sweep's start along
   // `sweep_motion` (constant velocity over the sweep), or the IMU's motion where the samples
   // cover: its rotation, and its translation too when `start` (the IMU window's state) is given.
+  // A keyframe's cloud: a deskewed sweep, voxel-filtered to keyframe_voxel_m.
+  std::vector<Eigen::Vector3f> keyframe_cloud(const std::vector<Eigen::Vector3d>& deskewed) const;
   std::vector<Eigen::Vector3d> prepare(int64_t stamp_ns, const std::vector<ScanPoint>& points, const Eigen::Isometry3d& sweep_motion,
                                        const ImuStart* start, std::vector<uint16_t>& rings);
   std::optional<Eigen::Matrix3d> imu_rotation(int64_t from_ns, int64_t to_ns) const;
