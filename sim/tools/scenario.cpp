@@ -5,6 +5,7 @@
 #include "cdc/sim/kitti.hpp"
 #include "cdc/sim/trajectory.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <cstdio>
@@ -16,6 +17,21 @@
 
 namespace cdc::sim {
 namespace fs = std::filesystem;
+
+LidarModel scenario_lidar(const Scenario& s) {
+  LidarModel model = s.lidar == "hdl64" ? LidarModel::hdl64() : LidarModel::vlp16();
+  if (s.lidar_elevation_error_deg > 0 || s.lidar_elevation_bias_deg != 0) {
+    // One calibration error per beam, the same sensor model on every robot (drawn from the seed),
+    // plus the error common to all beams.
+    std::mt19937_64 cal(s.seed * 7919 + 17);
+    std::normal_distribution<double> err(0.0, std::max(s.lidar_elevation_error_deg, 1e-12));
+    for (size_t b = 0; b < model.elevations_deg.size(); ++b) {
+      const double e = s.lidar_elevation_error_deg > 0 ? err(cal) : 0.0;
+      model.elevation_error_deg.push_back(e + s.lidar_elevation_bias_deg);
+    }
+  }
+  return model;
+}
 
 Scenario load_scenario(const std::string& path) {
   Scenario s;
@@ -44,6 +60,8 @@ Scenario load_scenario(const std::string& path) {
   r.get<std::string>("lidar", s.lidar, [](const std::string& v) { return v == "vlp16" || v == "hdl64"; }, "vlp16 or hdl64");
   r.get<double>("lidar_elevation_error_deg", s.lidar_elevation_error_deg,
                 [](const double& v) { return v >= 0 && v <= 2; }, "0..2 (degrees, sigma)");
+  r.get<double>("lidar_elevation_bias_deg", s.lidar_elevation_bias_deg,
+                [](const double& v) { return v >= -1 && v <= 1; }, "-1..1 (degrees)");
   r.get<double>("imu_rate_hz", s.imu_rate_hz, [](const double& v) { return v >= 100 && v <= 400; }, "100..400");
   r.get<double>("duration_s", s.duration_s, [](const double& v) { return v >= 0; }, ">= 0");
   r.get<int>("radio.central_robot", s.central_robot, [](const int& v) { return v >= -1; }, "-1 or a robot id");
@@ -154,13 +172,7 @@ GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_
     paths.push_back(path);
   }
   const World world = World::generate(paths, s.world);
-  LidarModel model = s.lidar == "hdl64" ? LidarModel::hdl64() : LidarModel::vlp16();
-  if (s.lidar_elevation_error_deg > 0) {
-    // One calibration error per beam, the same sensor model on every robot (drawn from the seed).
-    std::mt19937_64 cal(s.seed * 7919 + 17);
-    std::normal_distribution<double> err(0.0, s.lidar_elevation_error_deg);
-    for (size_t b = 0; b < model.elevations_deg.size(); ++b) model.elevation_error_deg.push_back(err(cal));
-  }
+  const LidarModel model = scenario_lidar(s);
   Eigen::Isometry3d T_lidar_imu = Eigen::Isometry3d::Identity();  // the IMU sits 10 cm behind, 5 cm below
   T_lidar_imu.translation() = Eigen::Vector3d(-0.10, 0.0, -0.05);
 

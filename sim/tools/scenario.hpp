@@ -24,6 +24,7 @@ struct Scenario {
   MissionOptions mission;                // procedural
   std::string lidar = "vlp16";           // vlp16 | hdl64
   double lidar_elevation_error_deg = 0;  // sigma of each beam's (fixed, seeded) elevation calibration error
+  double lidar_elevation_bias_deg = 0;   // an elevation error common to every beam (KITTI's HDL-64E has about 0.22 deg)
   double imu_rate_hz = 200;
   double duration_s = 0;                 // 0: the whole trajectories
   int central_robot = 0;                 // the central rides on this robot; -1: fixed position
@@ -37,6 +38,9 @@ struct Scenario {
 
 // Reads a scenario; throws config::ConfigError naming every bad or unknown field.
 Scenario load_scenario(const std::string& path);
+
+// The scenario's LiDAR with its calibration errors (per-beam sigma and common bias, seeded).
+LidarModel scenario_lidar(const Scenario& s);
 
 struct GenerateOptions {
   std::string data_dir;   // reference data (KITTI poses and calibration)

@@ -93,6 +93,27 @@ TEST_F(ScenarioFiles, SameScenarioAndSeedGiveByteIdenticalDatasets) {
   EXPECT_NE(read_all(dir_ / "a/robot_0/velodyne/000000.bin"), read_all(dir_ / "c/robot_0/velodyne/000000.bin"));
 }
 
+TEST_F(ScenarioFiles, TheLidarsCalibrationErrorIsAPerBeamSpreadPlusACommonBias) {
+  const Scenario clean = load_scenario(write("clean.yaml", "lidar: vlp16\n"));
+  EXPECT_TRUE(scenario_lidar(clean).elevation_error_deg.empty());
+  const Scenario bias = load_scenario(write("bias.yaml", "lidar: vlp16\nlidar_elevation_bias_deg: 0.22\n"));
+  const LidarModel b = scenario_lidar(bias);
+  ASSERT_EQ(b.elevation_error_deg.size(), b.elevations_deg.size());
+  for (double e : b.elevation_error_deg) EXPECT_DOUBLE_EQ(e, 0.22);
+  // The spread is drawn from the seed; the bias shifts every beam of the same draw.
+  const LidarModel spread = scenario_lidar(load_scenario(write("s.yaml", "seed: 3\nlidar_elevation_error_deg: 0.2\n")));
+  const LidarModel both = scenario_lidar(
+      load_scenario(write("sb.yaml", "seed: 3\nlidar_elevation_error_deg: 0.2\nlidar_elevation_bias_deg: -0.1\n")));
+  ASSERT_EQ(spread.elevation_error_deg.size(), both.elevation_error_deg.size());
+  double spread_sum = 0;
+  for (size_t i = 0; i < both.elevation_error_deg.size(); ++i) {
+    EXPECT_NEAR(both.elevation_error_deg[i], spread.elevation_error_deg[i] - 0.1, 1e-12);
+    spread_sum += std::abs(spread.elevation_error_deg[i]);
+  }
+  EXPECT_GT(spread_sum, 0.0);
+  EXPECT_THROW(load_scenario(write("big.yaml", "lidar_elevation_bias_deg: 3\n")), config::ConfigError);
+}
+
 TEST_F(ScenarioFiles, BadScenariosNameTheField) {
   const std::string bad = write("bad.yaml", "trajectories:\n  source: carla\n  robots: 0\nlidar: vlp32\nradio:\n  rnage_m: 3\n");
   try {
