@@ -2,6 +2,7 @@
 
 #include "cdc/loop_closure/loop_numbering.hpp"
 #include "cdc/loop_closure/peer_reach.hpp"
+#include "cdc/loop_closure/search_queue.hpp"
 
 #include "cdc/dds/compact.hpp"
 #include "cdc/dds/convert.hpp"
@@ -21,7 +22,6 @@
 
 #include <algorithm>
 #include <cstdio>
-#include <deque>
 #include <fstream>
 #include <functional>
 #include <map>
@@ -80,8 +80,9 @@ int run_loop_closure(const LoopNodeOptions& o) {
                                                 dds::qos::event_stream(1024).partitions({dds::partitions::robot(me)}));
   dds::Writer<cdc_msg_DescriptorSync> w_sync(participant, t_sync, dds::qos::event_stream(256));
   DescriptorSequencer sequencer(o.sequencer);
-  std::deque<DescriptorIn> to_search;  // delivered in order by the sequencer, searched one per pass
+  SearchQueue to_search;  // delivered in order by the sequencer, searched one per pass, robots in turn
   uint64_t to_search_peak = 0;
+  std::vector<double> loop_latencies_s;  // published loops: from the later descriptor coming in
 
   // Peers' periodic status (their peer optimisers'): a peer that makes no keyframes (stopped, or at
   // the end of a mission) is still heard through it, so that the clouds parked for it are asked for.
@@ -207,6 +208,9 @@ int run_loop_closure(const LoopNodeOptions& o) {
       write_loop(m);
       if (w_loop_local) w_loop_local->write(m);
       ++loops_sent;
+      if (!l.withdrawn) {
+        if (const auto lat = to_search.latency_s(l, now_ns())) loop_latencies_s.push_back(*lat);
+      }
       const uint64_t id = next_written++;
       written_loops[id] = m;
       if (const auto gone = reach.published(id, m.robot_a, m.keyframe_a, m.robot_b, m.keyframe_b, l.withdrawn, now_ns())) {
@@ -310,7 +314,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
       }
       for (DescriptorIn& d : sequencer.add(DescriptorIn{m.robot_id, m.keyframe_id, dds::descriptor_from_msg(m),
                                                         dds::to_eigen(m.pose_hint)})) {
-        to_search.push_back(std::move(d));
+        to_search.push(std::move(d), now_ns());
       }
     };
     // Descriptors enter the sequencer as they arrive, so that a gap being filled shows at once: taken
@@ -341,16 +345,13 @@ int run_loop_closure(const LoopNodeOptions& o) {
         traffic.out(dds::serialized_size(q), w.robot);
         spdlog::debug("asked robot {} for its descriptors {}..{}", w.robot, w.first, w.last);
       }
-      for (DescriptorIn& d : released) to_search.push_back(std::move(d));
+      for (DescriptorIn& d : released) to_search.push(std::move(d), now);
     }
     // One descriptor (and below one cloud reply) searched per pass: each can start registrations, and
     // between them peers' cloud requests and this robot's own keyframes must not wait (a burst of
     // descriptors after a reconnection takes many seconds to search and verify).
     to_search_peak = std::max<uint64_t>(to_search_peak, to_search.size());
-    if (!to_search.empty()) {
-      handle(core.add_descriptor(std::move(to_search.front()), now));
-      to_search.pop_front();
-    }
+    if (auto d = to_search.pop()) handle(core.add_descriptor(std::move(*d), now));
     r_rep.take(1).for_each_valid([&](const cdc_msg_CloudReply& m, const dds_sample_info_t&) {
       if (m.requester_robot_id != me) {
         return;
@@ -395,6 +396,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
     for (const auto& [robot, b] : traffic.peer) {
       peers[std::to_string(robot)] = {{"sent", b.first}, {"received", b.second}};
     }
+    const LatencySummary latency = summarise(loop_latencies_s);
     nlohmann::json j{{"robot", me},
                      {"keyframes", core.keyframes()},
                      {"loops_published", loops_sent},
@@ -436,6 +438,10 @@ int run_loop_closure(const LoopNodeOptions& o) {
                      {"descriptor_gaps_skipped", sequencer.stats().gaps_skipped},
                      {"descriptor_ids_skipped", sequencer.stats().ids_skipped},
                      {"descriptors_waiting_peak", to_search_peak},
+                     {"loop_latency_s", {{"count", latency.count},
+                                         {"median", latency.median_s},
+                                         {"p90", latency.p90_s},
+                                         {"max", latency.max_s}}},
                      {"points_served", points_served},
                      {"requests_unknown_keyframe", requests_unknown},
                      {"bytes_per_peer", peers},
