@@ -472,6 +472,27 @@ json write_report(const RunInfo& info) {
     md << "| " << r << " | " << jr["switches_to_distributed"] << " | " << jr["switches_to_centralized"] << " | "
        << jr["switches_on_liveliness_lost"] << " | " << list << " |\n";
   }
+  {
+    // Each robot's loop closure: loops found and how long they took from the later keyframe's
+    // descriptor reaching the service to the loop going out (wall time).
+    std::ostringstream rows;
+    for (uint32_t r : info.robots) {
+      const json& jr = j["robots"][std::to_string(r)];
+      if (!jr.contains("stats") || !jr["stats"].contains("loop_closure")) continue;
+      const json& ls = jr["stats"]["loop_closure"];
+      if (!ls.contains("loop_latency_s")) continue;
+      const json& lat = ls["loop_latency_s"];
+      rows << "| " << r << " | " << ls.value("intra_accepted", 0) << " | " << ls.value("inter_accepted", 0) << " | "
+           << fixed(lat.value("median", 0.0), 1) << " / " << fixed(lat.value("p90", 0.0), 1) << " / "
+           << fixed(lat.value("max", 0.0), 1) << " |\n";
+    }
+    if (!rows.str().empty()) {
+      md << "\n## Loop closure\n\nLatency: from the later keyframe's descriptor reaching the robot's loop closure to "
+            "the loop going out (wall seconds).\n\n| robot | own loops | loops with peers | latency median / p90 / max [s] |\n"
+         << "|---|---|---|---|\n"
+         << rows.str();
+    }
+  }
   if (info.traffic_measured) {
     md << "\n## Traffic on the emulated radio (SLAM domain, IP bytes, counted at each robot)\n\n"
        << "User data (samples with their heartbeats and acknowledgements) and discovery (SPDP/SEDP, which bursts\n"

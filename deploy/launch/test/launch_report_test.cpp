@@ -104,6 +104,26 @@ TEST(Report, DistributedTrafficPerKeyframeOfBothEnds) {
   EXPECT_NE(text.find("| robot1 - robot2 | DISTRIBUTED | 20000 | 60000 | 0 | 10 | 2000 | 8000 | 40 | 2000 |"), std::string::npos);
 }
 
+TEST(Report, LoopClosureCountsAndLatencyPerRobot) {
+  TempDir dir;
+  RunInfo info;
+  info.name = "loops";
+  info.run_dir = dir.file("run");
+  info.robots = {0, 1};
+  fs::create_directories(fs::path(info.run_dir) / "robot_0");
+  std::ofstream(fs::path(info.run_dir) / "robot_0" / "loop_closure.stats.json")
+      << R"({"intra_accepted": 3, "inter_accepted": 41, "loop_latency_s": {"count": 44, "median": 0.84, "p90": 6.26, "max": 19.5}})";
+  const nlohmann::json j = write_report(info);
+  EXPECT_DOUBLE_EQ(j["robots"]["0"]["stats"]["loop_closure"]["loop_latency_s"]["p90"].get<double>(), 6.26);
+  std::ifstream md(fs::path(info.run_dir) / "report.md");
+  const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+  const size_t at = text.find("## Loop closure");
+  ASSERT_NE(at, std::string::npos) << text;
+  const std::string section = text.substr(at, text.find("\n## ", at + 1) - at);
+  EXPECT_NE(section.find("| 0 | 3 | 41 | 0.8 / 6.3 / 19.5 |"), std::string::npos) << section;
+  EXPECT_EQ(section.find("| 1 |"), std::string::npos) << "robot 1 has no loop-closure stats: no row\n" << section;
+}
+
 // cdc-experiment's repeats: per robot the median of each figure over the runs that have it, the
 // real-time ATE's range and every run's value; a single run stays as it is.
 TEST(MergeRuns, MediansPerRobotOverTheRunsThatHaveThem) {
