@@ -483,8 +483,10 @@ json write_report(const RunInfo& info) {
       if (!ls.contains("loop_latency_s")) continue;
       const json& lat = ls["loop_latency_s"];
       rows << "| " << r << " | " << ls.value("intra_accepted", 0) << " | " << ls.value("inter_accepted", 0) << " | "
-           << fixed(lat.value("median", 0.0), 1) << " / " << fixed(lat.value("p90", 0.0), 1) << " / "
-           << fixed(lat.value("max", 0.0), 1) << " |\n";
+           << (lat.value("count", 0) == 0 ? std::string("- (none published)")
+                                          : fixed(lat.value("median", 0.0), 1) + " / " + fixed(lat.value("p90", 0.0), 1) +
+                                                " / " + fixed(lat.value("max", 0.0), 1))
+           << " |\n";
     }
     if (!rows.str().empty()) {
       md << "\n## Loop closure\n\nLatency: from the later keyframe's descriptor reaching the robot's loop closure to "

@@ -113,6 +113,10 @@ TEST(Report, LoopClosureCountsAndLatencyPerRobot) {
   fs::create_directories(fs::path(info.run_dir) / "robot_0");
   std::ofstream(fs::path(info.run_dir) / "robot_0" / "loop_closure.stats.json")
       << R"({"intra_accepted": 3, "inter_accepted": 41, "loop_latency_s": {"count": 44, "median": 0.84, "p90": 6.26, "max": 19.5}})";
+  fs::create_directories(fs::path(info.run_dir) / "robot_2");
+  std::ofstream(fs::path(info.run_dir) / "robot_2" / "loop_closure.stats.json")
+      << R"({"intra_accepted": 0, "inter_accepted": 0, "loop_latency_s": {"count": 0, "median": 0, "p90": 0, "max": 0}})";
+  info.robots.push_back(2);
   const nlohmann::json j = write_report(info);
   EXPECT_DOUBLE_EQ(j["robots"]["0"]["stats"]["loop_closure"]["loop_latency_s"]["p90"].get<double>(), 6.26);
   std::ifstream md(fs::path(info.run_dir) / "report.md");
@@ -122,6 +126,7 @@ TEST(Report, LoopClosureCountsAndLatencyPerRobot) {
   const std::string section = text.substr(at, text.find("\n## ", at + 1) - at);
   EXPECT_NE(section.find("| 0 | 3 | 41 | 0.8 / 6.3 / 19.5 |"), std::string::npos) << section;
   EXPECT_EQ(section.find("| 1 |"), std::string::npos) << "robot 1 has no loop-closure stats: no row\n" << section;
+  EXPECT_NE(section.find("| 2 | 0 | 0 | - (none published) |"), std::string::npos) << section;
 }
 
 // cdc-experiment's repeats: per robot the median of each figure over the runs that have it, the
