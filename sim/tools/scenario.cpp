@@ -5,7 +5,6 @@
 #include "cdc/sim/kitti.hpp"
 #include "cdc/sim/trajectory.hpp"
 
-#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <cstdio>
@@ -23,11 +22,11 @@ LidarModel scenario_lidar(const Scenario& s) {
   if (s.lidar_elevation_error_deg > 0 || s.lidar_elevation_bias_deg != 0) {
     // One calibration error per beam, the same sensor model on every robot (drawn from the seed),
     // plus the error common to all beams.
-    std::mt19937_64 cal(s.seed * 7919 + 17);
-    std::normal_distribution<double> err(0.0, std::max(s.lidar_elevation_error_deg, 1e-12));
-    for (size_t b = 0; b < model.elevations_deg.size(); ++b) {
-      const double e = s.lidar_elevation_error_deg > 0 ? err(cal) : 0.0;
-      model.elevation_error_deg.push_back(e + s.lidar_elevation_bias_deg);
+    model.elevation_error_deg.assign(model.elevations_deg.size(), s.lidar_elevation_bias_deg);
+    if (s.lidar_elevation_error_deg > 0) {
+      std::mt19937_64 cal(s.seed * 7919 + 17);
+      std::normal_distribution<double> err(0.0, s.lidar_elevation_error_deg);
+      for (double& e : model.elevation_error_deg) e += err(cal);
     }
   }
   return model;

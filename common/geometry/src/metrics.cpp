@@ -97,6 +97,7 @@ ErrorStats compute_stats(std::vector<double> values) {
   s.max = values.back();
   const size_t mid = values.size() / 2;
   s.median = values.size() % 2 == 1 ? values[mid] : 0.5 * (values[mid - 1] + values[mid]);
+  s.p90 = values[static_cast<size_t>(std::lround(0.9 * static_cast<double>(values.size() - 1)))];
   return s;
 }
 

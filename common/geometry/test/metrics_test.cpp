@@ -252,5 +252,16 @@ TEST(Stats, MedianAndStd) {
   EXPECT_NEAR(s.rmse, std::sqrt(7.5), 1e-12);
 }
 
+TEST(Stats, NinetiethPercentileIsTheNearestRank) {
+  EXPECT_EQ(compute_stats({}).count, 0u);
+  std::vector<double> v;
+  for (int i = 10; i >= 0; --i) v.push_back(i);  // 0..10, unsorted
+  const ErrorStats s = compute_stats(v);
+  EXPECT_EQ(s.count, 11u);
+  EXPECT_DOUBLE_EQ(s.median, 5.0);
+  EXPECT_DOUBLE_EQ(s.p90, 9.0);
+  EXPECT_DOUBLE_EQ(s.max, 10.0);
+}
+
 }  // namespace
 }  // namespace cdc::geometry

@@ -14,6 +14,7 @@
 #include "cdc/dds/topics.hpp"
 #include "cdc/dds/traffic_json.hpp"
 #include "cdc/dds/validate.hpp"
+#include "cdc/geometry/metrics.hpp"
 #include "cdc/dds/waitset.hpp"
 #include "cdc/runtime/logging.hpp"
 
@@ -396,7 +397,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
     for (const auto& [robot, b] : traffic.peer) {
       peers[std::to_string(robot)] = {{"sent", b.first}, {"received", b.second}};
     }
-    const LatencySummary latency = summarise(loop_latencies_s);
+    const geometry::ErrorStats latency = geometry::compute_stats(loop_latencies_s);
     nlohmann::json j{{"robot", me},
                      {"keyframes", core.keyframes()},
                      {"loops_published", loops_sent},
@@ -439,9 +440,9 @@ int run_loop_closure(const LoopNodeOptions& o) {
                      {"descriptor_ids_skipped", sequencer.stats().ids_skipped},
                      {"descriptors_waiting_peak", to_search_peak},
                      {"loop_latency_s", {{"count", latency.count},
-                                         {"median", latency.median_s},
-                                         {"p90", latency.p90_s},
-                                         {"max", latency.max_s}}},
+                                         {"median", latency.median},
+                                         {"p90", latency.p90},
+                                         {"max", latency.max}}},
                      {"points_served", points_served},
                      {"requests_unknown_keyframe", requests_unknown},
                      {"bytes_per_peer", peers},

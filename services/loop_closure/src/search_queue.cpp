@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cmath>
 
 namespace cdc::loops {
 
@@ -37,18 +36,6 @@ std::optional<double> SearchQueue::latency_s(const LoopOut& loop, Nanos now) con
   const auto b = arrived_.find({loop.robot_b, loop.keyframe_b});
   if (a == arrived_.end() || b == arrived_.end()) return std::nullopt;
   return std::chrono::duration<double>(now - std::max(a->second, b->second)).count();
-}
-
-LatencySummary summarise(std::vector<double> v) {
-  LatencySummary s;
-  s.count = v.size();
-  if (v.empty()) return s;
-  std::sort(v.begin(), v.end());
-  const auto at = [&](double q) { return v[static_cast<size_t>(std::lround(q * static_cast<double>(v.size() - 1)))]; };
-  s.median_s = at(0.5);
-  s.p90_s = at(0.9);
-  s.max_s = v.back();
-  return s;
 }
 
 }  // namespace cdc::loops

@@ -31,8 +31,8 @@ TEST(SearchQueue, APeersBacklogNoLongerHoldsBackTheOwnRobotsNewKeyframes) {
   q.push(desc(0, 41), Nanos(0));
   EXPECT_EQ(q.size(), 7u);
   EXPECT_EQ(q.size(2), 5u);
-  // Served in turn, each robot's descriptors in their own order: the own keyframes come second and
-  // fourth, not after the whole backlog.
+  // Served in turn, each robot's descriptors in their own order: the own keyframes come first and
+  // third, not after the whole backlog.
   EXPECT_EQ(drain(q), (std::vector<std::string>{"0/40", "2/0", "0/41", "2/1", "2/2", "2/3", "2/4"}));
   EXPECT_TRUE(q.empty());
   EXPECT_FALSE(q.pop().has_value());
@@ -63,17 +63,6 @@ TEST(SearchQueue, LatencyRunsFromTheLaterDescriptorOfTheLoop) {
   EXPECT_DOUBLE_EQ(*q.latency_s(l, seconds(9)), 4.0);
   l.keyframe_b = 21;  // never queued here
   EXPECT_FALSE(q.latency_s(l, seconds(9)).has_value());
-}
-
-TEST(SearchQueue, SummaryGivesMedianNinetiethPercentileAndLargest) {
-  EXPECT_EQ(summarise({}).count, 0u);
-  std::vector<double> v;
-  for (int i = 10; i >= 0; --i) v.push_back(i);  // 0..10, unsorted
-  const LatencySummary s = summarise(v);
-  EXPECT_EQ(s.count, 11u);
-  EXPECT_DOUBLE_EQ(s.median_s, 5.0);
-  EXPECT_DOUBLE_EQ(s.p90_s, 9.0);
-  EXPECT_DOUBLE_EQ(s.max_s, 10.0);
 }
 
 }  // namespace

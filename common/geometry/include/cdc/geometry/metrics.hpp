@@ -21,6 +21,7 @@ const char* to_string(AlignMode mode);
 
 struct ErrorStats {
   double rmse = 0, mean = 0, median = 0, std = 0, min = 0, max = 0;
+  double p90 = 0;  // 90th percentile (nearest rank)
   size_t count = 0;
 };
 ErrorStats compute_stats(std::vector<double> values);

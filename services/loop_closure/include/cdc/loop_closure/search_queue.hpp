@@ -14,7 +14,6 @@
 #include <map>
 #include <optional>
 #include <utility>
-#include <vector>
 
 namespace cdc::loops {
 
@@ -37,12 +36,5 @@ class SearchQueue {
   size_t size_ = 0;
   std::map<std::pair<uint32_t, uint32_t>, Nanos> arrived_;  // (robot, keyframe) -> when queued
 };
-
-// Median, 90th percentile and largest of a set of latencies (seconds); all zero when empty.
-struct LatencySummary {
-  size_t count = 0;
-  double median_s = 0, p90_s = 0, max_s = 0;
-};
-LatencySummary summarise(std::vector<double> latencies_s);
 
 }  // namespace cdc::loops
