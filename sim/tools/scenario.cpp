@@ -19,16 +19,25 @@ namespace fs = std::filesystem;
 
 LidarModel scenario_lidar(const Scenario& s) {
   LidarModel model = s.lidar == "hdl64" ? LidarModel::hdl64() : LidarModel::vlp16();
+  // One calibration error per beam, the same sensor model on every robot, drawn from the seed. Each kind of
+  // error has its own stream, so adding one leaves the others' draws (and older datasets) unchanged.
+  auto per_beam = [&](double sigma, uint64_t stream) {
+    std::mt19937_64 cal(s.seed * 7919 + stream);
+    std::normal_distribution<double> err(0.0, sigma);
+    std::vector<double> v(model.elevations_deg.size());
+    for (double& e : v) e = err(cal);
+    return v;
+  };
   if (s.lidar_elevation_error_deg > 0 || s.lidar_elevation_bias_deg != 0) {
-    // One calibration error per beam, the same sensor model on every robot (drawn from the seed),
-    // plus the error common to all beams.
+    // The per-beam spread plus the error common to all beams.
     model.elevation_error_deg.assign(model.elevations_deg.size(), s.lidar_elevation_bias_deg);
     if (s.lidar_elevation_error_deg > 0) {
-      std::mt19937_64 cal(s.seed * 7919 + 17);
-      std::normal_distribution<double> err(0.0, s.lidar_elevation_error_deg);
-      for (double& e : model.elevation_error_deg) e += err(cal);
+      const std::vector<double> spread = per_beam(s.lidar_elevation_error_deg, 17);
+      for (size_t b = 0; b < spread.size(); ++b) model.elevation_error_deg[b] += spread[b];
     }
   }
+  if (s.lidar_azimuth_error_deg > 0) model.azimuth_error_deg = per_beam(s.lidar_azimuth_error_deg, 29);
+  if (s.lidar_range_offset_m > 0) model.range_offset_m = per_beam(s.lidar_range_offset_m, 43);
   return model;
 }
 
@@ -61,6 +70,10 @@ Scenario load_scenario(const std::string& path) {
                 [](const double& v) { return v >= 0 && v <= 2; }, "0..2 (degrees, sigma)");
   r.get<double>("lidar_elevation_bias_deg", s.lidar_elevation_bias_deg,
                 [](const double& v) { return v >= -1 && v <= 1; }, "-1..1 (degrees)");
+  r.get<double>("lidar_azimuth_error_deg", s.lidar_azimuth_error_deg,
+                [](const double& v) { return v >= 0 && v <= 2; }, "0..2 (degrees, sigma)");
+  r.get<double>("lidar_range_offset_m", s.lidar_range_offset_m,
+                [](const double& v) { return v >= 0 && v <= 0.2; }, "0..0.2 (metres, sigma)");
   r.get<double>("imu_rate_hz", s.imu_rate_hz, [](const double& v) { return v >= 100 && v <= 400; }, "100..400");
   r.get<double>("duration_s", s.duration_s, [](const double& v) { return v >= 0; }, ">= 0");
   r.get<int>("radio.central_robot", s.central_robot, [](const int& v) { return v >= -1; }, "-1 or a robot id");

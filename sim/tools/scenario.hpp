@@ -25,6 +25,8 @@ struct Scenario {
   std::string lidar = "vlp16";           // vlp16 | hdl64
   double lidar_elevation_error_deg = 0;  // sigma of each beam's (fixed, seeded) elevation calibration error
   double lidar_elevation_bias_deg = 0;   // an elevation error common to every beam (KITTI's HDL-64E has about 0.22 deg)
+  double lidar_azimuth_error_deg = 0;    // sigma of each beam's (fixed, seeded) azimuth calibration error
+  double lidar_range_offset_m = 0;       // sigma of each beam's (fixed, seeded) distance offset
   double imu_rate_hz = 200;
   double duration_s = 0;                 // 0: the whole trajectories
   int central_robot = 0;                 // the central rides on this robot; -1: fixed position
@@ -39,7 +41,8 @@ struct Scenario {
 // Reads a scenario; throws config::ConfigError naming every bad or unknown field.
 Scenario load_scenario(const std::string& path);
 
-// The scenario's LiDAR with its calibration errors (per-beam sigma and common bias, seeded).
+// The scenario's LiDAR with its calibration errors (per-beam elevation, azimuth and distance errors drawn from
+// the seed, and the common elevation bias).
 LidarModel scenario_lidar(const Scenario& s);
 
 struct GenerateOptions {

@@ -38,11 +38,16 @@ std::vector<LidarReturn> sweep(const World& world, const LidarModel& model,
   std::normal_distribution<double> noise(0.0, model.range_sigma_m);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   const size_t beams = model.elevations_deg.size();
-  if (!model.elevation_error_deg.empty() && model.elevation_error_deg.size() != beams) {
-    throw std::invalid_argument("LidarModel: elevation_error_deg has " + std::to_string(model.elevation_error_deg.size()) +
-                                " entries for " + std::to_string(beams) + " beams");
-  }
-  std::vector<double> ce(beams), se(beams), ce_true(beams), se_true(beams);
+  auto check = [beams](const std::vector<double>& v, const char* what) {
+    if (!v.empty() && v.size() != beams) {
+      throw std::invalid_argument(std::string("LidarModel: ") + what + " has " + std::to_string(v.size()) +
+                                  " entries for " + std::to_string(beams) + " beams");
+    }
+  };
+  check(model.elevation_error_deg, "elevation_error_deg");
+  check(model.azimuth_error_deg, "azimuth_error_deg");
+  check(model.range_offset_m, "range_offset_m");
+  std::vector<double> ce(beams), se(beams), ce_true(beams), se_true(beams), ca_err(beams, 1.0), sa_err(beams, 0.0);
   for (size_t b = 0; b < beams; ++b) {
     const double e = model.elevations_deg[b] * M_PI / 180.0;
     ce[b] = std::cos(e);
@@ -50,6 +55,10 @@ std::vector<LidarReturn> sweep(const World& world, const LidarModel& model,
     const double et = e + (model.elevation_error_deg.empty() ? 0.0 : model.elevation_error_deg[b] * M_PI / 180.0);
     ce_true[b] = std::cos(et);
     se_true[b] = std::sin(et);
+    if (!model.azimuth_error_deg.empty()) {
+      ca_err[b] = std::cos(model.azimuth_error_deg[b] * M_PI / 180.0);
+      sa_err[b] = std::sin(model.azimuth_error_deg[b] * M_PI / 180.0);
+    }
   }
   std::vector<LidarReturn> out;
   out.reserve(model.rays());
@@ -63,7 +72,9 @@ std::vector<LidarReturn> sweep(const World& world, const LidarModel& model,
     const Eigen::Vector3d o = T.translation();
     for (size_t b = 0; b < beams; ++b) {
       const Eigen::Vector3d d_sensor(ce[b] * ca, ce[b] * sa, se[b]);  // as reported
-      const Eigen::Vector3d d = R * Eigen::Vector3d(ce_true[b] * ca, ce_true[b] * sa, se_true[b]);  // as fired
+      // As fired: the true elevation, and the column's azimuth turned by the beam's azimuth error.
+      const double ca_true = ca * ca_err[b] - sa * sa_err[b], sa_true = sa * ca_err[b] + ca * sa_err[b];
+      const Eigen::Vector3d d = R * Eigen::Vector3d(ce_true[b] * ca_true, ce_true[b] * sa_true, se_true[b]);
       const auto hit = world.cast(o, d, model.max_range_m);
       if (!hit) {
         continue;
@@ -71,7 +82,8 @@ std::vector<LidarReturn> sweep(const World& world, const LidarModel& model,
       if (model.dropout > 0 && u(rng) < model.dropout) {
         continue;
       }
-      const double range = hit->range + (model.range_sigma_m > 0 ? noise(rng) : 0.0);
+      const double range = hit->range + (model.range_offset_m.empty() ? 0.0 : model.range_offset_m[b]) +
+                           (model.range_sigma_m > 0 ? noise(rng) : 0.0);
       if (range < model.min_range_m || range > model.max_range_m) {
         continue;
       }

@@ -140,6 +140,69 @@ TEST(Lidar, ElevationCalibrationErrorPutsPointsAlongTheNominalBeam) {
   EXPECT_THROW(sweep(w, m, [](double) { return at(0, 0, 0); }, rng), std::invalid_argument);
 }
 
+TEST(Lidar, AzimuthCalibrationErrorTurnsTheBeamButNotItsReportedDirection) {
+  // A wall whose face is the plane y = 5. Ring 8 of the VLP-16 (+1 deg) really fires 0.5 deg ahead of
+  // each column's azimuth; its range is reported along the nominal azimuth, so the wall's points bend
+  // away from the plane: y = 5 sin(az) / sin(az + 0.5 deg). Ring 9 is exact and sees the plane.
+  Ground g;
+  g.z0 = -50.0;
+  const World w(g, {{Eigen::Vector3d(0, 5.5, 0), Eigen::Vector3d(200, 0.5, 40), 0, 0.5f}}, {});
+  LidarModel m = exact(LidarModel::vlp16());
+  m.azimuth_error_deg.assign(m.elevations_deg.size(), 0.0);
+  m.azimuth_error_deg[8] = 0.5;
+  std::mt19937_64 rng(1);
+  const auto pts = sweep(w, m, [](double) { return at(0, 0, 0); }, rng);
+  const double d = 0.5 * M_PI / 180;
+  int n8 = 0, n9 = 0;
+  double max_bend = 0;
+  for (const auto& p : pts) {
+    const double az = std::atan2(p.y, p.x);
+    if (az < 0.3 || az > M_PI - 0.3) continue;  // far along the wall the ranges grow without bound
+    if (p.ring == 8) {
+      const double expected = 5.0 * std::sin(az) / std::sin(az + d);
+      EXPECT_NEAR(p.y, expected, 1e-3) << "az " << az;
+      max_bend = std::max(max_bend, std::abs(p.y - 5.0));
+      ++n8;
+    } else if (p.ring == 9) {
+      EXPECT_NEAR(p.y, 5.0, 1e-3);
+      ++n9;
+    }
+  }
+  EXPECT_GT(n8, 500);
+  EXPECT_GT(n9, 500);
+  EXPECT_GT(max_bend, 0.1);  // near az = 0.3 rad the point sits about 0.14 m off the wall
+  m.azimuth_error_deg.resize(3);
+  EXPECT_THROW(sweep(w, m, [](double) { return at(0, 0, 0); }, rng), std::invalid_argument);
+}
+
+TEST(Lidar, RangeOffsetLengthensEveryReturnOfItsBeam) {
+  // Flat ground 2 m below: ring 0 (-15 deg) reports 5 cm too far, ring 1 is exact.
+  Ground g;
+  g.z0 = -2.0;
+  const World w(g, {}, {});
+  LidarModel m = exact(LidarModel::vlp16());
+  m.range_offset_m.assign(m.elevations_deg.size(), 0.0);
+  m.range_offset_m[0] = 0.05;
+  std::mt19937_64 rng(1);
+  const auto pts = sweep(w, m, [](double) { return at(0, 0, 0); }, rng);
+  const double r0 = 2.0 / std::sin(15.0 * M_PI / 180) + 0.05, r1 = 2.0 / std::sin(13.0 * M_PI / 180);
+  int n0 = 0, n1 = 0;
+  for (const auto& p : pts) {
+    const double r = std::sqrt(p.x * p.x + p.y * p.y + p.z * p.z);
+    if (p.ring == 0) {
+      EXPECT_NEAR(r, r0, 1e-3);
+      ++n0;
+    } else if (p.ring == 1) {
+      EXPECT_NEAR(r, r1, 1e-3);
+      ++n1;
+    }
+  }
+  EXPECT_EQ(n0, m.columns);
+  EXPECT_EQ(n1, m.columns);
+  m.range_offset_m.resize(17);
+  EXPECT_THROW(sweep(w, m, [](double) { return at(0, 0, 0); }, rng), std::invalid_argument);
+}
+
 TEST(Lidar, AMovingSensorsSweepIsDistortedByExactlyTheMotion) {
   const World w = room();
   const LidarModel m = exact(LidarModel::vlp16());

@@ -114,6 +114,34 @@ TEST_F(ScenarioFiles, TheLidarsCalibrationErrorIsAPerBeamSpreadPlusACommonBias) 
   EXPECT_THROW(load_scenario(write("big.yaml", "lidar_elevation_bias_deg: 3\n")), config::ConfigError);
 }
 
+TEST_F(ScenarioFiles, AzimuthAndRangeErrorsAreSeededPerBeamAndLeaveTheElevationDrawAlone) {
+  const LidarModel clean = scenario_lidar(load_scenario(write("c.yaml", "seed: 3\nlidar_elevation_error_deg: 0.2\n")));
+  EXPECT_TRUE(clean.azimuth_error_deg.empty());
+  EXPECT_TRUE(clean.range_offset_m.empty());
+  const std::string all = "seed: 3\nlidar_elevation_error_deg: 0.2\nlidar_azimuth_error_deg: 0.2\nlidar_range_offset_m: 0.02\n";
+  const LidarModel a = scenario_lidar(load_scenario(write("a.yaml", all)));
+  const LidarModel again = scenario_lidar(load_scenario(write("a2.yaml", all)));
+  const LidarModel other = scenario_lidar(load_scenario(write("o.yaml", "seed: 4\nlidar_azimuth_error_deg: 0.2\n")));
+  ASSERT_EQ(a.azimuth_error_deg.size(), a.elevations_deg.size());
+  ASSERT_EQ(a.range_offset_m.size(), a.elevations_deg.size());
+  EXPECT_EQ(a.elevation_error_deg, clean.elevation_error_deg);  // adding errors does not redraw the others
+  EXPECT_EQ(a.azimuth_error_deg, again.azimuth_error_deg);      // the seed fixes the sensor
+  EXPECT_NE(a.azimuth_error_deg, other.azimuth_error_deg);
+  EXPECT_NE(a.azimuth_error_deg, a.elevation_error_deg);        // streams of their own
+  double az_sq = 0, r_sq = 0;
+  for (size_t i = 0; i < a.azimuth_error_deg.size(); ++i) {
+    az_sq += a.azimuth_error_deg[i] * a.azimuth_error_deg[i];
+    r_sq += a.range_offset_m[i] * a.range_offset_m[i];
+  }
+  // Sixteen draws: their spread is the sigma within a factor of two.
+  EXPECT_GT(std::sqrt(az_sq / 16), 0.1);
+  EXPECT_LT(std::sqrt(az_sq / 16), 0.4);
+  EXPECT_GT(std::sqrt(r_sq / 16), 0.01);
+  EXPECT_LT(std::sqrt(r_sq / 16), 0.04);
+  EXPECT_THROW(load_scenario(write("bad_az.yaml", "lidar_azimuth_error_deg: -0.1\n")), config::ConfigError);
+  EXPECT_THROW(load_scenario(write("bad_r.yaml", "lidar_range_offset_m: 0.5\n")), config::ConfigError);
+}
+
 TEST_F(ScenarioFiles, BadScenariosNameTheField) {
   const std::string bad = write("bad.yaml", "trajectories:\n  source: carla\n  robots: 0\nlidar: vlp32\nradio:\n  rnage_m: 3\n");
   try {

@@ -28,6 +28,12 @@ struct LidarModel {
   // while its points are reported along the nominal elevation (what a driver with a slightly wrong
   // calibration table does). Empty: a perfectly calibrated sensor.
   std::vector<double> elevation_error_deg;
+  // The same for the azimuth: beam b fires azimuth_error_deg[b] ahead of the column's nominal azimuth
+  // (a wrong rotational correction in the table). Empty: none.
+  std::vector<double> azimuth_error_deg;
+  // Per-beam distance offset: beam b reports its range range_offset_m[b] too long (a wrong distance
+  // correction in the table; the VLP-16 is specified to +-3 cm). Empty: none.
+  std::vector<double> range_offset_m;
 
   static LidarModel vlp16();   // 16 beams, -15..+15 deg, 0.2 deg at 10 Hz, 100 m
   static LidarModel hdl64();   // 64 beams, -24.9..+2 deg, ~0.17 deg at 10 Hz, 120 m
