@@ -17,12 +17,14 @@
 namespace cdc::sim {
 namespace fs = std::filesystem;
 
-LidarModel scenario_lidar(const Scenario& s) {
+LidarModel scenario_lidar(const Scenario& s, int robot) {
   LidarModel model = s.lidar == "hdl64" ? LidarModel::hdl64() : LidarModel::vlp16();
-  // One calibration error per beam, the same sensor model on every robot, drawn from the seed. Each kind of
-  // error has its own stream, so adding one leaves the others' draws (and older datasets) unchanged.
+  // One calibration error per beam, drawn from the seed: the same sensor model on every robot, or with
+  // lidar_per_robot each robot's own unit. Each kind of error has its own stream, so adding one leaves the
+  // others' draws (and older datasets) unchanged.
+  const uint64_t unit = s.lidar_per_robot ? 1000003ULL * static_cast<uint64_t>(robot + 1) : 0;
   auto per_beam = [&](double sigma, uint64_t stream) {
-    std::mt19937_64 cal(s.seed * 7919 + stream);
+    std::mt19937_64 cal(s.seed * 7919 + stream + unit);
     std::normal_distribution<double> err(0.0, sigma);
     std::vector<double> v(model.elevations_deg.size());
     for (double& e : v) e = err(cal);
@@ -74,6 +76,7 @@ Scenario load_scenario(const std::string& path) {
                 [](const double& v) { return v >= 0 && v <= 2; }, "0..2 (degrees, sigma)");
   r.get<double>("lidar_range_offset_m", s.lidar_range_offset_m,
                 [](const double& v) { return v >= 0 && v <= 0.2; }, "0..0.2 (metres, sigma)");
+  r.get<bool>("lidar_per_robot", s.lidar_per_robot);
   r.get<double>("imu_rate_hz", s.imu_rate_hz, [](const double& v) { return v >= 100 && v <= 400; }, "100..400");
   r.get<double>("duration_s", s.duration_s, [](const double& v) { return v >= 0; }, ">= 0");
   r.get<int>("radio.central_robot", s.central_robot, [](const int& v) { return v >= -1; }, "-1 or a robot id");
@@ -184,7 +187,6 @@ GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_
     paths.push_back(path);
   }
   const World world = World::generate(paths, s.world);
-  const LidarModel model = scenario_lidar(s);
   Eigen::Isometry3d T_lidar_imu = Eigen::Isometry3d::Identity();  // the IMU sits 10 cm behind, 5 cm below
   T_lidar_imu.translation() = Eigen::Vector3d(-0.10, 0.0, -0.05);
 
@@ -195,6 +197,7 @@ GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_
     const fs::path dir = fs::path(out_dir) / ("robot_" + std::to_string(r));
     fs::create_directories(dir / "velodyne");
     fs::create_directories(dir / "velodyne_meta");
+    const LidarModel model = scenario_lidar(s, static_cast<int>(r));
     std::mt19937_64 rng(s.seed * 1000 + r);
     // Margins at both ends: derivatives of the spline (IMU) look a little before and after.
     const double t_first = sp.start() + 0.1;

@@ -27,6 +27,7 @@ struct Scenario {
   double lidar_elevation_bias_deg = 0;   // an elevation error common to every beam (KITTI's HDL-64E has about 0.22 deg)
   double lidar_azimuth_error_deg = 0;    // sigma of each beam's (fixed, seeded) azimuth calibration error
   double lidar_range_offset_m = 0;       // sigma of each beam's (fixed, seeded) distance offset
+  bool lidar_per_robot = false;          // each robot's LiDAR has calibration errors of its own (else one shared draw)
   double imu_rate_hz = 200;
   double duration_s = 0;                 // 0: the whole trajectories
   int central_robot = 0;                 // the central rides on this robot; -1: fixed position
@@ -43,7 +44,8 @@ Scenario load_scenario(const std::string& path);
 
 // The scenario's LiDAR with its calibration errors (per-beam elevation, azimuth and distance errors drawn from
 // the seed, and the common elevation bias).
-LidarModel scenario_lidar(const Scenario& s);
+// robot: whose unit, when the scenario gives each robot its own (lidar_per_robot); otherwise ignored.
+LidarModel scenario_lidar(const Scenario& s, int robot = 0);
 
 struct GenerateOptions {
   std::string data_dir;   // reference data (KITTI poses and calibration)

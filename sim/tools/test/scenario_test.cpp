@@ -142,6 +142,19 @@ TEST_F(ScenarioFiles, AzimuthAndRangeErrorsAreSeededPerBeamAndLeaveTheElevationD
   EXPECT_THROW(load_scenario(write("bad_r.yaml", "lidar_range_offset_m: 0.5\n")), config::ConfigError);
 }
 
+TEST_F(ScenarioFiles, EachRobotCanCarryALidarOfItsOwn) {
+  const Scenario shared = load_scenario(write("sh.yaml", "seed: 3\nlidar_azimuth_error_deg: 0.2\nlidar_elevation_error_deg: 0.2\n"));
+  EXPECT_EQ(scenario_lidar(shared, 0).azimuth_error_deg, scenario_lidar(shared, 2).azimuth_error_deg);
+  const Scenario own = load_scenario(
+      write("own.yaml", "seed: 3\nlidar_azimuth_error_deg: 0.2\nlidar_elevation_error_deg: 0.2\nlidar_per_robot: true\n"));
+  const LidarModel r0 = scenario_lidar(own, 0), r1 = scenario_lidar(own, 1), r1_again = scenario_lidar(own, 1);
+  EXPECT_NE(r0.azimuth_error_deg, r1.azimuth_error_deg);
+  EXPECT_NE(r0.elevation_error_deg, r1.elevation_error_deg);
+  EXPECT_EQ(r1.azimuth_error_deg, r1_again.azimuth_error_deg);  // a unit's errors are fixed by the seed
+  EXPECT_NE(r0.azimuth_error_deg, scenario_lidar(shared, 0).azimuth_error_deg);
+  EXPECT_THROW(load_scenario(write("bad_own.yaml", "lidar_per_robot: sometimes\n")), config::ConfigError);
+}
+
 TEST_F(ScenarioFiles, BadScenariosNameTheField) {
   const std::string bad = write("bad.yaml", "trajectories:\n  source: carla\n  robots: 0\nlidar: vlp32\nradio:\n  rnage_m: 3\n");
   try {
