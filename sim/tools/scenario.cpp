@@ -22,7 +22,8 @@ LidarModel scenario_lidar(const Scenario& s, int robot) {
   // One calibration error per beam, drawn from the seed: the same sensor model on every robot, or with
   // lidar_per_robot each robot's own unit. Each kind of error has its own stream, so adding one leaves the
   // others' draws (and older datasets) unchanged.
-  const uint64_t unit = s.lidar_per_robot ? 1000003ULL * static_cast<uint64_t>(robot + 1) : 0;
+  uint64_t unit = 0;
+  if (s.lidar_per_robot) unit = uint64_t{1000003} * static_cast<uint64_t>(robot + 1);
   auto per_beam = [&](double sigma, uint64_t stream) {
     std::mt19937_64 cal(s.seed * 7919 + stream + unit);
     std::normal_distribution<double> err(0.0, sigma);

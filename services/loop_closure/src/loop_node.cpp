@@ -25,6 +25,7 @@
 #include <cstdio>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <map>
 #include <optional>
 
@@ -140,7 +141,9 @@ int run_loop_closure(const LoopNodeOptions& o) {
   // The work left, for --backlog-out (LoopNodeOptions::backlog_out), written when it changes.
   auto write_backlog = [&] {
     if (o.backlog_out.empty()) return;
-    const std::string line = std::to_string(to_search.size()) + ' ' + std::to_string(core.pending_requests()) + ' ' +
+    // Descriptors waiting: to be searched, or known to exist and not received yet (gaps, a peer's tail).
+    const std::string line = std::to_string(to_search.size() + sequencer.missing()) + ' ' +
+                             std::to_string(core.pending_requests()) + ' ' +
                              std::to_string(core.parked_requests()) + ' ' + std::to_string(loops_sent) + '\n';
     if (line == last_backlog) return;
     const std::string tmp = o.backlog_out + ".tmp";
@@ -234,6 +237,11 @@ int run_loop_closure(const LoopNodeOptions& o) {
       }
       traffic.in(dds::serialized_size(m), m.robot_id);
       reach.heard(m.robot_id, now_ns());
+      // Its last keyframe: descriptors it made out of range just before it stopped making keyframes have
+      // nothing after them to show the gap; the sequencer asks for them from this mark.
+      if (m.last_keyframe_id >= 0 && m.last_keyframe_id <= std::numeric_limits<uint32_t>::max()) {
+        sequencer.announce(m.robot_id, static_cast<uint32_t>(m.last_keyframe_id), now);
+      }
     });
     // Peers' cloud requests before descriptors: serving one is cheap, and a requester gives up after its timeout
     // (descriptor bursts after a reconnection can take seconds to search and verify).

@@ -127,5 +127,65 @@ TEST(DescriptorSequencer, HoldingIsBounded) {
   EXPECT_EQ(s.next_expected(0), 14u);
 }
 
+TEST(DescriptorSequencer, ATailNothingCameAfterIsAskedForFromTheOwnersMark) {
+  // Robot 3 described 0..5; 3..5 were made out of range just before it stopped making keyframes, so no
+  // later descriptor shows the gap. Its status says its last keyframe is 5.
+  DescriptorSequencer s;
+  for (uint32_t i = 0; i < 3; ++i) s.add(desc(3, i));
+  s.announce(3, 5, Nanos(0));
+  EXPECT_EQ(s.missing(), 3u);
+  std::vector<DescriptorIn> released;
+  EXPECT_TRUE(s.wanted(seconds(1), always, released).empty()) << "live descriptors may still be in flight";
+  s.announce(3, 4, seconds(1));  // an older mark changes nothing
+  const auto w = s.wanted(seconds(2), always, released);
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_EQ(w[0].robot, 3u);
+  EXPECT_EQ(w[0].first, 3u);
+  EXPECT_EQ(w[0].last, 5u);
+  EXPECT_EQ(ids(s.add(desc(3, 3))), (std::vector<uint32_t>{3}));
+  EXPECT_EQ(ids(s.add(desc(3, 4))), (std::vector<uint32_t>{4}));
+  EXPECT_EQ(ids(s.add(desc(3, 5))), (std::vector<uint32_t>{5}));
+  EXPECT_EQ(s.missing(), 0u);
+  EXPECT_TRUE(s.wanted(seconds(10), always, released).empty());
+  // A robot never heard from but announced is asked for from its first keyframe.
+  s.announce(4, 1, seconds(10));
+  const auto w4 = s.wanted(seconds(12), always, released);
+  ASSERT_EQ(w4.size(), 1u);
+  EXPECT_EQ(w4[0].robot, 4u);
+  EXPECT_EQ(w4[0].first, 0u);
+  EXPECT_EQ(w4[0].last, 1u);
+}
+
+TEST(DescriptorSequencer, AMarkThatKeepsRisingIsLiveTrafficNotATail) {
+  // While the owner drives in range its status overtakes descriptors in flight; they arrive, and
+  // nothing is asked for.
+  DescriptorSequencer s;
+  std::vector<DescriptorIn> released;
+  for (uint32_t i = 0; i < 10; ++i) {
+    s.announce(1, i, seconds(i));
+    EXPECT_TRUE(s.wanted(seconds(i), always, released).empty()) << "at " << i << " s";
+    s.add(desc(1, i));
+  }
+  EXPECT_TRUE(s.wanted(seconds(30), always, released).empty());
+  EXPECT_EQ(s.stats().sync_requests, 0u);
+}
+
+TEST(DescriptorSequencer, ATailOutOfReachWaitsAndOneNeverSentIsGivenUp) {
+  DescriptorSequencer s;
+  s.add(desc(2, 0));
+  s.announce(2, 2, Nanos(0));
+  std::vector<DescriptorIn> released;
+  EXPECT_TRUE(s.wanted(seconds(5), [](uint32_t) { return false; }, released).empty());
+  for (int k = 0; k < 5; ++k) {
+    EXPECT_EQ(s.wanted(seconds(10 + 2 * k), always, released).size(), 1u) << "attempt " << k;
+  }
+  EXPECT_TRUE(s.wanted(seconds(20), always, released).empty()) << "given up after five attempts";
+  EXPECT_EQ(s.stats().gaps_skipped, 1u);
+  EXPECT_EQ(s.stats().ids_skipped, 2u);
+  EXPECT_EQ(s.next_expected(2), 3u);
+  EXPECT_EQ(s.missing(), 0u);
+  EXPECT_TRUE(s.add(desc(2, 1)).empty()) << "a skipped id arriving late is a duplicate";
+}
+
 }  // namespace
 }  // namespace cdc::loops

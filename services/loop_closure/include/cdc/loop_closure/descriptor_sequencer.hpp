@@ -3,7 +3,10 @@
 // not matched yet. Rather than have the DDS history replay everything a robot ever described on
 // every reconnection (transient-local), a receiver that sees a gap asks the owner for just the
 // missing range (cdc/place/descriptor_sync) and holds back what came after the gap until it is
-// filled, so that the peers' pose-hint chains are built in order. Synchronous, no DDS.
+// filled, so that the peers' pose-hint chains are built in order. A gap at the end (what a peer
+// described out of range just before it stopped making keyframes: nothing comes after it to show
+// it) is found from the owner's announced last keyframe (its robot status) and asked for the same
+// way. Synchronous, no DDS.
 #pragma once
 
 #include "cdc/loop_closure/loop_core.hpp"
@@ -45,6 +48,13 @@ class DescriptorSequencer {
   std::vector<SyncWanted> wanted(Nanos now, const std::function<bool(uint32_t)>& reachable,
                                  std::vector<DescriptorIn>& released);
 
+  // `robot` says it has made keyframes up to `last` (its status). Descriptors up to there that do not
+  // come within `resend` of the last raise of this mark are a tail gap, asked for like any other.
+  void announce(uint32_t robot, uint32_t last, Nanos now);
+
+  // Descriptors known to exist and not yet delivered (behind gaps, held, or announced), all robots.
+  uint64_t missing() const;
+
   // The next keyframe id expected from `robot` (0 for a robot never heard).
   uint32_t next_expected(uint32_t robot) const;
   size_t held(uint32_t robot) const;
@@ -57,7 +67,11 @@ class DescriptorSequencer {
     Nanos last_ask{Nanos::min()};
     uint32_t asked_for = 0;                  // the gap start the attempts count for
     int attempts = 0;
+    int64_t announced = -1;                  // the owner's last keyframe, as it says (-1: not heard)
+    Nanos announced_at{Nanos::min()};        // when `announced` was last raised
   };
+  // The last id of the gap starting at s.next, if there is one to ask for now; -1 for none.
+  int64_t gap_end(const Stream& s, Nanos now) const;
   void drain(Stream& s, std::vector<DescriptorIn>& out);
   void skip_gap(Stream& s, std::vector<DescriptorIn>& out);
 
