@@ -15,8 +15,10 @@ PACKAGES=(
   libyaml-cpp-dev libcli11-dev libspdlog-dev nlohmann-json3-dev
   # compact wire encodings (DEFLATE)
   zlib1g-dev
-  # tests and benchmarks
-  libgtest-dev libgmock-dev libbenchmark-dev
+  # recordings: ROS 2 bags (sqlite3, MCAP chunks in zstd/lz4), ROS 1 bag chunks (bz2/lz4), pcap
+  libsqlite3-dev libzstd-dev liblz4-dev libbz2-dev libpcap-dev
+  # tests and benchmarks (python3-rosbag writes ROS 1 test bags with an independent implementation)
+  libgtest-dev libgmock-dev libbenchmark-dev python3-rosbag
   # network namespaces and fault injection used by tests
   iproute2 iptables util-linux procps tcpdump
   # deployment checks: docker-compose.yml validation (no engine needed), systemd unit verification

@@ -87,8 +87,9 @@ int main(int argc, char** argv) {
       "cdc-sim: the swarm simulator. Subcommands:\n"
       "  generate  write a dataset (per robot: velodyne scans with per-point times, IMU, ground truth; radio)\n"
       "  radio     the radio's out-of-range periods of a scenario (no sensor simulation)\n"
-      "  play      publish a dataset over DDS (real time, faster, or lock-stepped)\n"
-      "  play-kitti  publish a real KITTI velodyne folder over DDS, optionally split into robots\n"
+      "  play      publish a dataset over DDS (real time, faster, or lock-stepped); real recordings become\n"
+      "            datasets with cdc-import\n"
+
       "  bench     ray-casting speed on one core (last line one JSON object)"};
   app.require_subcommand(1);
   const char* env_data = std::getenv("CDC_DATA_DIR");
@@ -103,7 +104,6 @@ int main(int argc, char** argv) {
   cdc::sim::PlayOptions po;
   int domain = -1;
   std::string dataset_dir;
-  cdc::sim::KittiPlayOptions ko;
   auto play_options = [&](CLI::App* c) {
     c->add_option("--rate", po.rate, "1: real time, 2: twice as fast, 0: as fast as possible")->capture_default_str();
     c->add_flag("--lockstep", po.lockstep, "wait for each robot's consumer (cdc/sim/progress) before its next scan");
@@ -115,19 +115,11 @@ int main(int argc, char** argv) {
     c->add_option("--domain", domain, "DDS domain id (default: CDC_DDS_DOMAIN or 0)")->check(CLI::Range(0, 232));
     c->add_option("--dds-config", po.dds_config, "Cyclone DDS configuration (default: CYCLONEDDS_URI)");
   };
-  CLI::App* play = app.add_subcommand("play", "publish a dataset written by 'cdc-sim generate'");
+  CLI::App* play = app.add_subcommand("play", "publish a dataset folder (cdc-sim generate, cdc-import)");
   play->add_option("dataset", dataset_dir, "dataset folder")->required();
   play->add_option("--robot", po.only_robot, "play only this robot's sensors (a player beside each robot)")
       ->check(CLI::Range(0, 254));
   play_options(play);
-  CLI::App* play_k = app.add_subcommand("play-kitti", "publish a real KITTI velodyne folder");
-  play_k->add_option("--velodyne", ko.velodyne_dir, "folder of NNNNNN.bin scans")->required();
-  play_k->add_option("--poses", ko.poses_path, "ground-truth poses of the sequence (optional)");
-  play_k->add_option("--calib", ko.calib_path, "calib_Tr.txt (needed with --poses)");
-  play_k->add_option("--calib-key", ko.calib_key)->capture_default_str();
-  play_k->add_option("--robots", ko.robots, "split the scans into this many robots")->check(CLI::Range(1, 64))
-      ->capture_default_str();
-  play_options(play_k);
   CLI::App* radio = app.add_subcommand("radio", "out-of-range periods of a scenario, as JSON");
   radio->add_option("--scenario", scenario_path, "scenario YAML")->required();
   radio->add_option("--data", data_dir, "reference data folder (CDC_DATA_DIR)")->capture_default_str();
@@ -139,13 +131,9 @@ int main(int argc, char** argv) {
     if (b->parsed()) {
       return bench(sweeps);
     }
-    if (play->parsed() || play_k->parsed()) {
+    if (play->parsed()) {
       po.domain = domain >= 0 ? static_cast<uint32_t>(domain) : cdc::dds::domain_from_env(0);
-      if (play_k->parsed() && !ko.poses_path.empty() && ko.calib_path.empty()) {
-        std::cerr << "cdc-sim: --poses needs --calib (the LiDAR-camera calibration)\n";
-        return 2;
-      }
-      const auto sum = play->parsed() ? cdc::sim::play_dataset(dataset_dir, po) : cdc::sim::play_kitti(ko, po);
+      const auto sum = cdc::sim::play_dataset(dataset_dir, po);
       std::printf("played %zu scans, %zu IMU samples, %zu radio states\n", sum.scans, sum.imu_samples, sum.radio_states);
       return 0;
     }

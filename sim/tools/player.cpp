@@ -1,6 +1,6 @@
 #include "player.hpp"
 
-#include "dataset_reader.hpp"
+#include "cdc/io/dataset.hpp"
 
 #include "cdc/dds/convert.hpp"
 #include "cdc/dds/participant.hpp"
@@ -8,7 +8,6 @@
 #include "cdc/dds/shutdown.hpp"
 #include "cdc/dds/topics.hpp"
 #include "cdc/geometry/trajectory.hpp"
-#include "cdc/sim/kitti.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -27,7 +26,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
-using ScanRef = DatasetScan;
+using ScanRef = io::DatasetScan;
+using io::DatasetImu;
+using io::list_dataset_scans;
 
 // Publishes a merged, time-ordered list of scans (and IMU per robot) with the chosen pacing.
 class Publisher {
@@ -101,7 +102,8 @@ class Publisher {
   }
 
   void publish_scan(const ScanRef& s) {
-    const std::vector<DatasetPoint> in = read_dataset_scan(s.bin, s.meta);
+    const io::Sweep sweep = io::read_dataset_scan(s);
+    const std::vector<io::CloudPoint>& in = sweep.points;
     const size_t n = in.size();
     std::vector<cdc_msg_LidarPoint> pts(n);
     for (size_t i = 0; i < n; ++i) {
@@ -118,7 +120,7 @@ class Publisher {
     m.incarnation = o_.incarnation;
     m.seq = s.seq;
     m.stamp_ns = s.stamp_ns;
-    m.duration_ns = 100'000'000;
+    m.duration_ns = sweep.has_time ? o_.sweep_duration_ns : 0;  // 0: motion-compensated, no per-point times
     m.point_count = static_cast<uint32_t>(n);
     dds::borrow(m.points, pts);
     w_lidar_.write(m);
@@ -174,7 +176,7 @@ class Publisher {
 
 std::vector<cdc_msg_ImuSample> read_imu(const fs::path& p) {
   std::vector<cdc_msg_ImuSample> out;
-  for (const DatasetImu& m : read_dataset_imu(p)) out.push_back(cdc_msg_ImuSample{m.stamp_ns, dds::to_msg(m.accel), dds::to_msg(m.gyro)});
+  for (const DatasetImu& m : io::read_dataset_imu(p)) out.push_back(cdc_msg_ImuSample{m.stamp_ns, dds::to_msg(m.accel), dds::to_msg(m.gyro)});
   return out;
 }
 
@@ -223,6 +225,9 @@ PlaySummary play_dataset(const std::string& dir, const PlayOptions& o) {
   if (!fs::is_directory(dir)) {
     throw std::runtime_error(dir + ": not a dataset folder");
   }
+  const io::DatasetInfo info = io::read_dataset_info(dir);
+  PlayOptions options = o;
+  options.sweep_duration_ns = static_cast<int64_t>(std::llround(info.sweep_period_s * 1e9));
   std::vector<ScanRef> scans = list_dataset_scans(dir, o.max_scans);
   if (o.only_robot >= 0) {
     scans.erase(std::remove_if(scans.begin(), scans.end(), [&](const ScanRef& s) { return s.robot != static_cast<uint32_t>(o.only_robot); }),
@@ -235,7 +240,7 @@ PlaySummary play_dataset(const std::string& dir, const PlayOptions& o) {
   }
   auto radio = read_radio(fs::path(dir) / "radio.csv");
   size_t radio_next = 0;
-  Publisher pub(o);
+  Publisher pub(options);
   std::map<uint32_t, size_t> imu_next;
   PlaySummary sum;
   for (const ScanRef& s : scans) {
@@ -256,52 +261,6 @@ PlaySummary play_dataset(const std::string& dir, const PlayOptions& o) {
       ++radio_next;
       ++sum.radio_states;
     }
-    pub.publish_scan(s);
-    ++sum.scans;
-    write_clock(o.clock_file, s.stamp_ns, sum.scans);
-  }
-  return sum;
-}
-
-PlaySummary play_kitti(const KittiPlayOptions& k, const PlayOptions& o) {
-  if (!fs::is_directory(k.velodyne_dir)) {
-    throw std::runtime_error(k.velodyne_dir + ": not a folder of KITTI velodyne scans");
-  }
-  std::vector<fs::path> files;
-  for (const auto& e : fs::directory_iterator(k.velodyne_dir)) {
-    if (e.path().extension() == ".bin") files.push_back(e.path());
-  }
-  if (files.empty()) {
-    throw std::runtime_error(k.velodyne_dir + ": no .bin scans");
-  }
-  std::sort(files.begin(), files.end());
-  geometry::Trajectory gt;
-  if (!k.poses_path.empty()) {
-    gt = kitti_lidar_trajectory(k.poses_path, read_kitti_calib(k.calib_path, k.calib_key));
-  }
-  std::vector<ScanRef> scans;
-  const size_t per_robot = (files.size() + static_cast<size_t>(k.robots) - 1) / static_cast<size_t>(k.robots);
-  for (size_t i = 0; i < files.size(); ++i) {
-    const size_t index = static_cast<size_t>(std::stoul(files[i].stem().string()));  // the frame number
-    const uint32_t robot = static_cast<uint32_t>(i / per_robot);
-    const uint64_t seq = i % per_robot;
-    ScanRef s{static_cast<int64_t>(index) * 100'000'000, robot, seq, files[i], {}, std::nullopt};
-    if (!gt.empty()) {
-      if (index >= gt.size()) throw std::runtime_error(files[i].string() + ": no ground-truth pose for frame " + std::to_string(index));
-      s.truth = gt[index].pose;
-    }
-    scans.push_back(std::move(s));
-    if (o.max_scans > 0 && seq + 1 >= o.max_scans && i + 1 < files.size() && (i + 1) / per_robot == robot) {
-      i = (robot + 1) * per_robot - 1;  // skip the rest of this robot's files
-    }
-  }
-  std::stable_sort(scans.begin(), scans.end(), [](const ScanRef& a, const ScanRef& b) { return a.stamp_ns < b.stamp_ns; });
-  Publisher pub(o);
-  PlaySummary sum;
-  for (const ScanRef& s : scans) {
-    if (dds::ShutdownSignal::requested()) break;
-    pub.wait_consumed(s.robot, s.seq);
-    pub.pace(s.stamp_ns);
     pub.publish_scan(s);
     ++sum.scans;
     write_clock(o.clock_file, s.stamp_ns, sum.scans);

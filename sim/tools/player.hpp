@@ -14,6 +14,7 @@ struct PlayOptions {
   double lockstep_timeout_s = 30; // give up when a consumer does not report progress
   uint32_t wait_readers = 0;      // LiDAR readers to wait for before starting
   uint32_t incarnation = 1;
+  int64_t sweep_duration_ns = 100'000'000;  // of sweeps with per-point times (the dataset's sweep period)
   size_t max_scans = 0;           // per robot; 0: all
   int only_robot = -1;            // >= 0: play only this robot's sensors (a player beside each robot)
   std::string clock_file;         // non-empty: after each sweep, "<sweep stamp ns> <sweeps played>" is
@@ -26,18 +27,8 @@ struct PlaySummary {
   size_t radio_states = 0;  // radio timeline instants published on cdc/sim/radio
 };
 
-// Plays a folder written by `cdc-sim generate`. Throws std::runtime_error naming what is missing.
+// Plays a dataset folder (`cdc-sim generate`, `cdc-import`). Throws std::runtime_error naming what is missing.
 PlaySummary play_dataset(const std::string& dir, const PlayOptions& options);
 
-struct KittiPlayOptions {
-  std::string velodyne_dir;   // NNNNNN.bin files (float32 x, y, z, reflectance)
-  std::string poses_path;     // ground truth of the sequence (optional)
-  std::string calib_path;     // calib_Tr.txt for the LiDAR-frame ground truth
-  std::string calib_key = "Tr_04_10";
-  int robots = 1;             // split the files into this many consecutive robots
-};
-
-// Plays a real KITTI velodyne folder at 10 Hz (time offsets from each point's azimuth).
-PlaySummary play_kitti(const KittiPlayOptions& kitti, const PlayOptions& options);
 
 }  // namespace cdc::sim

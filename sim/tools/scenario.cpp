@@ -2,7 +2,8 @@
 
 #include "cdc/config/reader.hpp"
 #include "cdc/geometry/trajectory.hpp"
-#include "cdc/sim/kitti.hpp"
+#include "cdc/io/dataset.hpp"
+#include "cdc/io/kitti.hpp"
 #include "cdc/sim/trajectory.hpp"
 
 #include <cmath>
@@ -127,8 +128,8 @@ std::vector<geometry::Trajectory> robot_trajectories(const Scenario& s, const Ge
       throw std::runtime_error(p.string() + ": reference data not found (set --data or CDC_DATA_DIR)");
     }
   }
-  const auto seq = kitti_lidar_trajectory(poses.string(), read_kitti_calib(calib.string(), s.calib_key));
-  return split_robots(seq, SplitOptions{s.robots, s.overlap, s.time_shift_s});
+  const auto seq = io::kitti_lidar_trajectory(poses.string(), io::read_kitti_calib(calib.string(), s.calib_key));
+  return io::split_robots(seq, io::SplitOptions{s.robots, s.overlap, s.time_shift_s});
 }
 
 SplineTrajectory to_spline(const geometry::Trajectory& t) {
@@ -191,13 +192,11 @@ GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_
   Eigen::Isometry3d T_lidar_imu = Eigen::Isometry3d::Identity();  // the IMU sits 10 cm behind, 5 cm below
   T_lidar_imu.translation() = Eigen::Vector3d(-0.10, 0.0, -0.05);
 
-  fs::create_directories(out_dir);
+  io::DatasetWriter writer(out_dir, /*overwrite=*/true);
   double t_end_all = 0, t_start_all = 1e18;
   for (size_t r = 0; r < splines.size(); ++r) {
     const SplineTrajectory& sp = splines[r];
-    const fs::path dir = fs::path(out_dir) / ("robot_" + std::to_string(r));
-    fs::create_directories(dir / "velodyne");
-    fs::create_directories(dir / "velodyne_meta");
+    const auto robot = static_cast<uint32_t>(r);
     const LidarModel model = scenario_lidar(s, static_cast<int>(r));
     std::mt19937_64 rng(s.seed * 1000 + r);
     // Margins at both ends: derivatives of the spline (IMU) look a little before and after.
@@ -206,58 +205,33 @@ GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_
     if (s.duration_s > 0) {
       t_end = std::min(t_end, t_first + s.duration_s);
     }
-    std::string times;
     geometry::Trajectory gt;
     size_t k = 0;
     for (double t = t_first; t <= t_end + 1e-9; t = t_first + 0.1 * static_cast<double>(++k)) {
       if (g.max_scans > 0 && k >= g.max_scans) {
         break;
       }
-      const auto pts = sweep(world, model, [&](double tau) { return sp.pose(t + tau); }, rng);
-      std::vector<float> xyzi;
-      std::vector<uint8_t> meta;
-      xyzi.reserve(pts.size() * 4);
-      meta.reserve(pts.size() * 8);
-      for (const auto& p : pts) {
-        xyzi.insert(xyzi.end(), {p.x, p.y, p.z, p.intensity});
-        uint8_t m[8] = {};
-        std::memcpy(m, &p.time_offset, 4);
-        std::memcpy(m + 4, &p.ring, 2);
-        meta.insert(meta.end(), m, m + 8);
+      io::Sweep out;
+      out.has_time = out.has_ring = out.has_intensity = true;
+      for (const auto& p : sweep(world, model, [&](double tau) { return sp.pose(t + tau); }, rng)) {
+        out.points.push_back({p.x, p.y, p.z, p.intensity, p.time_offset, p.ring});
       }
-      char name[32];
-      std::snprintf(name, sizeof name, "%06zu.bin", k);
-      write_file(dir / "velodyne" / name, xyzi.data(), xyzi.size() * sizeof(float));
-      write_file(dir / "velodyne_meta" / name, meta.data(), meta.size());
-      char line[32];
-      std::snprintf(line, sizeof line, "%.9f\n", t);
-      times += line;
-      gt.push_back({static_cast<int64_t>(std::llround(t * 1e9)), sp.pose(t)});
-      sum.points += pts.size();
+      const auto stamp = static_cast<int64_t>(std::llround(t * 1e9));
+      writer.add_sweep(robot, stamp, out);
+      gt.push_back({stamp, sp.pose(t)});
+      sum.points += out.points.size();
       ++sum.scans;
     }
-    write_text(dir / "times.txt", times);
-    geometry::write_tum((dir / "groundtruth.tum").string(), gt);
+    writer.set_groundtruth(robot, gt);
     // IMU over the scanned span, in the IMU frame mounted at T_lidar_imu on the LiDAR (the body).
     const double t_imu_start = t_first - 0.05;
     const double t_imu_end = gt.empty() ? t_first : static_cast<double>(gt.back().stamp_ns) * 1e-9 + model.period_s();
-    const auto imu = simulate_imu(sp, T_lidar_imu, t_imu_start, t_imu_end, s.imu_rate_hz, ImuNoise{}, s.seed * 1000 + 500 + r);
-    std::string csv = "t,ax,ay,az,gx,gy,gz\n";
-    for (const auto& m : imu) {
-      char line[256];
-      std::snprintf(line, sizeof line, "%.9f,%.9g,%.9g,%.9g,%.9g,%.9g,%.9g\n", m.t, m.accel.x(), m.accel.y(), m.accel.z(),
-                    m.gyro.x(), m.gyro.y(), m.gyro.z());
-      csv += line;
+    std::vector<io::DatasetImu> imu;
+    for (const auto& m : simulate_imu(sp, T_lidar_imu, t_imu_start, t_imu_end, s.imu_rate_hz, ImuNoise{}, s.seed * 1000 + 500 + r)) {
+      imu.push_back({static_cast<int64_t>(std::llround(m.t * 1e9)), m.accel, m.gyro});
     }
-    write_text(dir / "imu.csv", csv);
-    const Eigen::Quaterniond q(T_lidar_imu.rotation());
-    char calib[512];
-    std::snprintf(calib, sizeof calib,
-                  "# T_lidar_imu: the IMU's pose in the LiDAR frame (position [m], quaternion x y z w)\n"
-                  "lidar: %s\nimu_rate_hz: %g\nT_lidar_imu: {position: [%g, %g, %g], orientation: [%g, %g, %g, %g]}\n",
-                  model.name.c_str(), s.imu_rate_hz, T_lidar_imu.translation().x(), T_lidar_imu.translation().y(),
-                  T_lidar_imu.translation().z(), q.x(), q.y(), q.z(), q.w());
-    write_text(dir / "calib.yaml", calib);
+    writer.set_imu(robot, imu);
+    writer.set_calib(robot, T_lidar_imu, model.name, s.imu_rate_hz);
     t_start_all = std::min(t_start_all, t_imu_start);
     t_end_all = std::max(t_end_all, t_imu_end);
     ++sum.robots;
@@ -265,7 +239,6 @@ GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_
 
   // Radio: robots and the central node.
   const auto timeline = radio_timeline(radio_nodes(s, splines), t_start_all, t_end_all, s.radio);
-  write_text(fs::path(out_dir) / "radio.csv", radio_csv(timeline));
   std::string periods = "a,b,start,end\n";
   for (const auto& p : out_of_range_periods(timeline)) {
     char line[96];
@@ -273,19 +246,23 @@ GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_
     periods += line;
     ++sum.out_of_range_periods;
   }
-  write_text(fs::path(out_dir) / "radio_periods.csv", periods);
+  writer.set_radio(radio_csv(timeline), periods);
   char world_json[256];
   std::snprintf(world_json, sizeof world_json, "{\"seed\": %llu, \"boxes\": %zu, \"cylinders\": %zu, \"terrain\": {\"cells\": [%d, %d], \"cell_m\": %g}}\n",
                 static_cast<unsigned long long>(s.seed), world.boxes().size(), world.cylinders().size(),
                 world.terrain().nx, world.terrain().ny, world.terrain().cell);
-  write_text(fs::path(out_dir) / "world.json", world_json);
-  fs::copy_file(scenario_path, fs::path(out_dir) / "scenario.yaml", fs::copy_options::overwrite_existing);
-  char summary[256];
-  std::snprintf(summary, sizeof summary,
-                "{\"name\": \"%s\", \"robots\": %zu, \"scans\": %zu, \"points\": %zu, \"central_id\": %u, "
-                "\"out_of_range_periods\": %zu}\n",
-                s.name.c_str(), sum.robots, sum.scans, sum.points, s.central_id, sum.out_of_range_periods);
-  write_text(fs::path(out_dir) / "dataset.json", summary);
+  write_text(writer.partial_dir() / "world.json", world_json);
+  fs::copy_file(scenario_path, writer.partial_dir() / "scenario.yaml", fs::copy_options::overwrite_existing);
+  io::DatasetInfo info;
+  info.name = s.name;
+  info.source = "simulated";
+  info.central_id = s.central_id;
+  info.out_of_range_periods = sum.out_of_range_periods;
+  info.point_times = io::PointTimes::kSensor;
+  info.sweep_period_s = 0.1;
+  info.radio = "simulated";
+  info.poses = "ground_truth";
+  writer.commit(info);
   return sum;
 }
 

@@ -5,7 +5,7 @@
 // MEMS noise and bias random walk. Only FrontendCore::process is timed. Last line: one JSON object.
 #include "cdc/frontend/frontend_core.hpp"
 #include "cdc/geometry/metrics.hpp"
-#include "cdc/sim/kitti.hpp"
+#include "cdc/io/kitti.hpp"
 #include "cdc/sim/lidar.hpp"
 #include "cdc/sim/missions.hpp"
 #include "cdc/sim/trajectory.hpp"
@@ -226,7 +226,7 @@ int main(int argc, char** argv) {
     std::cerr << "cdc-bench-frontend: " << poses << " not found (set --data or CDC_DATA_DIR)\n";
     return 2;
   }
-  const auto full = sim::kitti_lidar_trajectory(poses, sim::read_kitti_calib(data + "/kitti/calib_Tr.txt", "Tr_04_10"));
+  const auto full = io::kitti_lidar_trajectory(poses, io::read_kitti_calib(data + "/kitti/calib_Tr.txt", "Tr_04_10"));
   Setup s;
   drive_and_world(full, 5, s.traj, s.world);
   for (double t = s.traj.start(); t + 0.1 < s.traj.end(); t += 0.1) {

@@ -9,7 +9,7 @@
 #include "cdc/lidar/scan_context.hpp"
 #include "cdc/loop_closure/evaluation.hpp"
 #include "cdc/loop_closure/loop_core.hpp"
-#include "cdc/sim/kitti.hpp"
+#include "cdc/io/kitti.hpp"
 #include "cdc/sim/lidar.hpp"
 #include "cdc/sim/world.hpp"
 
@@ -58,9 +58,9 @@ struct WireCounters {
 
 nlohmann::json run_sequence(const std::string& data, const std::string& seq, const loops::LoopParams& params,
                             uint32_t exclude_recent, const WireOptions& wire) {
-  const auto full = sim::kitti_lidar_trajectory(data + "/kitti/poses/" + seq + ".txt",
-                                                sim::read_kitti_calib(data + "/kitti/calib_Tr.txt", "Tr_04_10"));
-  const auto robots = sim::split_robots(full, sim::SplitOptions{3, 0.15, 0.0});
+  const auto full = io::kitti_lidar_trajectory(data + "/kitti/poses/" + seq + ".txt",
+                                                io::read_kitti_calib(data + "/kitti/calib_Tr.txt", "Tr_04_10"));
+  const auto robots = io::split_robots(full, io::SplitOptions{3, 0.15, 0.0});
   std::vector<std::vector<Eigen::Vector3d>> paths;
   std::vector<Kf> kfs;
   for (uint32_t r = 0; r < robots.size(); ++r) {

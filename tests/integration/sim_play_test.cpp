@@ -4,7 +4,7 @@
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/topics.hpp"
-#include "cdc/sim/kitti.hpp"
+#include "cdc/io/kitti.hpp"
 #include "child_process.hpp"
 #include "scenario.hpp"
 
@@ -146,16 +146,21 @@ TEST_F(SimPlay, APlayerBesideARobotPlaysOnlyThatRobot) {
   EXPECT_NE(text.find("no scans of robot 7"), std::string::npos) << text;
 }
 
-TEST_F(SimPlay, KittiPlayerPublishesRealScansWithTheirGroundTruth) {
+TEST_F(SimPlay, ImportedKittiSweepsPlayWithTheirGroundTruthAndNoInventedTimes) {
   const char* env = std::getenv("CDC_DATA_DIR");
   const fs::path data = env != nullptr ? env : "../shared/data";
   if (!fs::exists(data / "kitti/scans/seq00")) {
     GTEST_SKIP() << "reference data absent: " << (data / "kitti/scans/seq00") << " not found";
   }
+  test::ChildProcess import = test::ChildProcess::spawn(
+      {std::getenv("CDC_IMPORT_BIN"), "kitti", (data / "kitti/scans/seq00").string(), "--allow-gaps", "--poses",
+       (data / "kitti/poses/00.txt").string(), "--calib", (data / "kitti/calib_Tr.txt").string(), "--calib-key", "Tr_00_02",
+       "--out", (dir_ / "seq00").string()},
+      (dir_ / "import.log").string());
+  const auto is = import.wait(60s);
+  ASSERT_TRUE(is && WIFEXITED(*is) && WEXITSTATUS(*is) == 0) << "cdc-import failed: see " << (dir_ / "import.log");
   test::ChildProcess player = test::ChildProcess::spawn(
-      {std::getenv("CDC_SIM_BIN"), "play-kitti", "--velodyne", (data / "kitti/scans/seq00").string(), "--poses",
-       (data / "kitti/poses/00.txt").string(), "--calib", (data / "kitti/calib_Tr.txt").string(), "--calib-key",
-       "Tr_00_02", "--robots", "2", "--rate", "0", "--wait-readers", "1"},
+      {std::getenv("CDC_SIM_BIN"), "play", (dir_ / "seq00").string(), "--rate", "0", "--wait-readers", "1"},
       (dir_ / "player.log").string());
   std::vector<cdc_msg_LidarScan> scans;
   std::map<int64_t, Eigen::Isometry3d> truth;
@@ -163,6 +168,9 @@ TEST_F(SimPlay, KittiPlayerPublishesRealScansWithTheirGroundTruth) {
   while ((scans.size() < 4 || truth.size() < 4) && std::chrono::steady_clock::now() < deadline) {
     r_lidar_->take(16).for_each_valid([&](const cdc_msg_LidarScan& s, const dds_sample_info_t&) {
       cdc_msg_LidarScan head = s;
+      bool all_zero = true;
+      for (uint32_t i = 0; i < s.points._length; ++i) all_zero = all_zero && s.points._buffer[i].time_offset == 0.0f;
+      EXPECT_TRUE(all_zero) << "a KITTI sweep imported as motion-compensated carries invented point times";
       head.points = {};
       scans.push_back(head);
     });
@@ -174,16 +182,17 @@ TEST_F(SimPlay, KittiPlayerPublishesRealScansWithTheirGroundTruth) {
   const auto st = player.wait(20s);
   ASSERT_TRUE(st && WIFEXITED(*st) && WEXITSTATUS(*st) == 0);
   ASSERT_EQ(scans.size(), 4u);
-  const auto seq = sim::kitti_lidar_trajectory((data / "kitti/poses/00.txt").string(),
-                                               sim::read_kitti_calib((data / "kitti/calib_Tr.txt").string(), "Tr_00_02"));
+  const auto seq = io::kitti_lidar_trajectory((data / "kitti/poses/00.txt").string(),
+                                               io::read_kitti_calib((data / "kitti/calib_Tr.txt").string(), "Tr_00_02"));
   const int frames[4] = {94, 95, 198, 199};
   for (int i = 0; i < 4; ++i) {
-    EXPECT_EQ(scans[static_cast<size_t>(i)].stamp_ns, frames[i] * 100'000'000LL);
+    const int64_t stamp = (frames[i] - frames[0]) * 100'000'000LL;  // the import's clock starts at the first sweep
+    EXPECT_EQ(scans[static_cast<size_t>(i)].stamp_ns, stamp);
+    EXPECT_EQ(scans[static_cast<size_t>(i)].duration_ns, 0) << "a motion-compensated sweep has no duration";
     char name[32];
     std::snprintf(name, sizeof name, "%06d.bin", frames[i]);
     EXPECT_EQ(scans[static_cast<size_t>(i)].point_count * 16u, fs::file_size(data / "kitti/scans/seq00" / name));
-    EXPECT_EQ(scans[static_cast<size_t>(i)].robot_id, i < 2 ? 0u : 1u);  // split into two robots
-    const auto it = truth.find(frames[i] * 100'000'000LL);
+    const auto it = truth.find(stamp);
     ASSERT_NE(it, truth.end());
     EXPECT_LT((it->second.matrix() - seq[static_cast<size_t>(frames[i])].pose.matrix()).norm(), 1e-6);
   }

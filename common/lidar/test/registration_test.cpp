@@ -121,7 +121,7 @@ TEST(Registration, DifferentPlacesDoNotOverlap) {
 }  // namespace
 }  // namespace cdc::lidar
 
-#include "cdc/sim/kitti.hpp"
+#include "cdc/io/kitti.hpp"
 
 #include <cstdlib>
 #include <filesystem>
@@ -147,7 +147,7 @@ TEST(Registration, RealKittiPairsAgreeWithGroundTruth) {
   if (!std::filesystem::exists(d + "scans/seq00/000094.bin")) {
     GTEST_SKIP() << "reference data absent: " << d << "scans/seq00 not found";
   }
-  const auto seq = sim::kitti_lidar_trajectory(d + "poses/00.txt", sim::read_kitti_calib(d + "calib_Tr.txt", "Tr_00_02"));
+  const auto seq = io::kitti_lidar_trajectory(d + "poses/00.txt", io::read_kitti_calib(d + "calib_Tr.txt", "Tr_00_02"));
   for (const auto& [a, b] : {std::pair<int, int>{94, 95}, std::pair<int, int>{198, 199}}) {
     char pa[32], pb[32];
     std::snprintf(pa, sizeof pa, "%06d.bin", a);

@@ -6,7 +6,7 @@
 #include "cdc/odometry/pair_registration.hpp"
 #include "cdc/odometry/registration.hpp"
 #include "cdc/odometry/voxel_map.hpp"
-#include "cdc/sim/kitti.hpp"
+#include "cdc/io/kitti.hpp"
 #include "cdc/sim/lidar.hpp"
 #include "cdc/sim/trajectory.hpp"
 #include "cdc/sim/world.hpp"
@@ -177,7 +177,7 @@ TEST(Registration, RealKittiPairsAgreeWithGroundTruth) {
     Eigen::Isometry3d T_target_source;
   };
   std::vector<Pair> pairs;
-  const auto seq = sim::kitti_lidar_trajectory(d + "/kitti/poses/00.txt", sim::read_kitti_calib(d + "/kitti/calib_Tr.txt", "Tr_00_02"));
+  const auto seq = io::kitti_lidar_trajectory(d + "/kitti/poses/00.txt", io::read_kitti_calib(d + "/kitti/calib_Tr.txt", "Tr_00_02"));
   for (const auto& [a, b] : {std::pair<int, int>{94, 95}, std::pair<int, int>{198, 199}}) {
     char pa[64], pb[64];
     std::snprintf(pa, sizeof pa, "/kitti/scans/seq00/%06d.bin", a);

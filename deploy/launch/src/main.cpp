@@ -145,13 +145,13 @@ void Launcher::ensure_dataset() {
   while (gen.running()) {
     if (interrupted()) {
       gen.stop(std::chrono::seconds(5));
-      fs::remove_all(c_.dataset);  // never leave half a dataset behind
+      fs::remove_all(c_.dataset + ".partial");  // never leave half a dataset behind
       throw std::runtime_error("interrupted while generating the dataset");
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
   if (gen.exit_status().value_or(-1) != 0) {
-    fs::remove_all(c_.dataset);
+    fs::remove_all(c_.dataset + ".partial");
     throw std::runtime_error("dataset generation failed: see " + (run_ / "logs" / "generate.log").string());
   }
 }

@@ -7,12 +7,11 @@
 #include "cdc/geometry/metrics.hpp"
 #include "cdc/geometry/se3.hpp"
 #include "cdc/geometry/trajectory.hpp"
-#include "cdc/sim/kitti.hpp"
-#include "dataset_reader.hpp"
+#include "cdc/io/dataset.hpp"
+#include "cdc/io/kitti.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
-#include <yaml-cpp/yaml.h>
 
 #include <algorithm>
 #include <chrono>
@@ -25,46 +24,42 @@ using namespace cdc;
 namespace {
 
 struct Input {
-  std::vector<sim::DatasetScan> scans;
-  std::vector<sim::DatasetImu> imu;
+  std::vector<io::DatasetScan> scans;
+  std::vector<io::DatasetImu> imu;
   geometry::Trajectory groundtruth;
   Eigen::Isometry3d T_lidar_imu = Eigen::Isometry3d::Identity();
+  io::PointTimes point_times = io::PointTimes::kSensor;
+  double sweep_period_s = 0.1;
 };
 
-Input read_sim(const std::string& dir, uint32_t robot, size_t max_scans) {
+Input read_dataset(const std::string& dir, uint32_t robot, size_t max_scans) {
   Input in;
+  const io::DatasetInfo info = io::read_dataset_info(dir);
+  in.point_times = info.point_times;
+  in.sweep_period_s = info.sweep_period_s;
   std::map<uint32_t, geometry::Trajectory> gt;
-  for (auto& s : sim::list_dataset_scans(dir, max_scans, &gt)) {
+  for (auto& s : io::list_dataset_scans(dir, max_scans, &gt)) {
     if (s.robot == robot) in.scans.push_back(std::move(s));
   }
   if (in.scans.empty()) throw std::runtime_error(dir + ": no scans of robot " + std::to_string(robot));
   const fs::path rd = fs::path(dir) / ("robot_" + std::to_string(robot));
-  in.imu = sim::read_dataset_imu(rd / "imu.csv");
+  in.imu = io::read_dataset_imu(rd / "imu.csv");
   in.groundtruth = gt[robot];
-  const YAML::Node calib = YAML::LoadFile((rd / "calib.yaml").string());
-  const auto t = calib["T_lidar_imu"]["position"].as<std::vector<double>>();
-  const auto q = calib["T_lidar_imu"]["orientation"].as<std::vector<double>>();
-  if (t.size() != 3 || q.size() != 4) throw std::runtime_error((rd / "calib.yaml").string() + ": T_lidar_imu needs 3 + 4 numbers");
-  in.T_lidar_imu = geometry::make_pose(Eigen::Vector3d(t[0], t[1], t[2]), Eigen::Quaterniond(q[3], q[0], q[1], q[2]).normalized());
+  in.T_lidar_imu = io::read_dataset_calib(rd / "calib.yaml");
   return in;
 }
 
-Input read_kitti(const std::string& dir, const std::string& poses, const std::string& calib, size_t max_scans) {
+// A KITTI folder as it is: no IMU, and the sweeps taken as motion-compensated (no per-point times).
+Input read_kitti(const std::string& dir, const io::KittiSequenceOptions& options, size_t max_scans) {
   Input in;
-  std::vector<fs::path> files;
-  for (const auto& e : fs::directory_iterator(dir)) {
-    if (e.path().extension() == ".bin") files.push_back(e.path());
-  }
-  std::sort(files.begin(), files.end());
-  if (files.empty()) throw std::runtime_error(dir + ": no .bin scans");
-  geometry::Trajectory gt;
-  if (!poses.empty()) gt = sim::kitti_lidar_trajectory(poses, sim::read_kitti_calib(calib, "Tr_00_02"));
-  for (size_t i = 0; i < files.size() && (max_scans == 0 || i < max_scans); ++i) {
-    const size_t index = static_cast<size_t>(std::stoul(files[i].stem().string()));
-    sim::DatasetScan s{static_cast<int64_t>(index) * 100'000'000, 0, index, files[i], {}, std::nullopt};
-    if (index < gt.size()) {
-      s.truth = gt[index].pose;
-      in.groundtruth.push_back({s.stamp_ns, gt[index].pose});
+  const io::KittiSequence seq = io::read_kitti_sequence(dir, options);
+  in.point_times = io::PointTimes::kNone;
+  in.sweep_period_s = static_cast<double>(options.period_ns) * 1e-9;
+  for (size_t i = 0; i < seq.sweeps.size() && (max_scans == 0 || i < max_scans); ++i) {
+    io::DatasetScan s{seq.stamps_ns[i], 0, i, seq.sweeps[i], {}, std::nullopt};
+    if (!seq.poses.empty()) {
+      s.truth = seq.poses[i].pose;
+      in.groundtruth.push_back(seq.poses[i]);
     }
     in.scans.push_back(std::move(s));
   }
@@ -79,8 +74,10 @@ int main(int argc, char** argv) {
   CLI::App app{
       "cdc-odometry: runs the front-end core over a recorded dataset without DDS and writes its trajectory.\n"
       "  cdc-odometry DATASET [--robot K]               a cdc-sim dataset folder (robot_K/...)\n"
-      "  cdc-odometry VELODYNE_DIR --kitti [--poses P]  a KITTI velodyne folder (no IMU, no per-point times)"};
-  std::string input, out_dir, poses, calib, config_path;
+      "  cdc-odometry DIR --kitti [--poses P]           a KITTI sequence or velodyne folder (no IMU, sweeps taken as\n"
+      "                                                 motion-compensated); cdc-import makes a dataset of it"};
+  std::string input, out_dir, poses, calib, config_path, times_path, poses_frame = "camera", calib_key = "Tr_00_02";
+  double period_s = 0.1;
   uint32_t robot = 0;
   size_t max_scans = 0;
   bool kitti = false, lidar_only = false, no_deskew = false, no_imu_window = false, imu_deskew = false, json = false;
@@ -88,8 +85,16 @@ int main(int argc, char** argv) {
   app.add_option("dataset", input, "dataset folder")->required()->check(CLI::ExistingDirectory);
   app.add_option("--robot", robot, "robot of a cdc-sim dataset")->capture_default_str();
   app.add_flag("--kitti", kitti, "DATASET is a KITTI velodyne folder");
-  app.add_option("--poses", poses, "KITTI ground-truth poses (for --kitti)")->check(CLI::ExistingFile);
-  app.add_option("--calib", calib, "KITTI calib_Tr.txt (for --kitti --poses)")->check(CLI::ExistingFile);
+  app.add_option("--poses", poses, "poses, 3x4 row-major per sweep (for --kitti)")->check(CLI::ExistingFile);
+  app.add_option("--poses-frame", poses_frame, "camera: KITTI ground truth (T_world_cam0, needs --calib); lidar: the LiDAR's poses")
+      ->check(CLI::IsMember({"camera", "lidar"}))
+      ->capture_default_str();
+  app.add_option("--calib", calib, "KITTI calibration holding Tr (calib.txt or calib_Tr.txt; for --poses-frame camera)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--calib-key", calib_key, "the calibration entry holding T_cam0_velo")->capture_default_str();
+  app.add_option("--times", times_path, "sweep times, seconds per line (for --kitti; default DIR/times.txt or frame x period)")
+      ->check(CLI::ExistingFile);
+  app.add_option("--period", period_s, "sweep period [s] (for --kitti)")->capture_default_str()->check(CLI::PositiveNumber);
   app.add_option("--config", config_path,
                  "front-end configuration (services/frontend/config/frontend.yaml; default: its defaults); the flags "
                  "below override it")
@@ -109,11 +114,18 @@ int main(int argc, char** argv) {
   app.add_flag("--json", json, "print the report as one JSON object");
   CLI11_PARSE(app, argc, argv);
   try {
-    if (kitti && !poses.empty() && calib.empty()) throw std::runtime_error("--poses needs --calib (calib_Tr.txt)");
-    const Input in = kitti ? read_kitti(input, poses, calib, max_scans) : read_sim(input, robot, max_scans);
+    io::KittiSequenceOptions ko;
+    ko.poses = poses;
+    ko.poses_frame = poses_frame == "lidar" ? io::KittiPosesFrame::kLidar : io::KittiPosesFrame::kCamera;
+    ko.calib = calib;
+    ko.calib_key = calib_key;
+    ko.times = times_path;
+    ko.period_ns = static_cast<int64_t>(std::llround(period_s * 1e9));
+    const auto wall0 = std::chrono::steady_clock::now();
+    const Input in = kitti ? read_kitti(input, ko, max_scans) : read_dataset(input, robot, max_scans);
     const frontend::FrontendNodeOptions options = frontend::load_frontend_options(config_path);
     frontend::FrontendParams params = options.core;
-    if (no_deskew) params.deskew = false;
+    if (no_deskew || in.point_times == io::PointTimes::kNone) params.deskew = false;
     if (no_imu_window) params.imu_window = false;
     if (imu_deskew) params.imu_deskew = true;
     if (no_level) params.level_with_gravity = false;
@@ -121,16 +133,17 @@ int main(int argc, char** argv) {
     frontend::FrontendCore core(params);
     const bool use_imu = !lidar_only && options.use_imu && !in.imu.empty();
     size_t imu_next = 0;
+    const auto sweep_ns = static_cast<int64_t>(std::llround(in.sweep_period_s * 1e9));
     geometry::Trajectory odometry, keyframes;
     std::vector<frontend::ScanPoint> pts;
     double busy = 0;
-    for (const sim::DatasetScan& s : in.scans) {
+    for (const io::DatasetScan& s : in.scans) {
       pts.clear();
-      for (const sim::DatasetPoint& p : sim::read_dataset_scan(s.bin, s.meta)) {
+      for (const io::CloudPoint& p : io::read_dataset_scan(s).points) {
         pts.push_back({Eigen::Vector3f(p.x, p.y, p.z), p.time_offset, p.ring});
       }
       const auto t0 = std::chrono::steady_clock::now();
-      while (use_imu && imu_next < in.imu.size() && in.imu[imu_next].stamp_ns <= s.stamp_ns + 100'000'000) {
+      while (use_imu && imu_next < in.imu.size() && in.imu[imu_next].stamp_ns <= s.stamp_ns + sweep_ns) {
         core.add_imu({in.imu[imu_next].stamp_ns, in.imu[imu_next].gyro, in.imu[imu_next].accel});
         ++imu_next;
       }
@@ -139,11 +152,14 @@ int main(int argc, char** argv) {
       odometry.push_back({s.stamp_ns, o.T_odom_raw});
       if (o.keyframe) keyframes.push_back({o.keyframe->stamp_ns, o.keyframe->T_odom_keyframe});
     }
+    const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
     nlohmann::json report{{"dataset", input},
                           {"scans", odometry.size()},
                           {"keyframes", keyframes.size()},
                           {"imu", use_imu},
+                          {"point_times", io::to_string(in.point_times)},
                           {"scans_per_s", static_cast<double>(odometry.size()) / std::max(busy, 1e-9)},
+                          {"scans_per_s_with_reading", static_cast<double>(odometry.size()) / std::max(wall, 1e-9)},
                           {"registration_failures", core.stats().registration_failures},
                           {"registration_rejected", core.stats().registration_rejected},
                           {"imu_predictions", core.stats().imu_predictions},
@@ -165,6 +181,9 @@ int main(int argc, char** argv) {
       report["drift_trans_pct"] = d.translation_pct;
       report["drift_rot_deg_per_100m"] = d.rotation_deg_per_100m;
       report["ate_m"] = ate.translation.rmse;
+      const geometry::RpeResult rpe = geometry::compute_rpe_frames(est, gt, 1);
+      report["rpe_per_sweep"] = {{"translation_m", {{"rmse", rpe.translation.rmse}, {"median", rpe.translation.median}, {"max", rpe.translation.max}}},
+                                 {"rotation_deg", {{"rmse", rpe.rotation_deg.rmse}, {"median", rpe.rotation_deg.median}, {"max", rpe.rotation_deg.max}}}};
     }
     if (!out_dir.empty()) {
       fs::create_directories(out_dir);

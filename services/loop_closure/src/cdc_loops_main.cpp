@@ -1,9 +1,9 @@
 // cdc-loops: offline place recognition and outlier rejection tools of the loop-closure service.
 #include "cdc/graph/g2o.hpp"
+#include "cdc/io/dataset.hpp"
 #include "cdc/graph/pcm.hpp"
 #include "cdc/loop_closure/evaluation.hpp"
 #include "cdc/loop_closure/loop_core.hpp"
-#include "dataset_reader.hpp"
 #include "loop_config.hpp"
 
 #include <CLI/CLI.hpp>
@@ -34,7 +34,7 @@ struct RunOptions {
 // with every cloud at hand, and the loops standing at the end judged against the ground truth.
 int run_dataset(const RunOptions& o) {
   std::map<uint32_t, geometry::Trajectory> gt;
-  const std::vector<sim::DatasetScan> scans = sim::list_dataset_scans(o.dataset, o.max_scans, &gt);
+  const std::vector<io::DatasetScan> scans = io::list_dataset_scans(o.dataset, o.max_scans, &gt);
   std::mt19937_64 rng(o.seed);
   std::normal_distribution<double> nt(0, o.noise_m), nr(0, o.noise_rad);
   loops::LoopCore core(o.params);
@@ -49,7 +49,7 @@ int run_dataset(const RunOptions& o) {
     kf_csv << "robot,keyframe,stamp_ns,scan\n";
   }
   const auto t0 = std::chrono::steady_clock::now();
-  for (const sim::DatasetScan& s : scans) {
+  for (const io::DatasetScan& s : scans) {
     if (!s.truth) continue;
     auto it = last.find(s.robot);
     if (it != last.end() && (it->second.translation() - s.truth->translation()).norm() < o.keyframe_m) continue;
@@ -59,7 +59,7 @@ int run_dataset(const RunOptions& o) {
     kf.id = next_id[s.robot]++;
     kf.T_odom = *s.truth;  // a levelled odometry's tilt: the truth's (world z is up)
     const Eigen::Isometry3d T0_inv = s.truth->inverse();
-    for (const sim::DatasetPoint& p : sim::read_dataset_scan(s.bin, s.meta)) {
+    for (const io::CloudPoint& p : io::read_dataset_scan(s).points) {
       const auto Tt = geometry::interpolate_at(traj, s.stamp_ns + static_cast<int64_t>(p.time_offset * 1e9));
       const Eigen::Vector3d q = Tt ? Eigen::Vector3d(T0_inv * (*Tt) * Eigen::Vector3d(p.x, p.y, p.z))
                                    : Eigen::Vector3d(p.x, p.y, p.z);

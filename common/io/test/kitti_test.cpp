@@ -1,11 +1,11 @@
-#include "cdc/sim/kitti.hpp"
+#include "cdc/io/kitti.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cstdlib>
 #include <filesystem>
 
-namespace cdc::sim {
+namespace cdc::io {
 namespace {
 
 std::string data() {
@@ -76,4 +76,4 @@ TEST(KittiSplit, Sequence05GivesThreeRobotsThatShareGroundAndTime) {
 }
 
 }  // namespace
-}  // namespace cdc::sim
+}  // namespace cdc::io

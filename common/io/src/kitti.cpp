@@ -1,0 +1,157 @@
+#include "cdc/io/kitti.hpp"
+
+#include "cdc/io/error.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace cdc::io {
+
+Eigen::Isometry3d read_kitti_calib(const std::string& path, const std::string& key) {
+  std::ifstream in(path);
+  if (!in) {
+    throw std::runtime_error(path + ": cannot open calibration file");
+  }
+  std::string line;
+  size_t n = 0;
+  while (std::getline(in, line)) {
+    ++n;
+    std::istringstream s(line);
+    std::string k;
+    if (!(s >> k) || (k != key && k != key + ":")) {
+      continue;
+    }
+    double v[12];
+    for (double& x : v) {
+      if (!(s >> x)) {
+        throw std::runtime_error(path + ":" + std::to_string(n) + ": " + key + " needs 12 numbers");
+      }
+    }
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() << v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10];
+    T.translation() = Eigen::Vector3d(v[3], v[7], v[11]);
+    return T;
+  }
+  throw std::runtime_error(path + ": no entry '" + key + "'");
+}
+
+geometry::Trajectory kitti_lidar_trajectory(const std::string& poses_path, const Eigen::Isometry3d& Tr) {
+  geometry::Trajectory cam = geometry::read_kitti(poses_path, nullptr, 100'000'000);
+  const Eigen::Isometry3d Tr_inv = Tr.inverse();
+  for (auto& sp : cam) {
+    sp.pose = Tr_inv * sp.pose * Tr;
+  }
+  return cam;
+}
+
+std::vector<IndexRange> split_ranges(size_t count, const SplitOptions& o) {
+  if (o.robots < 1 || o.overlap < 0 || o.overlap >= 1) {
+    throw std::invalid_argument("split: robots must be >= 1 and overlap in [0, 1)");
+  }
+  const double n = static_cast<double>(count);
+  const double piece = n / (o.robots - (o.robots - 1) * o.overlap);  // pieces tile the sequence
+  std::vector<IndexRange> out;
+  for (int k = 0; k < o.robots; ++k) {
+    const size_t first = static_cast<size_t>(std::floor(k * piece * (1 - o.overlap)));
+    const size_t last = std::min(count, static_cast<size_t>(std::ceil(static_cast<double>(first) + piece)));
+    if (last <= first + 3) {
+      throw std::invalid_argument("split: pieces too short for " + std::to_string(o.robots) + " robots");
+    }
+    out.push_back({first, last});
+  }
+  return out;
+}
+
+std::vector<geometry::Trajectory> split_robots(const geometry::Trajectory& seq, const SplitOptions& o) {
+  std::vector<geometry::Trajectory> out;
+  int k = 0;
+  for (const IndexRange& r : split_ranges(seq.size(), o)) {
+    geometry::Trajectory t(seq.begin() + static_cast<std::ptrdiff_t>(r.first), seq.begin() + static_cast<std::ptrdiff_t>(r.last));
+    const int64_t base = t.front().stamp_ns;
+    const int64_t shift = static_cast<int64_t>(std::llround(k++ * o.time_shift_s * 1e9));
+    for (auto& sp : t) {
+      sp.stamp_ns = sp.stamp_ns - base + shift;
+    }
+    out.push_back(std::move(t));
+  }
+  return out;
+}
+
+KittiSequence read_kitti_sequence(const std::filesystem::path& dir, const KittiSequenceOptions& o) {
+  namespace fs = std::filesystem;
+  KittiSequence seq;
+  // A sequence folder (velodyne/, times.txt, calib.txt) or a bare folder of .bin sweeps.
+  const fs::path sweeps_dir = fs::is_directory(dir / "velodyne") ? dir / "velodyne" : dir;
+  if (!fs::is_directory(sweeps_dir)) throw FormatError(dir.string() + ": not a folder");
+  std::vector<std::pair<size_t, fs::path>> files;
+  for (const auto& e : fs::directory_iterator(sweeps_dir)) {
+    if (e.path().extension() != ".bin") continue;
+    const std::string stem = e.path().stem().string();
+    if (stem.empty() || !std::all_of(stem.begin(), stem.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+      throw FormatError(e.path().string() + ": a KITTI sweep is named by its frame number (NNNNNN.bin)");
+    }
+    files.emplace_back(static_cast<size_t>(std::stoull(stem)), e.path());
+  }
+  if (files.empty()) throw FormatError(sweeps_dir.string() + ": no .bin sweeps");
+  std::sort(files.begin(), files.end());
+  seq.first_frame = files.front().first;
+  for (size_t i = 0; i < files.size(); ++i) {
+    if (files[i].first != seq.first_frame + i && !o.allow_gaps) {
+      char name[32];
+      std::snprintf(name, sizeof name, "%06zu.bin", seq.first_frame + i);
+      throw FormatError((sweeps_dir / name).string() + ": missing (frames " + std::to_string(seq.first_frame) + ".." +
+                        std::to_string(files.back().first) + " have " + std::to_string(files.size()) + " files)");
+    }
+    seq.frames.push_back(files[i].first);
+    seq.sweeps.push_back(files[i].second);
+  }
+  // Times: an explicit file, else times.txt of the sequence, else frame * period.
+  fs::path times_path = o.times;
+  if (times_path.empty() && fs::exists(dir / "times.txt")) times_path = dir / "times.txt";
+  std::vector<int64_t> all_times;
+  if (!times_path.empty()) {
+    all_times = geometry::read_times(times_path.string());
+    seq.times_from_file = true;
+  }
+  for (const size_t f : seq.frames) {
+    if (!all_times.empty()) {
+      if (f >= all_times.size()) {
+        throw FormatError(times_path.string() + ": " + std::to_string(all_times.size()) + " lines, no time for frame " + std::to_string(f));
+      }
+      seq.stamps_ns.push_back(all_times[f]);
+    } else {
+      seq.stamps_ns.push_back(static_cast<int64_t>(f) * o.period_ns);
+    }
+  }
+  for (size_t i = 1; i < seq.stamps_ns.size(); ++i) {
+    if (seq.stamps_ns[i] <= seq.stamps_ns[i - 1]) {
+      throw FormatError(times_path.string() + ": time of frame " + std::to_string(seq.frames[i]) + " does not increase");
+    }
+  }
+  // Poses: camera-frame ground truth turned into the LiDAR frame with Tr, or LiDAR-frame poses as they are.
+  if (!o.poses.empty()) {
+    geometry::Trajectory all = geometry::read_kitti(o.poses.string(), nullptr, o.period_ns);
+    if (o.poses_frame == KittiPosesFrame::kCamera) {
+      fs::path calib = o.calib;
+      std::string key = o.calib_key;
+      if (calib.empty() && fs::exists(dir / "calib.txt")) calib = dir / "calib.txt";
+      if (calib.empty()) throw FormatError(o.poses.string() + ": camera-frame poses need the calibration (calib.txt with Tr)");
+      const Eigen::Isometry3d Tr = read_kitti_calib(calib.string(), key);
+      const Eigen::Isometry3d Tr_inv = Tr.inverse();
+      for (auto& sp : all) sp.pose = Tr_inv * sp.pose * Tr;
+    }
+    for (size_t i = 0; i < seq.frames.size(); ++i) {
+      if (seq.frames[i] >= all.size()) {
+        throw FormatError(o.poses.string() + ": " + std::to_string(all.size()) + " poses, none for frame " + std::to_string(seq.frames[i]));
+      }
+      seq.poses.push_back({seq.stamps_ns[i], all[seq.frames[i]].pose});
+    }
+  }
+  return seq;
+}
+
+}  // namespace cdc::io

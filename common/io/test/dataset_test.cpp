@@ -1,0 +1,213 @@
+#include "cdc/io/error.hpp"
+#include "cdc/io/cloud.hpp"
+#include "cdc/io/dataset.hpp"
+#include "cdc/io/kitti.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <unistd.h>
+
+namespace cdc::io {
+namespace {
+namespace fs = std::filesystem;
+
+fs::path temp_dir(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("cdc_io_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+Sweep make_sweep(int n, float base, bool times) {
+  Sweep s;
+  for (int i = 0; i < n; ++i) {
+    CloudPoint p;
+    p.x = base + static_cast<float>(i);
+    p.y = -base;
+    p.z = 0.5f * static_cast<float>(i);
+    p.intensity = 0.25f;
+    if (times) {
+      p.time_offset = 0.001f * static_cast<float>(i);
+      p.ring = static_cast<uint16_t>(i % 16);
+    }
+    s.points.push_back(p);
+  }
+  s.has_time = s.has_ring = times;
+  s.has_intensity = true;
+  return s;
+}
+
+TEST(Dataset, WriterAndReaderRoundTripSweepsTimesPosesImuAndInfo) {
+  const fs::path root = temp_dir("roundtrip");
+  const fs::path dir = root / "ds";
+  {
+    DatasetWriter w(dir);
+    w.add_sweep(0, 1'000'000'000, make_sweep(5, 1, true));
+    w.add_sweep(0, 1'100'000'001, make_sweep(7, 2, true));
+    w.add_sweep(1, 1'050'000'000, make_sweep(3, 3, false));
+    geometry::Trajectory gt{{1'000'000'000, Eigen::Isometry3d::Identity()}, {1'100'000'001, Eigen::Isometry3d::Identity()}};
+    gt[1].pose.translation() = Eigen::Vector3d(1, 2, 3);
+    w.set_groundtruth(0, gt);
+    w.set_imu(0, {{1'000'000'000, Eigen::Vector3d(0, 0, 9.81), Eigen::Vector3d(0.1, 0, 0)},
+                  {1'005'000'000, Eigen::Vector3d(0, 0.5, 9.81), Eigen::Vector3d(0, 0.2, 0)}});
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() = Eigen::Vector3d(-0.1, 0, -0.05);
+    w.set_calib(0, T, "test", 200);
+    w.set_radio("t,a,b,in_range,distance,loss\n", "a,b,start,end\n");
+    DatasetInfo info;
+    info.source = "test";
+    info.point_times = PointTimes::kSensor;
+    info.sweep_period_s = 0.1;
+    const DatasetInfo out = w.commit(info);
+    EXPECT_EQ(out.robots, 2u);
+    EXPECT_EQ(out.scans, 3u);
+    EXPECT_EQ(out.points, 15u);
+  }
+  EXPECT_FALSE(fs::exists(root / "ds.partial"));
+  const DatasetInfo info = read_dataset_info(dir);
+  EXPECT_EQ(info.source, "test");
+  EXPECT_EQ(info.scans, 3u);
+  std::map<uint32_t, geometry::Trajectory> gt;
+  const std::vector<DatasetScan> scans = list_dataset_scans(dir.string(), 0, &gt);
+  ASSERT_EQ(scans.size(), 3u);
+  EXPECT_EQ(scans[0].stamp_ns, 1'000'000'000);
+  EXPECT_EQ(scans[1].robot, 1u);
+  EXPECT_EQ(scans[2].stamp_ns, 1'100'000'001);  // exact nanoseconds through times.txt
+  ASSERT_TRUE(scans[2].truth.has_value());
+  EXPECT_NEAR(scans[2].truth->translation().z(), 3.0, 1e-9);
+  EXPECT_TRUE(gt[1].empty());
+  const Sweep a = read_dataset_scan(scans[2]);
+  EXPECT_TRUE(a.has_time);
+  ASSERT_EQ(a.points.size(), 7u);
+  EXPECT_FLOAT_EQ(a.points[6].x, 8.0f);
+  EXPECT_FLOAT_EQ(a.points[6].time_offset, 0.006f);
+  EXPECT_EQ(a.points[6].ring, 6);
+  const Sweep b = read_dataset_scan(scans[1]);
+  EXPECT_FALSE(b.has_time) << "robot 1's sweeps have no per-point times and none may be invented";
+  EXPECT_FALSE(b.has_ring);
+  EXPECT_FLOAT_EQ(b.points[0].time_offset, 0.0f);
+  const auto imu = read_dataset_imu(dir / "robot_0" / "imu.csv");
+  ASSERT_EQ(imu.size(), 2u);
+  EXPECT_EQ(imu[1].stamp_ns, 1'005'000'000);
+  EXPECT_NEAR(imu[1].accel.y(), 0.5, 1e-9);
+  EXPECT_TRUE(read_dataset_imu(dir / "robot_1" / "imu.csv").empty());
+  EXPECT_NEAR(read_dataset_calib(dir / "robot_0" / "calib.yaml").translation().x(), -0.1, 1e-9);
+  fs::remove_all(root);
+}
+
+TEST(Dataset, AWriterThatIsNotCommittedLeavesNothingBehind) {
+  const fs::path root = temp_dir("abandon");
+  {
+    DatasetWriter w(root / "ds");
+    w.add_sweep(0, 0, make_sweep(2, 0, false));
+    EXPECT_TRUE(fs::exists(root / "ds.partial"));
+  }
+  EXPECT_FALSE(fs::exists(root / "ds"));
+  EXPECT_FALSE(fs::exists(root / "ds.partial"));
+  fs::remove_all(root);
+}
+
+TEST(Dataset, WriterRefusesSweepsOutOfOrderMixedTimesAnExistingFolderAndAGapInRobots) {
+  const fs::path root = temp_dir("refuse");
+  DatasetWriter w(root / "ds");
+  w.add_sweep(0, 100, make_sweep(2, 0, true));
+  EXPECT_THROW(w.add_sweep(0, 100, make_sweep(2, 0, true)), std::runtime_error);
+  EXPECT_THROW(w.add_sweep(0, 200, make_sweep(2, 0, false)), std::runtime_error);
+  w.add_sweep(2, 100, make_sweep(2, 0, false));
+  EXPECT_THROW(w.commit({}), std::runtime_error);  // robot 1 has no sweeps
+  fs::create_directories(root / "exists");
+  EXPECT_THROW(DatasetWriter(root / "exists"), std::runtime_error);
+  fs::remove_all(root);
+}
+
+TEST(Dataset, ReaderNamesWhatIsWrong) {
+  const fs::path root = temp_dir("bad");
+  std::ofstream(root / "odd.bin") << "0123456789";  // 10 bytes
+  try {
+    read_kitti_bin(root / "odd.bin");
+    FAIL() << "a 10-byte sweep was accepted";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("odd.bin"), std::string::npos) << e.what();
+  }
+  std::ofstream(root / "dataset.json") << "{\"point_times\": \"sometimes\"}";
+  EXPECT_THROW(read_dataset_info(root), FormatError);
+  fs::create_directories(root / "robot_0");
+  std::ofstream(root / "robot_0" / "times.txt") << "0.0\n0.1\n";
+  fs::create_directories(root / "robot_0" / "velodyne");
+  write_kitti_bin(root / "robot_0" / "velodyne" / "000000.bin", make_sweep(2, 0, false).points);
+  try {
+    list_dataset_scans(root.string());
+    FAIL() << "a missing sweep was accepted";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("000001.bin"), std::string::npos) << e.what();
+  }
+  std::ofstream(root / "robot_0" / "imu.csv") << "t,ax,ay,az,gx,gy,gz\n0.0,1,2,3,4,5,6\n0.1,1,2,3\n";
+  try {
+    read_dataset_imu(root / "robot_0" / "imu.csv");
+    FAIL() << "a short IMU line was accepted";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("imu.csv:3"), std::string::npos) << e.what();
+  }
+  fs::remove_all(root);
+}
+
+TEST(KittiSequence, AMissingSweepATooShortTimesFileAndPosesAreNamed) {
+  const fs::path root = temp_dir("kitti");
+  fs::create_directories(root / "velodyne");
+  for (const char* n : {"000000.bin", "000001.bin", "000003.bin"}) write_kitti_bin(root / "velodyne" / n, make_sweep(3, 0, false).points);
+  try {
+    read_kitti_sequence(root);
+    FAIL() << "a missing sweep was accepted";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("000002.bin"), std::string::npos) << e.what();
+  }
+  KittiSequenceOptions o;
+  o.allow_gaps = true;
+  EXPECT_EQ(read_kitti_sequence(root, o).frames, (std::vector<size_t>{0, 1, 3}));
+  write_kitti_bin(root / "velodyne" / "000002.bin", make_sweep(3, 0, false).points);
+  std::ofstream(root / "times.txt") << "0.0\n0.1\n0.2\n";
+  try {
+    read_kitti_sequence(root);
+    FAIL() << "a times file too short was accepted";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("times.txt"), std::string::npos) << e.what();
+  }
+  std::ofstream(root / "times.txt") << "0.0\n0.1\n0.2\n0.3\n";
+  std::ofstream(root / "poses.txt") << "1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 1 0 1 0 0 0 0 1 0\n";
+  o = {};
+  o.poses = root / "poses.txt";
+  o.poses_frame = KittiPosesFrame::kLidar;
+  EXPECT_THROW(read_kitti_sequence(root, o), FormatError);
+  const KittiSequence seq = read_kitti_sequence(root);
+  EXPECT_EQ(seq.stamps_ns[3], 300'000'000);
+  EXPECT_TRUE(seq.times_from_file);
+  fs::remove_all(root);
+}
+
+TEST(KittiSequence, RealSweepsOfSequence00TakeTheirGroundTruthInTheLidarFrame) {
+  const char* env = std::getenv("CDC_DATA_DIR");
+  const fs::path data = env != nullptr ? env : "../shared/data";
+  if (!fs::exists(data / "kitti/scans/seq00")) GTEST_SKIP() << "reference data not found at " << data << " (set CDC_DATA_DIR)";
+  KittiSequenceOptions o;
+  o.allow_gaps = true;
+  o.poses = data / "kitti/poses/00.txt";
+  o.calib = data / "kitti/calib_Tr.txt";
+  o.calib_key = "Tr_00_02";
+  const KittiSequence seq = read_kitti_sequence(data / "kitti/scans/seq00", o);
+  ASSERT_EQ(seq.frames, (std::vector<size_t>{94, 95, 198, 199}));
+  EXPECT_EQ(seq.stamps_ns[2], 19'800'000'000);
+  ASSERT_EQ(seq.poses.size(), 4u);
+  // The car drives forward along the LiDAR's x axis: consecutive poses differ mostly in x.
+  const Eigen::Vector3d d = (seq.poses[0].pose.inverse() * seq.poses[1].pose).translation();
+  EXPECT_GT(std::abs(d.x()), 5 * std::abs(d.y()));
+  EXPECT_GT(std::abs(d.x()), 5 * std::abs(d.z()));
+  const std::vector<CloudPoint> pts = read_kitti_bin(seq.sweeps[0]);
+  EXPECT_GT(pts.size(), 100'000u);
+}
+
+}  // namespace
+}  // namespace cdc::io

@@ -1,0 +1,126 @@
+#include "cdc/velodyne_driver/velodyne_driver_core.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace cdc::velodyne_driver {
+namespace {
+
+io::VelodyneCalibration make_calibration(const VelodyneDriverConfig& c) {
+  if (!c.calibration.empty()) return io::read_velodyne_calibration(c.calibration, c.model);
+  if (!c.model) throw std::invalid_argument("Velodyne driver: give the sensor's calibration or its model (for the built-in table)");
+  return io::default_velodyne_calibration(*c.model);
+}
+
+io::VelodyneDecoderOptions decoder_options(const VelodyneDriverConfig& c) {
+  if (!(c.min_range_m >= 0.0 && c.min_range_m < c.max_range_m)) {
+    throw std::invalid_argument("Velodyne driver: need 0 <= min_range_m < max_range_m");
+  }
+  if (!(c.rpm > 0.0)) throw std::invalid_argument("Velodyne driver: rpm must be positive");
+  io::VelodyneDecoderOptions d;
+  d.model = c.model;
+  d.return_mode = c.return_mode;
+  d.min_range = c.min_range_m;
+  d.max_range = c.max_range_m;
+  d.sector_min_deg = c.sector_min_deg;
+  d.sector_max_deg = c.sector_max_deg;
+  d.rpm = c.rpm;
+  return d;
+}
+
+// The settings of `cdc-import bag`: neither the first (partial) sweep nor an incomplete one is emitted.
+io::VelodyneSweepOptions sweep_options(const VelodyneDriverConfig& c) {
+  if (c.max_gap.count() <= 0) throw std::invalid_argument("Velodyne driver: max_gap must be positive");
+  io::VelodyneSweepOptions s;
+  s.scan_phase_deg = c.scan_phase_deg;
+  s.max_gap_ns = c.max_gap.count();
+  s.emit_incomplete = false;
+  s.emit_first = false;
+  return s;
+}
+
+DatagramStatus from_packet_status(io::VelodynePacketStatus s) {
+  switch (s) {
+    case io::VelodynePacketStatus::kOk: return DatagramStatus::kOk;
+    case io::VelodynePacketStatus::kTruncated: return DatagramStatus::kTruncated;
+    case io::VelodynePacketStatus::kMalformed: return DatagramStatus::kMalformed;
+    case io::VelodynePacketStatus::kWrongModel: return DatagramStatus::kWrongModel;
+    case io::VelodynePacketStatus::kOutOfOrder: return DatagramStatus::kOutOfOrder;
+  }
+  return DatagramStatus::kMalformed;
+}
+
+uint64_t& counter(DriverStats& s, DatagramStatus status) {
+  switch (status) {
+    case DatagramStatus::kOk: return s.ok;
+    case DatagramStatus::kOtherPort: return s.other_port;
+    case DatagramStatus::kTruncated: return s.truncated;
+    case DatagramStatus::kMalformed: return s.malformed;
+    case DatagramStatus::kWrongModel: return s.wrong_model;
+    case DatagramStatus::kOutOfOrder: return s.out_of_order;
+  }
+  return s.malformed;
+}
+
+}  // namespace
+
+std::string_view to_string(DatagramStatus status) {
+  switch (status) {
+    case DatagramStatus::kOk: return "ok";
+    case DatagramStatus::kOtherPort: return "other_port";
+    case DatagramStatus::kTruncated: return "truncated";
+    case DatagramStatus::kMalformed: return "malformed";
+    case DatagramStatus::kWrongModel: return "wrong_model";
+    case DatagramStatus::kOutOfOrder: return "out_of_order";
+  }
+  return "unknown";
+}
+
+VelodyneDriverCore::VelodyneDriverCore(const VelodyneDriverConfig& config)
+    : config_(config), assembler_(make_calibration(config), decoder_options(config), sweep_options(config)) {}
+
+DatagramStatus VelodyneDriverCore::add_datagram(std::span<const uint8_t> payload, int64_t stamp_ns, uint16_t dst_port) {
+  ++stats_.datagrams;
+  const DatagramStatus status =
+      dst_port == config_.port ? from_packet_status(assembler_.add_packet(payload, stamp_ns)) : DatagramStatus::kOtherPort;
+  ++counter(stats_, status);
+  stats_.gaps = assembler_.stats().gaps;
+  return status;
+}
+
+std::optional<DriverSweep> VelodyneDriverCore::next_sweep() {
+  while (assembler_.has_sweep()) {
+    const io::VelodyneSweep v = assembler_.take();
+    if (v.points.empty()) {
+      ++stats_.empty_sweeps;
+      continue;
+    }
+    DriverSweep out;
+    out.sweep = io::to_sweep(v, out.stamp_ns);
+    if (last_stamp_ns_ && out.stamp_ns <= *last_stamp_ns_) {
+      ++stats_.stale_sweeps;
+      continue;
+    }
+    const auto latest = std::max_element(v.points.begin(), v.points.end(),
+                                         [](const io::VelodynePoint& a, const io::VelodynePoint& b) { return a.time_ns < b.time_ns; });
+    out.duration_ns = latest->time_ns - out.stamp_ns;
+    out.packets = v.packets;
+    out.seq = stats_.sweeps++;
+    stats_.points += out.sweep.points.size();
+    last_stamp_ns_ = out.stamp_ns;
+    return out;
+  }
+  return std::nullopt;
+}
+
+void VelodyneDriverCore::end_of_stream() { assembler_.flush(); }
+
+std::optional<std::chrono::nanoseconds> ReplayPacer::due(int64_t stamp_ns) {
+  if (!first_stamp_ns_) first_stamp_ns_ = stamp_ns;
+  if (rate_ <= 0.0 || stamp_ns <= *first_stamp_ns_) return std::nullopt;
+  return std::chrono::nanoseconds(static_cast<int64_t>(static_cast<double>(stamp_ns - *first_stamp_ns_) / rate_));
+}
+
+}  // namespace cdc::velodyne_driver
