@@ -4,7 +4,6 @@
 
 #include <cstring>
 #include <fstream>
-#include <iterator>
 #include <string>
 
 namespace cdc::io {
@@ -12,9 +11,14 @@ namespace fs = std::filesystem;
 namespace {
 
 std::vector<char> read_bytes(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
+  std::ifstream in(p, std::ios::binary | std::ios::ate);
   if (!in) throw FormatError(p.string() + ": cannot open");
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  const std::streamoff size = in.tellg();
+  if (size < 0) throw FormatError(p.string() + ": cannot tell its size");
+  std::vector<char> bytes(static_cast<size_t>(size));
+  in.seekg(0);
+  if (!in.read(bytes.data(), size)) throw FormatError(p.string() + ": read failed");
+  return bytes;
 }
 
 void write_bytes(const fs::path& p, const void* data, size_t size) {

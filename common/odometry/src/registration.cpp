@@ -64,6 +64,29 @@ RegistrationOutput register_to_map(const std::vector<Eigen::Vector3d>& pts, cons
   return out;
 }
 
+FitQuality evaluate_fit(const std::vector<Eigen::Vector3d>& pts, const std::vector<Eigen::Vector3d>& normals, const VoxelMap& map,
+                        const Eigen::Isometry3d& T, double max_distance_m, double inlier_m) {
+  FitQuality f;
+  const Eigen::Matrix3d R = T.rotation();
+  const double gate2 = max_distance_m * max_distance_m;
+  double sum2 = 0;
+  Eigen::Vector3d q;
+  double d2 = 0;
+  for (size_t i = 0; i < pts.size(); ++i) {
+    if (normals[i].squaredNorm() < 0.5) continue;
+    ++f.points;
+    const Eigen::Vector3d pw = T * pts[i];
+    if (!map.nearest(pw, q, d2, gate2)) continue;
+    const double e = (R * normals[i]).dot(pw - q);
+    if (std::abs(e) >= inlier_m) continue;
+    ++f.inliers;
+    sum2 += e * e;
+  }
+  f.inlier_fraction = f.points > 0 ? static_cast<double>(f.inliers) / f.points : 0.0;
+  f.inlier_rms = f.inliers > 0 ? std::sqrt(sum2 / f.inliers) : 0.0;
+  return f;
+}
+
 std::vector<Eigen::Vector3d> range_image_normals(const std::vector<Eigen::Vector3d>& points,
                                                  const std::vector<uint16_t>& rings, int columns, double max_neighbour_m) {
   const size_t n = points.size();

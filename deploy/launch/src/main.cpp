@@ -71,7 +71,7 @@ bool loop_closure_caught_up(const fs::path& p) {
 }
 
 struct Options {
-  std::string swarm, out, bin_dir = "build/release", root = ".", network;
+  std::string swarm, out, bin_dir = "build/release", root = ".", network, dataset;
   int max_scans = -1;
   int slam_domain = -1, sim_domain = -1;
   bool no_progress = false;
@@ -135,7 +135,7 @@ class Launcher {
 
 void Launcher::ensure_dataset() {
   if (fs::exists(fs::path(c_.dataset) / "dataset.json")) return;
-  if (c_.scenario.empty()) throw std::runtime_error(c_.dataset + ": no dataset there and no scenario to generate it from");
+  if (c_.scenario.empty()) throw std::runtime_error(c_.dataset + ": no dataset there and no scenario to generate it from (a real recording: cdc-import)");
   std::cout << "cdc-launch: generating the dataset " << c_.dataset << " from " << c_.scenario << " (once)" << std::endl;
   fs::create_directories(fs::path(c_.dataset).parent_path());
   std::vector<std::string> argv = {bin("sim/tools/cdc-sim"), "generate", "--scenario", c_.scenario, "--out", c_.dataset};
@@ -616,7 +616,7 @@ int Launcher::run() {
 
 int main(int argc, char** argv) {
   CLI::App app{
-      "cdc-launch: runs a simulated swarm from a swarm file (deploy/swarms/*.yaml): the simulator's player, every\n"
+      "cdc-launch: runs a swarm on a dataset (simulated, or a real recording imported with cdc-import) from a swarm file (deploy/swarms/*.yaml): the simulator's player, every\n"
       "robot's front-end, descriptor, loop-closure and peer-optimiser services and the central node's optimiser and\n"
       "map. Network modes: netns (default where possible: every node in its own network namespace, the radio\n"
       "timeline applied per pair with iptables on the SLAM domain) or loopback (all on lo, the timeline applied per\n"
@@ -630,6 +630,8 @@ int main(int argc, char** argv) {
   app.add_option("--network", o.network, "override the swarm file: auto, netns or loopback")
       ->check(CLI::IsMember({"auto", "netns", "loopback"}));
   app.add_option("--max-scans", o.max_scans, "override: sweeps per robot (0: all)")->check(CLI::NonNegativeNumber);
+  app.add_option("--dataset", o.dataset, "override the swarm file's dataset folder (one made by cdc-import, for example)")
+      ->check(CLI::ExistingDirectory);
   app.add_option("--slam-domain", o.slam_domain, "override the SLAM DDS domain")->check(CLI::Range(0, 232));
   app.add_option("--sim-domain", o.sim_domain, "override the simulator's DDS domain")->check(CLI::Range(0, 232));
   app.add_flag("--no-progress", o.no_progress, "no progress display");
@@ -641,6 +643,7 @@ int main(int argc, char** argv) {
       c.network = o.network == "netns" ? NetworkMode::kNetns : o.network == "loopback" ? NetworkMode::kLoopback : NetworkMode::kAuto;
     }
     if (o.max_scans >= 0) c.max_scans = static_cast<size_t>(o.max_scans);
+    if (!o.dataset.empty()) c.dataset = o.dataset;
     if (o.slam_domain >= 0) c.slam_domain = static_cast<uint32_t>(o.slam_domain);
     if (o.sim_domain >= 0) c.sim_domain = static_cast<uint32_t>(o.sim_domain);
     if (c.slam_domain == c.sim_domain) throw cdc::config::ConfigError("the SLAM and simulator domains must differ");

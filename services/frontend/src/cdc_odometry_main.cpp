@@ -162,6 +162,9 @@ int main(int argc, char** argv) {
                           {"scans_per_s_with_reading", static_cast<double>(odometry.size()) / std::max(wall, 1e-9)},
                           {"registration_failures", core.stats().registration_failures},
                           {"registration_rejected", core.stats().registration_rejected},
+                          {"recovery_attempts", core.stats().recovery_attempts},
+                          {"recoveries", core.stats().recoveries},
+                          {"recoveries_global", core.stats().recoveries_global},
                           {"imu_predictions", core.stats().imu_predictions},
                           {"imu_window_restarts", core.stats().imu_window_restarts},
                           {"max_level_deg", core.stats().max_level_deg}};

@@ -22,7 +22,13 @@ FrontendNodeOptions load_frontend_options(const std::string& path) {
   r.get<double>("registration.map_range_m", p.map.max_range_m, positive, "> 0");
   r.get<int>("registration.map_points_per_voxel", p.map.max_points, [](const int& v) { return v > 0; }, "> 0");
   r.get<double>("registration.initial_gate_m", p.initial_gate_m, positive, "> 0");
+  r.get<double>("registration.normal_voxel_m", p.normal_voxel_m, [](const double& v) { return v >= 0; }, ">= 0");
   r.get<bool>("deskew", p.deskew);
+  r.get<bool>("recovery.enabled", p.recovery.enabled);
+  auto fraction = [](const double& v) { return v > 0 && v <= 1; };
+  r.get<double>("recovery.poor_fit_ratio", p.recovery.poor_fit_ratio, fraction, "in (0, 1]");
+  r.get<double>("recovery.good_fit_ratio", p.recovery.good_fit_ratio, fraction, "in (0, 1]");
+  r.get<bool>("recovery.global", p.recovery.global);
   r.get<int>("image_columns", p.image_columns, [](const int& v) { return v >= 100; }, ">= 100");
   r.get<double>("keyframe.distance_m", p.keyframe_distance_m, positive, "> 0");
   double kf_deg = p.keyframe_angle_rad * 180 / M_PI, rot_deg = p.fusion.rot_max * 180 / M_PI;

@@ -31,7 +31,12 @@ TEST(FrontendConfig, ShippedFileStatesTheDefaults) {
   EXPECT_EQ(a.map.max_range_m, b.map.max_range_m);
   EXPECT_EQ(a.map.max_points, b.map.max_points);
   EXPECT_EQ(a.initial_gate_m, b.initial_gate_m);
+  EXPECT_EQ(a.normal_voxel_m, b.normal_voxel_m);
   EXPECT_EQ(a.deskew, b.deskew);
+  EXPECT_EQ(a.recovery.enabled, b.recovery.enabled);
+  EXPECT_EQ(a.recovery.poor_fit_ratio, b.recovery.poor_fit_ratio);
+  EXPECT_EQ(a.recovery.good_fit_ratio, b.recovery.good_fit_ratio);
+  EXPECT_EQ(a.recovery.global, b.recovery.global);
   EXPECT_EQ(a.image_columns, b.image_columns);
   EXPECT_EQ(a.keyframe_distance_m, b.keyframe_distance_m);
   EXPECT_NEAR(a.keyframe_angle_rad, b.keyframe_angle_rad, 1e-4);
@@ -60,17 +65,23 @@ TEST(FrontendConfig, ShippedFileStatesTheDefaults) {
 }
 
 TEST(FrontendConfig, ValuesAreRead) {
-  const std::string path = write_yaml("crop:\n  max_range_m: 60\nkeyframe:\n  angle_deg: 30\nimu:\n  use: false\n");
+  const std::string path = write_yaml(
+      "crop:\n  max_range_m: 60\nkeyframe:\n  angle_deg: 30\nimu:\n  use: false\n"
+      "recovery:\n  enabled: false\n  poor_fit_ratio: 0.6\n  global: false\n");
   const FrontendNodeOptions o = load_frontend_options(path);
   std::filesystem::remove(path);
   EXPECT_EQ(o.core.max_range_m, 60);
   EXPECT_NEAR(o.core.keyframe_angle_rad, 30 * M_PI / 180, 1e-12);
   EXPECT_FALSE(o.use_imu);
+  EXPECT_FALSE(o.core.recovery.enabled);
+  EXPECT_EQ(o.core.recovery.poor_fit_ratio, 0.6);
+  EXPECT_FALSE(o.core.recovery.global);
 }
 
 TEST(FrontendConfig, BadValuesAndUnknownKeysAreNamed) {
   const std::string path = write_yaml(
-      "crop:\n  max_range_m: -5\nregistration:\n  voxel: 1\nimu:\n  T_lidar_imu:\n    orientation: [0, 0, 0, 2]\n");
+      "crop:\n  max_range_m: -5\nregistration:\n  voxel: 1\nimu:\n  T_lidar_imu:\n    orientation: [0, 0, 0, 2]\n"
+      "recovery:\n  good_fit_ratio: 1.5\n");
   try {
     load_frontend_options(path);
     ADD_FAILURE() << "no error";
@@ -79,6 +90,7 @@ TEST(FrontendConfig, BadValuesAndUnknownKeysAreNamed) {
     EXPECT_NE(what.find("crop.max_range_m"), std::string::npos) << what;
     EXPECT_NE(what.find("registration.voxel"), std::string::npos) << what;
     EXPECT_NE(what.find("unit quaternion"), std::string::npos) << what;
+    EXPECT_NE(what.find("recovery.good_fit_ratio"), std::string::npos) << what;
   }
   std::filesystem::remove(path);
 }

@@ -38,6 +38,19 @@ RegistrationOutput register_to_map(const std::vector<Eigen::Vector3d>& points_se
                                    const std::vector<Eigen::Vector3d>& normals_sensor, const VoxelMap& map,
                                    const Eigen::Isometry3d& guess, const RegistrationParams& params);
 
+// How well a registered sweep fits the map, for telling a registration that found the sweep's place
+// from one that settled in a wrong minimum: of the points with a normal, those whose nearest map
+// point lies within max_distance_m and whose distance to the plane through it (the point's own
+// normal) is below inlier_m.
+struct FitQuality {
+  int points = 0;              // points with a normal
+  int inliers = 0;
+  double inlier_fraction = 0;  // inliers / points
+  double inlier_rms = 0;       // plane distance of the inliers [m]
+};
+FitQuality evaluate_fit(const std::vector<Eigen::Vector3d>& points_sensor, const std::vector<Eigen::Vector3d>& normals_sensor,
+                        const VoxelMap& map, const Eigen::Isometry3d& T_map_sensor, double max_distance_m, double inlier_m);
+
 // Normals of a sweep on its range image: `ring` per point (0 = lowest beam), azimuth from x, y.
 // Each normal is the cross product of the neighbours along the ring and across the rings; points
 // whose neighbours are missing, too far or not coplanar get a zero normal.

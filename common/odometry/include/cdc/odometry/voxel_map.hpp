@@ -1,24 +1,21 @@
 // A local map for scan-to-map registration (in the spirit of KISS-ICP): a hash of voxels, each
 // holding at most `max_points` map points, so the map's memory is bounded by the volume around
 // the robot; voxels farther than max_range_m from the robot are dropped as it moves. Nearest
-// neighbours are searched in a query's voxel and its 26 neighbours.
+// neighbours are searched in a query's voxel and its 26 neighbours. The voxels live in one flat
+// hash index (voxel_index.hpp) and their points in one array, max_points per voxel: a lookup is a
+// probe or two in contiguous memory, not a bucket chain and a vector per voxel.
 #pragma once
+
+#include "cdc/odometry/voxel_index.hpp"
 
 #include <Eigen/Core>
 
 #include <cstddef>
 #include <cstdint>
 #include <limits>
-#include <unordered_map>
 #include <vector>
 
 namespace cdc::odometry {
-
-// The spatial hash of an integer voxel coordinate (Teschner et al.), shared by the map and the filter.
-inline size_t voxel_hash(int32_t x, int32_t y, int32_t z) noexcept {
-  return (static_cast<size_t>(static_cast<uint32_t>(x)) * 73856093u) ^ (static_cast<size_t>(static_cast<uint32_t>(y)) * 19349663u) ^
-         (static_cast<size_t>(static_cast<uint32_t>(z)) * 83492791u);
-}
 
 struct VoxelMapParams {
   double voxel_m = 1.0;
@@ -28,7 +25,7 @@ struct VoxelMapParams {
 
 class VoxelMap {
  public:
-  explicit VoxelMap(const VoxelMapParams& params = {}) : p_(params) {}
+  explicit VoxelMap(const VoxelMapParams& params = {});
 
   void add(const std::vector<Eigen::Vector3d>& world_points);
   void remove_far(const Eigen::Vector3d& robot_position);
@@ -38,23 +35,24 @@ class VoxelMap {
   bool nearest(const Eigen::Vector3d& q, Eigen::Vector3d& out, double& distance2,
                double max_distance2 = std::numeric_limits<double>::infinity()) const;
 
-  size_t voxels() const noexcept { return voxels_.size(); }
+  size_t voxels() const noexcept { return index_.size(); }
   size_t points() const noexcept;
-  bool empty() const noexcept { return voxels_.empty(); }
+  bool empty() const noexcept { return index_.size() == 0; }
   const VoxelMapParams& params() const noexcept { return p_; }
 
  private:
-  struct Key {
-    int32_t x, y, z;
-    bool operator==(const Key& o) const noexcept { return x == o.x && y == o.y && z == o.z; }
-  };
-  struct KeyHash {
-    size_t operator()(const Key& k) const noexcept { return voxel_hash(k.x, k.y, k.z); }
-  };
-  Key key_of(const Eigen::Vector3d& p) const;
+  using Key = Eigen::Vector3i;
+  Key key_of(const Eigen::Vector3d& p) const { return voxel_coordinates(p, p_.voxel_m); }
+  // Rebuilds the index from the live slots (after remove_far freed some).
+  void reindex();
 
   VoxelMapParams p_;
-  std::unordered_map<Key, std::vector<Eigen::Vector3d>, KeyHash> voxels_;
+  size_t cap_ = 0;                       // max_points, as a size
+  VoxelIndex index_;                     // voxel -> slot
+  std::vector<Key> keys_;                // per slot: its voxel
+  std::vector<uint32_t> counts_;         // per slot: points held (0: a free slot)
+  std::vector<Eigen::Vector3d> points_;  // per slot: cap_ points, the first counts_[slot] of them held
+  std::vector<uint32_t> free_;           // slots freed by remove_far, reused by add
 };
 
 // Keeps the first point that falls into each voxel (order-preserving, no averaging).

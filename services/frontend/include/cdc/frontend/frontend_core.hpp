@@ -3,16 +3,19 @@
 // published trajectory never jumps.
 //
 // Per sweep: deskew (the bias-corrected IMU's rotation over the sweep when IMU samples are given,
-// otherwise a constant-velocity model), range crop and voxel downsampling; scan-to-map registration
-// against a voxel map that slides with the robot (common/odometry), started from the prediction of
-// the sliding-window IMU estimator (imu_window.hpp: preintegration, biases, velocity; Ceres) or, until
-// it runs, from constant velocity, with a correspondence gate that adapts to the prediction error;
-// the pose levelled with the window's gravity (level_with_gravity); keyframes by travelled distance
-// and rotation.
+// otherwise a constant-velocity model; a sweep whose points carry no times is taken as it is), range
+// crop and voxel downsampling; scan-to-map registration against a voxel map that slides with the
+// robot (common/odometry), started from the prediction of the sliding-window IMU estimator
+// (imu_window.hpp: preintegration, biases, velocity; Ceres) or, until it runs, from constant
+// velocity, with a correspondence gate that adapts to the prediction error; a registration that
+// fails, slides or fits the map poorly recovered from other guesses (RecoveryParams); the pose
+// levelled with the window's gravity (level_with_gravity); keyframes by travelled distance and
+// rotation.
 #pragma once
 
 #include "cdc/frontend/imu_window.hpp"
 #include "cdc/geometry/fusion.hpp"
+#include "cdc/odometry/global_registration.hpp"
 #include "cdc/odometry/imu_preintegration.hpp"
 #include "cdc/odometry/registration.hpp"
 #include "cdc/odometry/voxel_map.hpp"
@@ -29,16 +32,50 @@ namespace cdc::frontend {
 
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 
+// Recovery of a registration that the prediction led astray (LiDAR-only at a low rate, hand-held or
+// legged: a sharp turn leaves the prediction beyond the correspondence gate's reach, and the
+// registration settles in a wrong minimum or slides; a start after standing still, with the gate
+// shrunk to its minimum, does the same). A registration is poor when it failed, slid further than
+// max_gate_m / max_jump_rad from the prediction, or fits the map clearly worse than the sweeps
+// before it: its fit (the fraction of its points whose nearest map point lies within
+// fit_distance_m and whose plane distance is below fit_inlier_m) under poor_fit_ratio times the
+// median of the last fit_history sweeps' fits. A poor registration is tried again, coarse to fine
+// (gates_m, then the adaptive gate), from the prediction, from the last pose (no motion) and, if
+// neither fits as well as the recent sweeps (good_fit_ratio of their median), from a global
+// registration of the sweep onto the previous one (features, no guess). The best fit is taken if it
+// beats the registration from the prediction by min_gain and lies within max_gate_m / max_jump_rad
+// of the guess it started from. The test is relative to the run's own fits, not a threshold for one
+// sensor or scene; on the simulated drives (10 Hz, with or without IMU) it rarely fires.
+struct RecoveryParams {
+  bool enabled = true;
+  double fit_distance_m = 1.0, fit_inlier_m = 0.1;
+  double poor_fit_ratio = 0.75;
+  size_t fit_history = 20;
+  size_t min_history = 5;  // fewer fits than this: only failures and slides are poor
+  std::vector<double> gates_m = {2.0, 1.0, 0.5};
+  double min_gain = 0.05;  // a candidate replaces a plausible registration only if it fits this much better
+  double good_fit_ratio = 0.9;  // a candidate fitting this fraction of the recent median ends the search
+  // Also from a global registration (FPFH features, RANSAC) of the sweep onto the previous one.
+  bool global = true;
+  odometry::GlobalRegistrationParams global_params;
+};
+
 struct FrontendParams {
   double min_range_m = 1.5, max_range_m = 100.0;  // crop
   double voxel_m = 1.0;                           // downsampling of the points registered
   double map_voxel_m = 0.5;                       // downsampling of the points added to the map
+  // Sweeps without rings (saved .bin files): reduced to one point per voxel of this size first [m],
+  // for their normals (k nearest neighbours) and everything after (0: not reduced).
+  double normal_voxel_m = 0.2;
   odometry::VoxelMapParams map;
   odometry::RegistrationParams registration;
   double initial_gate_m = 2.0;                    // correspondence gate until the motion model has history
   double min_gate_m = 0.3, max_gate_m = 2.0;
-  double max_jump_rad = 0.35;                      // a registration this far (or max_gate_m) from the prediction is rejected
+  double max_jump_rad = 0.35;                     // a registration this far (or max_gate_m) from its start is rejected
   double kernel_divisor = 9.0;                    // Geman-McClure scale = gate / this (KISS-ICP: 9)
+  // Deskewing needs per-point times: a sweep whose points all carry time_offset 0 (a sensor without
+  // them, motion-compensated or saved sweeps) is taken as it is whatever this says, and its first
+  // keyframe goes out at once.
   bool deskew = true;
   bool redeskew = true;                           // deskew again with the registered motion, and refine
   int image_columns = 1800;                       // range-image width for normals (0.2 deg)
@@ -85,12 +122,13 @@ struct FrontendParams {
   ImuWindowParams window;
   // An IMU prediction this far from the constant-velocity one is not used (a window gone wrong).
   double max_imu_prediction_gap_m = 1.0, max_imu_prediction_gap_rad = 0.2;
+  RecoveryParams recovery;
 };
 
 struct ScanPoint {
   Eigen::Vector3f p;
-  float time_offset = 0;  // [s] since the sweep stamp
-  uint16_t ring = 0;      // beam index, 0 = lowest (for normals on the range image)
+  float time_offset = 0;  // [s] since the sweep stamp; 0 for every point: the sweep has no per-point times
+  uint16_t ring = 0;      // beam index, 0 = lowest (normals on the range image); 0 for every point: no rings
 };
 
 struct ImuIn {
@@ -131,16 +169,21 @@ struct ScanOut {
   Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();     // sensor frame [rad/s]
   std::optional<KeyframeOut> keyframe;
   odometry::RegistrationOutput registration;
+  odometry::FitQuality fit;                                       // of the registration taken (recovery.fit_*)
+  bool recovered = false;                                         // the registration taken came from recovery
   double fusion_lambda = 1.0;                                     // eq. 12 for this scan (1: no limit)
   size_t points_used = 0;
 };
 
 struct FrontendStats {
   uint64_t scans = 0, keyframes = 0, registration_failures = 0, corrections = 0, corrections_levelled = 0, imu_samples = 0;
-  uint64_t registration_rejected = 0;  // converged too far from the prediction (counted in failures too)
+  uint64_t registration_rejected = 0;  // converged too far from where it started (counted in failures too)
   uint64_t imu_predictions = 0;        // sweeps predicted by the IMU window
   uint64_t imu_predictions_rejected = 0;  // ... whose prediction was implausible (constant velocity used)
   uint64_t imu_window_restarts = 0;    // IMU gaps and implausible window solutions
+  uint64_t recovery_attempts = 0;      // sweeps whose fit was poor: registration retried from other guesses
+  uint64_t recoveries = 0;             // ... and a retry fitted clearly better
+  uint64_t recoveries_global = 0;      // ... the one taken started from the global registration
   double level_deg = 0, max_level_deg = 0;  // levelling rotation now and its largest [deg]
 };
 
@@ -173,13 +216,53 @@ class FrontendCore {
   // A keyframe's cloud: a deskewed sweep, voxel-filtered to keyframe_voxel_m.
   std::vector<Eigen::Vector3f> keyframe_cloud(const std::vector<Eigen::Vector3d>& deskewed) const;
   std::vector<Eigen::Vector3d> prepare(int64_t stamp_ns, const std::vector<ScanPoint>& points, const Eigen::Isometry3d& sweep_motion,
-                                       const ImuStart* start, std::vector<uint16_t>& rings);
+                                       const ImuStart* start, std::vector<uint16_t>& rings) const;
   std::optional<Eigen::Matrix3d> imu_rotation(int64_t from_ns, int64_t to_ns) const;
   // The IMU's increments over [from, to] at the given biases; none where the samples do not cover.
   std::unique_ptr<odometry::ImuPreintegration> preintegrate(int64_t from_ns, int64_t to_ns, const Eigen::Vector3d& bg,
                                                             const Eigen::Vector3d& ba) const;
   void update_window(int64_t stamp_ns, const Eigen::Isometry3d& T, const odometry::RegistrationOutput& reg,
                      std::unique_ptr<odometry::ImuPreintegration> pre);
+  // A sweep as it arrived.
+  struct SweepIn {
+    int64_t stamp_ns = 0;
+    const std::vector<ScanPoint>* points = nullptr;
+    float t_max = 0;   // latest point time [s]; 0: the sweep has no per-point times
+    double dt = 0.1;   // since the previous sweep [s]
+  };
+  // A sweep made ready for registration: deskewed and cropped (sensor frame), and the points
+  // registered (one per voxel_m voxel) with their normals.
+  struct Sweep {
+    std::vector<Eigen::Vector3d> cloud, points, normals;
+  };
+  // A registration of the sweep, how well it fits the map and the guess it started from.
+  struct Candidate {
+    odometry::RegistrationOutput reg;
+    odometry::FitQuality fit;
+    Eigen::Isometry3d start = Eigen::Isometry3d::Identity();
+  };
+  // The motion since the previous sweep: the IMU window's, else constant velocity (with the IMU's
+  // rotation where it covers). Sets `pre` (the IMU since the previous sweep) and `imu_start` (the
+  // IMU's state at the sweep's start, for imu_deskew).
+  Eigen::Isometry3d predict(int64_t stamp_ns, double dt, std::unique_ptr<odometry::ImuPreintegration>& pre,
+                            std::optional<ImuStart>& imu_start);
+  // The motion over a sweep's span t_max from the motion D over dt (constant velocity).
+  static Eigen::Isometry3d motion_over(const Eigen::Isometry3d& D, float t_max, double dt);
+  Sweep select(int64_t stamp_ns, const std::vector<ScanPoint>& points, const Eigen::Isometry3d& motion, const ImuStart* start) const;
+  // The registration's gate and kernel, adapted to the prediction's recent errors (KISS-ICP).
+  odometry::RegistrationParams adaptive_params() const;
+  // Scan-to-map registration from `guess`, refined, recovered if poor, checked; the pose taken (the
+  // guess when it fails). `sweep` may be deskewed again.
+  Eigen::Isometry3d register_sweep(const SweepIn& in, const Eigen::Isometry3d& guess, bool imu_deskewed, Sweep& sweep, ScanOut& out);
+  odometry::FitQuality fit_of(const Sweep& sweep, const odometry::RegistrationOutput& reg) const;
+  // The median fit of the recent registrations; 0 while there are fewer than recovery.min_history.
+  double recent_fit() const;
+  // Whether a registration from `guess` needs recovery (RecoveryParams).
+  bool poor_registration(const Eigen::Isometry3d& guess, const Candidate& c) const;
+  // Registers again from other guesses (RecoveryParams); replaces `c` (and `sweep`, deskewed again
+  // when `redeskew`) with a plausible registration that fits clearly better, if one is found.
+  bool recover(const SweepIn& in, const Eigen::Isometry3d& guess, const odometry::RegistrationParams& rp, bool redeskew, Sweep& sweep,
+               Candidate& c);
   // The registered pose T (map frame) in the published odometry frame (levelled with gravity).
   Eigen::Isometry3d level(const Eigen::Isometry3d& T);
 
@@ -200,6 +283,11 @@ class FrontendCore {
   Eigen::Isometry3d delta_ = Eigen::Isometry3d::Identity();  // last inter-scan motion
   double dt_last_ = 0.1;
   std::deque<double> model_errors_;
+  std::deque<double> recent_fits_;  // fit (inlier fraction) of the last accepted registrations
+  // Global registration in recovery: the previous sweep (sensor frame, as registered) and its
+  // features once made; the sweep being processed and its features, if recovery made them.
+  std::vector<Eigen::Vector3d> prev_cloud_;
+  std::optional<odometry::FeatureCloud> prev_features_, current_features_;
   std::vector<ScanPoint> first_points_;  // kept until the second sweep tells their motion
   int64_t first_stamp_ = 0;
   // The first keyframe (the first sweep's), held back until the second sweep tells the first one's
