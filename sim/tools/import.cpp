@@ -247,7 +247,7 @@ Recording bag_recording(const fs::path& bag_path, const BagImportOptions& o, con
   auto scratch = std::make_shared<ScratchDir>(scratch_dir);
   r.scratch = scratch;
   r.T_lidar_imu = o.T_lidar_imu;
-  std::map<std::string, size_t> reasons;
+  std::map<std::string, size_t> reasons, first_seen;  // why messages were skipped: how often, first message index
   size_t extracted = 0;
   bool any_time = false, any_without_time = false;
   const auto store = [&](int64_t stamp_ns, io::Sweep& s) {
@@ -335,7 +335,7 @@ Recording bag_recording(const fs::path& bag_path, const BagImportOptions& o, con
       }
     } catch (const io::FormatError& e) {
       ++r.skipped;
-      ++reasons[std::string(e.what())];
+      if (reasons[e.what()]++ == 0) first_seen[e.what()] = index;
     }
   }
   if (assembler) {
@@ -345,7 +345,12 @@ Recording bag_recording(const fs::path& bag_path, const BagImportOptions& o, con
                       " out-of-order packets skipped");
     r.skipped += st.truncated + st.malformed + st.out_of_order;
   }
-  for (const auto& [why, n] : reasons) r.notes.push_back("skipped " + std::to_string(n) + " x: " + why);
+  for (const auto& [why, n] : reasons) {
+    const auto first = first_seen.find(why);
+    r.notes.push_back("skipped " + std::to_string(n) + " x" +
+                      (first != first_seen.end() ? " (first: message " + std::to_string(first->second) + " of " + name + ")" : std::string()) +
+                      ": " + why);
+  }
   if (r.stamps_ns.empty()) throw io::FormatError(name + ": no sweep could be read from " + lidar);
   if (any_time && any_without_time) {
     throw io::FormatError(name + ": some sweeps of " + lidar + " carry per-point times and others do not");

@@ -3,9 +3,10 @@
 ROS 1 through python3-rosbag (genpy serialises the messages), ROS 2 db3 and MCAP from the format
 specifications (common/io/test/make_ros2_fixtures.py). Used by sim_import_test's round trip.
 
-usage: dataset_to_bag.py DATASET OUT --format ros1|db3|mcap [--robot K]
+usage: dataset_to_bag.py DATASET OUT --format ros1|db3|mcap [--robot K] [--bad-cloud K]
 Every sweep becomes a sensor_msgs/PointCloud2 on /points (x y z intensity float32, ring uint16, time
 float32 [s] after the header stamp = the sweep's time); every IMU sample a sensor_msgs/Imu on /imu.
+--bad-cloud K (ros1) gives sweep K a field layout that does not fit its point_step.
 """
 
 import argparse
@@ -59,7 +60,7 @@ def split(ns):
     return ns // 1_000_000_000, ns % 1_000_000_000
 
 
-def write_ros1(out, sweeps, imu):
+def write_ros1(out, sweeps, imu, bad_cloud=-1):
     import genpy
     import rosbag
     import make_ros1_fixtures as r1
@@ -71,6 +72,8 @@ def write_ros1(out, sweeps, imu):
             m.header.frame_id = "lidar"
             m.height, m.width = 1, n
             m.fields = [r1.PointField(name=f, offset=o, datatype=d, count=1) for f, o, d in FIELDS]
+            if len(msgs) == bad_cloud:
+                m.fields[-1].offset = POINT_STEP  # "time" starts where the point ends
             m.is_bigendian = False
             m.point_step, m.row_step = POINT_STEP, POINT_STEP * n
             m.data = data
@@ -146,13 +149,14 @@ def main():
     ap.add_argument("out")
     ap.add_argument("--format", choices=["ros1", "db3", "mcap"], required=True)
     ap.add_argument("--robot", type=int, default=0)
+    ap.add_argument("--bad-cloud", type=int, default=-1)
     a = ap.parse_args()
     rd = os.path.join(a.dataset, "robot_%d" % a.robot)
     times = read_times(os.path.join(rd, "times.txt"))
     sweeps = [(t,) + read_sweep(rd, k) for k, t in enumerate(times)]
     imu = read_imu(rd)
     if a.format == "ros1":
-        write_ros1(a.out, sweeps, imu)
+        write_ros1(a.out, sweeps, imu, a.bad_cloud)
     elif a.format == "db3":
         write_db3(a.out, ros2_messages(sweeps, imu))
     else:

@@ -55,10 +55,10 @@ class ImportBag : public ::testing::Test {
   void TearDown() override { fs::remove_all(root_); }
 
   // Runs the independent writer; the path of the bag it wrote.
-  fs::path write_bag(const std::string& format) {
+  fs::path write_bag(const std::string& format, const std::string& extra = "") {
     const fs::path out = root_ / (format == "db3" ? "bag_db3" : "bag." + format);
     const std::string cmd = std::string(CDC_PYTHON3) + " " + CDC_DATASET_TO_BAG + " " + (root_ / "source").string() + " " +
-                            out.string() + " --format " + format;
+                            out.string() + " --format " + format + extra;
     const int rc = std::system(cmd.c_str());
     EXPECT_TRUE(WIFEXITED(rc) && WEXITSTATUS(rc) == 0) << cmd;
     return out;
@@ -118,6 +118,28 @@ TEST_F(ImportBag, ATruncatedBagIsRefusedNamingTheFileAndNothingIsWritten) {
   }
   EXPECT_FALSE(fs::exists(root_ / "out.extract"));
   EXPECT_FALSE(fs::exists(root_ / "out"));
+}
+
+TEST_F(ImportBag, ACloudWithAWrongFieldLayoutIsSkippedCountedAndNamed) {
+  const fs::path bag = write_bag("ros1", " --bad-cloud 2");
+  ImportOptions o;
+  o.out = root_ / "imported";
+  ImportSummary sum;
+  {
+    const Recording rec = bag_recording(bag, {}, root_ / "imported.extract");
+    sum = write_import(rec, o);
+  }
+  EXPECT_EQ(sum.skipped, 1u);
+  EXPECT_EQ(sum.info.scans, 3u);
+  bool named = false;
+  for (const std::string& n : sum.notes) named = named || (n.find("skipped 1 x") != std::string::npos && n.find("time") != std::string::npos);
+  EXPECT_TRUE(named) << "no note names the skipped cloud's bad field";
+  // The sweeps that did decode are the source's sweeps 0, 1 and 3.
+  const std::vector<int64_t> ta = geometry::read_times((root_ / "source" / "robot_0" / "times.txt").string());
+  const std::vector<int64_t> tb = geometry::read_times((o.out / "robot_0" / "times.txt").string());
+  ASSERT_EQ(tb.size(), 3u);
+  EXPECT_EQ(tb[2] - tb[1], ta[3] - ta[1]);
+  EXPECT_EQ(bytes_of(o.out / "robot_0" / "velodyne" / "000002.bin"), bytes_of(root_ / "source" / "robot_0" / "velodyne" / "000003.bin"));
 }
 
 TEST_F(ImportBag, ATopicOfAnotherTypeIsRefusedByName) {
