@@ -232,8 +232,7 @@ Recording bag_recording(const fs::path& bag_path, const BagImportOptions& o, con
   const std::unique_ptr<io::BagReader> bag = io::open_bag(bag_path);
   const std::string name = bag_path.string();
   const std::vector<io::BagTopic> topics = bag->topics();
-  const std::string kCloud = "sensor_msgs/msg/PointCloud2", kScan = "velodyne_msgs/msg/VelodyneScan",
-                    kImu = "sensor_msgs/msg/Imu";
+  const std::string kCloud(io::kPointCloud2Type), kScan(io::kVelodyneScanType), kImu(io::kImuType);
   const std::string lidar = pick_topic(topics, o.lidar_topic, {kCloud, kScan}, "LiDAR (PointCloud2 or VelodyneScan)", name);
   if (lidar.empty()) throw io::FormatError(name + ": no PointCloud2 or VelodyneScan topic");
   const std::string imu = o.imu_topic == "none" ? std::string() : pick_topic(topics, o.imu_topic, {kImu}, "Imu", name);
@@ -287,11 +286,7 @@ Recording bag_recording(const fs::path& bag_path, const BagImportOptions& o, con
     } else {
       throw std::invalid_argument(name + ": VelodyneScan packets need the sensor's --calibration or its --model");
     }
-    io::VelodyneSweepOptions so;
-    so.scan_phase_deg = o.velodyne_scan_phase_deg;
-    so.emit_incomplete = false;
-    so.emit_first = false;  // the first sweep starts wherever the recording starts
-    assembler.emplace(calib, d, so);
+    assembler.emplace(calib, d, io::VelodyneSweepOptions::whole_turns(o.velodyne_scan_phase_deg));
   }
   const auto drain = [&] {
     while (assembler && assembler->has_sweep()) {

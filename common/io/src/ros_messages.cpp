@@ -20,10 +20,6 @@
 namespace cdc::io {
 namespace {
 
-constexpr std::string_view kPointCloud2Type = "sensor_msgs/msg/PointCloud2";
-constexpr std::string_view kImuType = "sensor_msgs/msg/Imu";
-constexpr std::string_view kVelodyneScanType = "velodyne_msgs/msg/VelodyneScan";
-constexpr size_t kVelodynePacketBytes = 1206;
 constexpr size_t kCdrHeaderBytes = 4;
 
 template <size_t N>

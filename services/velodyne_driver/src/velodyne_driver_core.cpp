@@ -30,14 +30,11 @@ io::VelodyneDecoderOptions decoder_options(const VelodyneDriverConfig& c) {
   return d;
 }
 
-// The settings of `cdc-import bag`: neither the first (partial) sweep nor an incomplete one is emitted.
+// Whole turns only, as `cdc-import bag` cuts them.
 io::VelodyneSweepOptions sweep_options(const VelodyneDriverConfig& c) {
   if (c.max_gap.count() <= 0) throw std::invalid_argument("Velodyne driver: max_gap must be positive");
-  io::VelodyneSweepOptions s;
-  s.scan_phase_deg = c.scan_phase_deg;
+  io::VelodyneSweepOptions s = io::VelodyneSweepOptions::whole_turns(c.scan_phase_deg);
   s.max_gap_ns = c.max_gap.count();
-  s.emit_incomplete = false;
-  s.emit_first = false;
   return s;
 }
 

@@ -10,11 +10,19 @@
 #include <Eigen/Geometry>
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace cdc::io {
+
+// The message types decoded here, in the ROS 2 spelling that BagMessage::type uses.
+inline constexpr std::string_view kPointCloud2Type = "sensor_msgs/msg/PointCloud2";
+inline constexpr std::string_view kImuType = "sensor_msgs/msg/Imu";
+inline constexpr std::string_view kVelodyneScanType = "velodyne_msgs/msg/VelodyneScan";
+inline constexpr size_t kVelodynePacketBytes = 1206;  // the data field of a VelodynePacket
 
 struct RosHeader {
   int64_t stamp_ns = 0;
@@ -52,7 +60,7 @@ struct ImuMsg {
 
 struct VelodynePacketMsg {
   int64_t stamp_ns = 0;
-  std::array<uint8_t, 1206> data{};
+  std::array<uint8_t, kVelodynePacketBytes> data{};
 };
 
 struct VelodyneScanMsg {

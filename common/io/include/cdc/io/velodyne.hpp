@@ -200,6 +200,17 @@ struct VelodyneSweepOptions {
   bool emit_incomplete = true;      // also emit sweeps ended by a gap / flush (marked complete = false)
   bool emit_first = true;           // emit the first sweep of the stream and the first after a silence
                                     // (> max_gap_ns), which start wherever the packets start
+
+  // Whole turns only: neither a first sweep (of the stream or after a silence) nor one cut short. The
+  // importer (cdc-import bag) and the driver (cdc-velodyne) both cut so, and make the same sweeps of the
+  // same packets.
+  static VelodyneSweepOptions whole_turns(double scan_phase_deg) {
+    VelodyneSweepOptions o;
+    o.scan_phase_deg = scan_phase_deg;
+    o.emit_incomplete = false;
+    o.emit_first = false;
+    return o;
+  }
 };
 
 // Assembles sweeps from packets fed in arrival order. A sweep ends with the packet in which the
