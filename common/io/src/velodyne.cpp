@@ -5,9 +5,11 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -153,6 +155,61 @@ int bank_of(VelodyneModel model, uint16_t block_id) {
   }
 }
 
+// What a return is among the returns of its firing; nullopt for the second copy of a repeated return.
+std::optional<VelodyneReturnType> return_type(std::span<const uint8_t> packet, VelodyneReturnMode mode, std::size_t b,
+                                              std::size_t ch) {
+  if (mode != VelodyneReturnMode::kDual) {
+    return mode == VelodyneReturnMode::kLast ? VelodyneReturnType::kLast : VelodyneReturnType::kStrongest;
+  }
+  const std::size_t at = b * kBlockSize + 4 + 3 * ch;
+  const std::size_t other_at = (b % 2 == 0 ? b + 1 : b - 1) * kBlockSize + 4 + 3 * ch;
+  const uint16_t raw = read_u16(packet, at), other = read_u16(packet, other_at);
+  const uint8_t raw_intensity = packet[at + 2], other_intensity = packet[other_at + 2];
+  if (other == raw || other == 0) {
+    if (other == raw && b % 2 == 1) return std::nullopt;  // the sensor repeated the return: keep one point
+    return VelodyneReturnType::kDualOnly;
+  }
+  const bool first = raw < other;
+  // Equal intensity: the second block of the pair carries the strongest return.
+  const bool strongest = raw_intensity != other_intensity ? raw_intensity > other_intensity : b % 2 == 1;
+  if (first) return strongest ? VelodyneReturnType::kDualFirstStrongest : VelodyneReturnType::kDualFirstWeak;
+  return strongest ? VelodyneReturnType::kDualLastStrongest : VelodyneReturnType::kDualLastWeak;
+}
+
+struct SensorXyz {
+  double x = 0, y = 0, z = 0;  // the sensor's own frame: x right, y forward, z up
+};
+
+// A return at `distance` along the laser's line at the azimuth (ca, sa) and elevation (cv, sv), with the
+// per-laser origin offsets, then the two-point distance correction of the HDL-64E, which interpolates
+// the correction on |x| and |y|.
+SensorXyz sensor_xyz(const VelodyneLaserCalibration& l, double distance, double ca, double sa, double cv, double sv) {
+  const double vo = l.vert_offset_correction, ho = l.horiz_offset_correction;
+  double dx = 0, dy = 0;
+  if (l.two_pt_correction) {
+    const double xy0 = distance * cv - vo * sv;
+    const double xx = std::abs(xy0 * sa - ho * ca), yy = std::abs(xy0 * ca + ho * sa);
+    dx = (l.dist_correction - l.dist_correction_x) * (xx - 2.4) / (25.04 - 2.4) + l.dist_correction_x - l.dist_correction;
+    dy = (l.dist_correction - l.dist_correction_y) * (yy - 1.93) / (25.04 - 1.93) + l.dist_correction_y - l.dist_correction;
+  }
+  SensorXyz s;
+  s.x = ((distance + dx) * cv - vo * sv) * sa - ho * ca;
+  s.y = ((distance + dy) * cv - vo * sv) * ca + ho * sa;
+  s.z = (distance + dy) * sv + vo * cv;
+  return s;
+}
+
+// The intensity with the calibration's focal model (HDL-64E), clamped to its limits.
+double corrected_intensity(const VelodyneLaserCalibration& l, uint16_t raw, uint8_t raw_intensity) {
+  double intensity = raw_intensity;
+  if (l.focal_slope != 0.0) {
+    const double focal = 1.0 - l.focal_distance / 13100.0;
+    const double near = 1.0 - static_cast<double>(raw) / 65535.0;
+    intensity += l.focal_slope * std::abs(256.0 * focal * focal - 256.0 * near * near);
+  }
+  return std::clamp(intensity, l.min_intensity, l.max_intensity);
+}
+
 std::string upper_alnum(std::string_view s) {
   std::string out;
   for (const char ch : s) {
@@ -169,6 +226,53 @@ void assign_rings(VelodyneCalibration& c) {
   });
   for (std::size_t r = 0; r < order.size(); ++r) c.lasers[order[r]].ring = static_cast<int>(r);
 }
+
+// Reads the entries of a calibration file; every error names the file and the entry.
+struct CalibrationFile {
+  std::string file;
+
+  // The number at `key`; `fallback` when the key is absent, an error when it is absent and required.
+  double number(const YAML::Node& node, const char* key, const std::string& where,
+                std::optional<double> fallback = std::nullopt) const {
+    const YAML::Node v = node[key];
+    if (!v) {
+      if (!fallback) throw FormatError(file + ": " + where + ": missing key '" + key + "'");
+      return *fallback;
+    }
+    try {
+      return v.as<double>();
+    } catch (const YAML::Exception&) {
+      throw FormatError(file + ": " + where + ": '" + key + "' is not a number");
+    }
+  }
+
+  // One entry of `lasers` (all but its laser_id).
+  VelodyneLaserCalibration laser(const YAML::Node& e, const std::string& where) const {
+    VelodyneLaserCalibration l;
+    l.rot_correction = number(e, "rot_correction", where);
+    l.vert_correction = number(e, "vert_correction", where);
+    l.dist_correction = number(e, "dist_correction", where);
+    l.dist_correction_x = number(e, "dist_correction_x", where, 0.0);
+    l.dist_correction_y = number(e, "dist_correction_y", where, 0.0);
+    if (const YAML::Node t = e["two_pt_correction_available"]) {
+      try {
+        l.two_pt_correction = t.as<bool>();
+      } catch (const YAML::Exception&) {
+        throw FormatError(file + ": " + where + ": 'two_pt_correction_available' is not a boolean");
+      }
+    }
+    l.vert_offset_correction = number(e, "vert_offset_correction", where, 0.0);
+    l.horiz_offset_correction = number(e, "horiz_offset_correction", where, 0.0);
+    l.focal_distance = number(e, "focal_distance", where, 0.0);
+    l.focal_slope = number(e, "focal_slope", where, 0.0);
+    l.min_intensity = std::floor(number(e, "min_intensity", where, 0.0));
+    l.max_intensity = std::floor(number(e, "max_intensity", where, 255.0));
+    if (std::abs(l.vert_correction) > std::numbers::pi / 2 || std::abs(l.rot_correction) > std::numbers::pi) {
+      throw FormatError(file + ": " + where + ": vert_correction / rot_correction out of range (radians expected)");
+    }
+    return l;
+  }
+};
 
 }  // namespace
 
@@ -241,27 +345,15 @@ VelodyneCalibration read_velodyne_calibration(const std::filesystem::path& path,
     throw FormatError(file + ": not a readable YAML file: " + e.what());
   }
   if (!root.IsMap()) throw FormatError(file + ": expected a map with num_lasers and lasers");
-  auto number = [&](const YAML::Node& node, const char* key, const std::string& where, bool required,
-                    double fallback) -> double {
-    const YAML::Node v = node[key];
-    if (!v) {
-      if (required) throw FormatError(file + ": " + where + ": missing key '" + key + "'");
-      return fallback;
-    }
-    try {
-      return v.as<double>();
-    } catch (const YAML::Exception&) {
-      throw FormatError(file + ": " + where + ": '" + key + "' is not a number");
-    }
-  };
+  const CalibrationFile f{file};
   VelodyneCalibration c;
   c.source = file;
-  const double num = number(root, "num_lasers", "top level", true, 0);
+  const double num = f.number(root, "num_lasers", "top level");
   if (num < 1 || num > 128 || num != std::floor(num)) {
     throw FormatError(file + ": num_lasers must be a whole number in 1..128, not " + std::to_string(num));
   }
   const auto n = static_cast<std::size_t>(num);
-  c.distance_resolution = number(root, "distance_resolution", "top level", false, 0.0);
+  c.distance_resolution = f.number(root, "distance_resolution", "top level", 0.0);
   const YAML::Node lasers = root["lasers"];
   if (!lasers || !lasers.IsSequence()) throw FormatError(file + ": missing sequence 'lasers'");
   if (lasers.size() != n) {
@@ -278,36 +370,15 @@ VelodyneCalibration read_velodyne_calibration(const std::filesystem::path& path,
     const YAML::Node e = lasers[i];
     const std::string where = "lasers[" + std::to_string(i) + "]";
     if (!e.IsMap()) throw FormatError(file + ": " + where + " is not a map");
-    const double id = number(e, "laser_id", where, true, 0);
+    const double id = f.number(e, "laser_id", where);
     if (id < 0 || id >= static_cast<double>(n) || id != std::floor(id)) {
       throw FormatError(file + ": " + where + ": laser_id " + std::to_string(id) + " is not in 0.." + std::to_string(n - 1));
     }
     const auto k = static_cast<std::size_t>(id);
     if (seen[k]) throw FormatError(file + ": " + where + ": laser_id " + std::to_string(k) + " appears twice");
     seen[k] = true;
-    VelodyneLaserCalibration& l = c.lasers[k];
-    l.laser_id = static_cast<int>(k);
-    l.rot_correction = number(e, "rot_correction", where, true, 0);
-    l.vert_correction = number(e, "vert_correction", where, true, 0);
-    l.dist_correction = number(e, "dist_correction", where, true, 0);
-    l.dist_correction_x = number(e, "dist_correction_x", where, false, 0);
-    l.dist_correction_y = number(e, "dist_correction_y", where, false, 0);
-    if (const YAML::Node t = e["two_pt_correction_available"]) {
-      try {
-        l.two_pt_correction = t.as<bool>();
-      } catch (const YAML::Exception&) {
-        throw FormatError(file + ": " + where + ": 'two_pt_correction_available' is not a boolean");
-      }
-    }
-    l.vert_offset_correction = number(e, "vert_offset_correction", where, false, 0);
-    l.horiz_offset_correction = number(e, "horiz_offset_correction", where, false, 0);
-    l.focal_distance = number(e, "focal_distance", where, false, 0);
-    l.focal_slope = number(e, "focal_slope", where, false, 0);
-    l.min_intensity = std::floor(number(e, "min_intensity", where, false, 0));
-    l.max_intensity = std::floor(number(e, "max_intensity", where, false, 255));
-    if (std::abs(l.vert_correction) > std::numbers::pi / 2 || std::abs(l.rot_correction) > std::numbers::pi) {
-      throw FormatError(file + ": " + where + ": vert_correction / rot_correction out of range (radians expected)");
-    }
+    c.lasers[k] = f.laser(e, where);
+    c.lasers[k].laser_id = static_cast<int>(k);
   }
   assign_rings(c);
   return c;
@@ -386,166 +457,160 @@ VelodyneDecoder::VelodyneDecoder(VelodyneCalibration calibration, VelodyneDecode
   }
 }
 
+// The validated blocks of one packet and what the decoder derives from them.
+struct VelodyneDecoder::Packet {
+  VelodyneModel model = VelodyneModel::kVLP16;
+  VelodyneReturnMode mode = VelodyneReturnMode::kStrongest;
+  bool dual = false;
+  std::size_t used_blocks = kBlocks;
+  std::array<int, kBlocks> bank{};
+  std::array<uint16_t, kBlocks> azimuth{};  // [0.01 deg]
+  std::array<double, kBlocks> block_us{};   // when the block's azimuth was sampled
+  std::array<double, kBlocks> rate{};       // [0.01 deg / us] rotation rate from the block on
+  double unit = 0.0;                        // [m] distance unit
+  long sector_min_h = 0, sector_max_h = 0;  // [0.01 deg]
+
+  bool in_sector(long a) const {
+    return sector_min_h <= sector_max_h ? (a >= sector_min_h && a <= sector_max_h) : (a >= sector_min_h || a <= sector_max_h);
+  }
+};
+
 VelodynePacketStatus VelodyneDecoder::decode(std::span<const uint8_t> packet, int64_t stamp_ns,
                                              std::vector<VelodynePoint>& out) {
   if (packet.size() < kVelodynePacketSize) return VelodynePacketStatus::kTruncated;
   if (packet.size() > kVelodynePacketSize) return VelodynePacketStatus::kMalformed;
-  const uint8_t product = packet[1205];
-  VelodyneModel model;
-  if (options_.model) {
-    model = *options_.model;
-    const auto named = velodyne_model_from_product_id(product);
-    // The HDL-64E has no product id: its status bytes may hold anything.
-    if (model != VelodyneModel::kHDL64E && named && *named != model) return VelodynePacketStatus::kWrongModel;
-  } else {
-    const auto named = velodyne_model_from_product_id(product);
-    if (!named) return VelodynePacketStatus::kMalformed;
-    model = *named;
-  }
-  if (static_cast<int>(calibration_.lasers.size()) != velodyne_laser_count(model)) return VelodynePacketStatus::kWrongModel;
-  model_ = model;
+  Packet p;
+  if (const auto status = identify(packet, p); status != VelodynePacketStatus::kOk) return status;
+  // Validate every block first: a packet is decoded whole or not at all.
+  if (!read_blocks(packet, p)) return VelodynePacketStatus::kMalformed;
+  rotation_rates(p);
+  p.unit = distance_unit(p.model);
+  p.sector_min_h = static_cast<long>(std::lround(options_.sector_min_deg * 100.0));
+  p.sector_max_h = static_cast<long>(std::lround(options_.sector_max_deg * 100.0));
+  emit_points(packet, p, stamp_ns, out);
+  return VelodynePacketStatus::kOk;
+}
 
-  VelodyneReturnMode mode;
+VelodynePacketStatus VelodyneDecoder::identify(std::span<const uint8_t> packet, Packet& p) {
+  const auto named = velodyne_model_from_product_id(packet[1205]);
+  if (options_.model) {
+    p.model = *options_.model;
+    // The HDL-64E has no product id: its status bytes may hold anything.
+    if (p.model != VelodyneModel::kHDL64E && named && *named != p.model) return VelodynePacketStatus::kWrongModel;
+  } else {
+    if (!named) return VelodynePacketStatus::kMalformed;
+    p.model = *named;
+  }
+  if (static_cast<int>(calibration_.lasers.size()) != velodyne_laser_count(p.model)) return VelodynePacketStatus::kWrongModel;
+  model_ = p.model;
+
   if (options_.return_mode) {
-    mode = *options_.return_mode;
-  } else if (model == VelodyneModel::kHDL64E) {
-    mode = VelodyneReturnMode::kStrongest;
+    p.mode = *options_.return_mode;
+  } else if (p.model == VelodyneModel::kHDL64E) {
+    p.mode = VelodyneReturnMode::kStrongest;
   } else {
     const uint8_t m = packet[1204];
     if (m != 0x37 && m != 0x38 && m != 0x39) return VelodynePacketStatus::kMalformed;
-    mode = static_cast<VelodyneReturnMode>(m);
+    p.mode = static_cast<VelodyneReturnMode>(m);
   }
-  const bool dual = mode == VelodyneReturnMode::kDual;
+  p.dual = p.mode == VelodyneReturnMode::kDual;
   // The VLS-128 packs one firing sequence in blocks 0..7 in dual mode; 8..11 carry nothing.
-  const std::size_t used_blocks = dual && model == VelodyneModel::kVLS128 ? 8 : kBlocks;
+  p.used_blocks = p.dual && p.model == VelodyneModel::kVLS128 ? 8 : kBlocks;
+  return VelodynePacketStatus::kOk;
+}
 
-  // Validate every block first: a packet is decoded whole or not at all.
-  std::array<int, kBlocks> bank{};
-  std::array<uint16_t, kBlocks> azimuth{};
-  std::array<double, kBlocks> block_us{};
-  for (std::size_t b = 0; b < used_blocks; ++b) {
+bool VelodyneDecoder::read_blocks(std::span<const uint8_t> packet, Packet& p) {
+  for (std::size_t b = 0; b < p.used_blocks; ++b) {
     const std::size_t at = b * kBlockSize;
-    bank[b] = bank_of(model, read_u16(packet, at));
-    azimuth[b] = read_u16(packet, at + 2);
-    if (bank[b] < 0 || azimuth[b] >= kAzimuthUnits) return VelodynePacketStatus::kMalformed;
-    block_us[b] = firing(model, dual, b, 0, bank[b]).block_us;
+    p.bank[b] = bank_of(p.model, read_u16(packet, at));
+    p.azimuth[b] = read_u16(packet, at + 2);
+    if (p.bank[b] < 0 || p.azimuth[b] >= kAzimuthUnits) return false;
+    p.block_us[b] = firing(p.model, p.dual, b, 0, p.bank[b]).block_us;
   }
+  return true;
+}
 
-  // Rotation rate [0.01 deg / us] per block: towards the next firing sequence's azimuth in this packet.
-  const double nominal = options_.rpm * 6.0 * 100.0 / 1e6;
+void VelodyneDecoder::rotation_rates(Packet& p) {
+  // Per block: towards the next firing sequence's azimuth in this packet.
   constexpr double kMaxRate = 1.0;  // 1667 rpm: anything faster is a corrupt azimuth
-  std::array<double, kBlocks> rate{};
   double packet_rate = -1.0;
-  for (std::size_t b = 0; b < used_blocks; ++b) {
-    rate[b] = -1.0;
-    for (std::size_t n = b + 1; n < used_blocks; ++n) {
-      if (block_us[n] > block_us[b]) {
-        const int diff = (static_cast<int>(azimuth[n]) - static_cast<int>(azimuth[b]) + kAzimuthUnits) % kAzimuthUnits;
-        const double r = static_cast<double>(diff) / (block_us[n] - block_us[b]);
+  for (std::size_t b = 0; b < p.used_blocks; ++b) {
+    p.rate[b] = -1.0;
+    for (std::size_t n = b + 1; n < p.used_blocks; ++n) {
+      if (p.block_us[n] > p.block_us[b]) {
+        const int diff = (static_cast<int>(p.azimuth[n]) - static_cast<int>(p.azimuth[b]) + kAzimuthUnits) % kAzimuthUnits;
+        const double r = static_cast<double>(diff) / (p.block_us[n] - p.block_us[b]);
         if (r > 0.0 && r <= kMaxRate) {
-          rate[b] = r;
+          p.rate[b] = r;
           packet_rate = r;
         }
         break;
       }
     }
   }
+  const double nominal = options_.rpm * 6.0 * 100.0 / 1e6;
   const double fallback = packet_rate > 0 ? packet_rate : last_rate_h_per_us_ > 0 ? last_rate_h_per_us_ : nominal;
   // The last sequence reuses the rate of the one before it.
-  for (std::size_t b = used_blocks; b-- > 0;) {
-    if (rate[b] < 0) {
-      double previous = -1.0;
-      for (std::size_t p = b; p-- > 0;) {
-        if (rate[p] > 0) {
-          previous = rate[p];
-          break;
-        }
+  for (std::size_t b = p.used_blocks; b-- > 0;) {
+    if (p.rate[b] >= 0) continue;
+    double previous = -1.0;
+    for (std::size_t q = b; q-- > 0;) {
+      if (p.rate[q] > 0) {
+        previous = p.rate[q];
+        break;
       }
-      rate[b] = previous > 0 ? previous : fallback;
     }
+    p.rate[b] = previous > 0 ? previous : fallback;
   }
   if (packet_rate > 0) last_rate_h_per_us_ = packet_rate;
+}
 
-  const double unit = distance_unit(model);
-  const auto min_h = static_cast<long>(std::lround(options_.sector_min_deg * 100.0));
-  const auto max_h = static_cast<long>(std::lround(options_.sector_max_deg * 100.0));
-  auto in_sector = [&](long a) { return min_h <= max_h ? (a >= min_h && a <= max_h) : (a >= min_h || a <= max_h); };
-
-  for (std::size_t b = 0; b < used_blocks; ++b) {
-    const std::size_t at = b * kBlockSize + 4;
-    const std::size_t other_at = (b % 2 == 0 ? b + 1 : b - 1) * kBlockSize + 4;
+void VelodyneDecoder::emit_points(std::span<const uint8_t> packet, const Packet& p, int64_t stamp_ns,
+                                  std::vector<VelodynePoint>& out) const {
+  for (std::size_t b = 0; b < p.used_blocks; ++b) {
     for (std::size_t ch = 0; ch < kChannelsPerBlock; ++ch) {
-      const uint16_t raw = read_u16(packet, at + 3 * ch);
+      const std::size_t at = b * kBlockSize + 4 + 3 * ch;
+      const uint16_t raw = read_u16(packet, at);
       if (raw == 0) continue;  // no return
-      const uint8_t raw_intensity = packet[at + 3 * ch + 2];
-      VelodyneReturnType type = mode == VelodyneReturnMode::kLast ? VelodyneReturnType::kLast : VelodyneReturnType::kStrongest;
-      if (dual) {
-        const uint16_t other = read_u16(packet, other_at + 3 * ch);
-        const uint8_t other_intensity = packet[other_at + 3 * ch + 2];
-        if (other == raw || other == 0) {
-          if (other == raw && b % 2 == 1) continue;  // the sensor repeated the return: keep one point
-          type = VelodyneReturnType::kDualOnly;
-        } else {
-          const bool first = raw < other;
-          // Equal intensity: the second block of the pair carries the strongest return.
-          const bool strongest = raw_intensity != other_intensity ? raw_intensity > other_intensity : b % 2 == 1;
-          type = first ? (strongest ? VelodyneReturnType::kDualFirstStrongest : VelodyneReturnType::kDualFirstWeak)
-                       : (strongest ? VelodyneReturnType::kDualLastStrongest : VelodyneReturnType::kDualLastWeak);
-        }
-      }
-      const Firing f = firing(model, dual, b, ch, bank[b]);
-      const auto li = static_cast<std::size_t>(f.laser);
-      const VelodyneLaserCalibration& l = calibration_.lasers[li];
-      const double distance = static_cast<double>(raw) * unit + l.dist_correction;
-      if (!(distance > options_.min_range && distance < options_.max_range)) continue;
-
-      const double az_f = static_cast<double>(azimuth[b]) + rate[b] * (f.time_us - f.block_us) - rot_correction_h_[li];
-      // Exact halves (common: rates are whole hundredths per sequence) round up whatever the last bit.
-      long az = std::lround(az_f + 1e-6) % kAzimuthUnits;
-      if (az < 0) az += kAzimuthUnits;
-      if (!in_sector(az)) continue;
-
-      const double ca = cos_az_[static_cast<std::size_t>(az)], sa = sin_az_[static_cast<std::size_t>(az)];
-      const double cv = cos_elev_[li], sv = sin_elev_[li];
-      const double vo = l.vert_offset_correction, ho = l.horiz_offset_correction;
-      // The sensor's own frame (x right, y forward) with the per-laser origin offsets, then the
-      // two-point distance correction of the HDL-64E, which interpolates the correction on |x| and |y|.
-      double dx = 0, dy = 0;
-      if (l.two_pt_correction) {
-        const double xy0 = distance * cv - vo * sv;
-        const double xx = std::abs(xy0 * sa - ho * ca), yy = std::abs(xy0 * ca + ho * sa);
-        dx = (l.dist_correction - l.dist_correction_x) * (xx - 2.4) / (25.04 - 2.4) + l.dist_correction_x - l.dist_correction;
-        dy = (l.dist_correction - l.dist_correction_y) * (yy - 1.93) / (25.04 - 1.93) + l.dist_correction_y - l.dist_correction;
-      }
-      const double sensor_x = ((distance + dx) * cv - vo * sv) * sa - ho * ca;
-      const double sensor_y = ((distance + dy) * cv - vo * sv) * ca + ho * sa;
-      const double sensor_z = (distance + dy) * sv + vo * cv;
-
-      double intensity = raw_intensity;
-      if (l.focal_slope != 0.0) {
-        const double focal = 1.0 - l.focal_distance / 13100.0;
-        const double near = 1.0 - static_cast<double>(raw) / 65535.0;
-        intensity += l.focal_slope * std::abs(256.0 * focal * focal - 256.0 * near * near);
-      }
-      intensity = std::clamp(intensity, l.min_intensity, l.max_intensity);
-
-      VelodynePoint p;
-      p.x = static_cast<float>(sensor_y);  // forward
-      p.y = static_cast<float>(-sensor_x);  // left
-      p.z = static_cast<float>(sensor_z);
-      p.intensity = static_cast<float>(intensity);
-      p.distance = static_cast<float>(distance);
-      p.azimuth = static_cast<float>(static_cast<double>(az) * 0.01 * kDegToRad);
-      p.elevation = static_cast<float>(l.vert_correction);
-      p.time_ns = stamp_ns + std::llround(f.time_us * 1000.0);
-      p.ring = static_cast<uint16_t>(l.ring);
-      p.laser_id = static_cast<uint16_t>(f.laser);
-      p.return_type = type;
-      p.block = static_cast<uint8_t>(b);
-      out.push_back(p);
+      const std::optional<VelodyneReturnType> type = return_type(packet, p.mode, b, ch);
+      if (!type) continue;
+      VelodynePoint point;
+      if (!make_point(p, b, ch, raw, packet[at + 2], point)) continue;
+      point.time_ns += stamp_ns;
+      point.return_type = *type;
+      out.push_back(point);
     }
   }
-  return VelodynePacketStatus::kOk;
+}
+
+bool VelodyneDecoder::make_point(const Packet& p, std::size_t b, std::size_t ch, uint16_t raw, uint8_t raw_intensity,
+                                 VelodynePoint& point) const {
+  const Firing f = firing(p.model, p.dual, b, ch, p.bank[b]);
+  const auto li = static_cast<std::size_t>(f.laser);
+  const VelodyneLaserCalibration& l = calibration_.lasers[li];
+  const double distance = static_cast<double>(raw) * p.unit + l.dist_correction;
+  if (!(distance > options_.min_range && distance < options_.max_range)) return false;
+
+  const double az_f = static_cast<double>(p.azimuth[b]) + p.rate[b] * (f.time_us - f.block_us) - rot_correction_h_[li];
+  // Exact halves (common: rates are whole hundredths per sequence) round up whatever the last bit.
+  long az = std::lround(az_f + 1e-6) % kAzimuthUnits;
+  if (az < 0) az += kAzimuthUnits;
+  if (!p.in_sector(az)) return false;
+
+  const auto ai = static_cast<std::size_t>(az);
+  const SensorXyz s = sensor_xyz(l, distance, cos_az_[ai], sin_az_[ai], cos_elev_[li], sin_elev_[li]);
+  point.x = static_cast<float>(s.y);   // forward
+  point.y = static_cast<float>(-s.x);  // left
+  point.z = static_cast<float>(s.z);
+  point.intensity = static_cast<float>(corrected_intensity(l, raw, raw_intensity));
+  point.distance = static_cast<float>(distance);
+  point.azimuth = static_cast<float>(static_cast<double>(az) * 0.01 * kDegToRad);
+  point.elevation = static_cast<float>(l.vert_correction);
+  point.time_ns = std::llround(f.time_us * 1000.0);
+  point.ring = static_cast<uint16_t>(l.ring);
+  point.laser_id = static_cast<uint16_t>(f.laser);
+  point.block = static_cast<uint8_t>(b);
+  return true;
 }
 
 // ---------------------------------------------------------------------------------------------

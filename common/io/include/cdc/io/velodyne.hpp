@@ -159,6 +159,16 @@ class VelodyneDecoder {
   const VelodyneDecoderOptions& options() const { return options_; }
 
  private:
+  struct Packet;  // one packet's validated blocks (velodyne.cpp)
+  // The steps of decode(): the packet's model and return mode; its blocks' banks, azimuths and times
+  // (false when one is malformed); the rotation rate per block; the points.
+  VelodynePacketStatus identify(std::span<const uint8_t> packet, Packet& p);
+  static bool read_blocks(std::span<const uint8_t> packet, Packet& p);
+  void rotation_rates(Packet& p);
+  void emit_points(std::span<const uint8_t> packet, const Packet& p, int64_t stamp_ns, std::vector<VelodynePoint>& out) const;
+  bool make_point(const Packet& p, std::size_t block, std::size_t channel, uint16_t raw, uint8_t raw_intensity,
+                  VelodynePoint& point) const;
+
   VelodyneCalibration calibration_;
   VelodyneDecoderOptions options_;
   std::optional<VelodyneModel> model_;
