@@ -82,7 +82,18 @@ struct Firing {
 constexpr double kVlp16Sequence = 55.296, kVlp16Firing = 2.304;   // 16 firings + recharge
 constexpr double kVlp32Sequence = 55.296, kVlp32Firing = 2.304;   // 16 pairs of lasers + recharge
 constexpr double kHdl32Block = 46.08, kHdl32Firing = 1.152;       // 32 firings + 8 recharge slots
-constexpr double kHdl64Cycle = 139.0 / 3.0, kHdl64Firing = 139.0 / 96.0;  // 3 firings of 32 per 139 us
+
+// HDL-64E "laser firing time table": a firing of an upper and a lower block (one laser of each at a time)
+// takes `cycle_us`; each block's 32 lasers fire in 8 groups of 4, a group every `group_us`, the lasers
+// of a group at the offsets `in_group_us`.
+struct Hdl64Timing {
+  double cycle_us, group_us;
+  std::array<double, 4> in_group_us;
+};
+constexpr Hdl64Timing kHdl64S2{48.0, 6.0, {0.0, 1.26, 2.46, 3.66}};  // S2 / S2.1 manual
+constexpr Hdl64Timing kHdl64S3{57.6, 7.2, {0.0, 1.3, 2.5, 3.7}};     // S3 manual
+
+bool is_hdl64e(VelodyneModel model) { return model == VelodyneModel::kHDL64E || model == VelodyneModel::kHDL64ES3; }
 constexpr double kVls128Sequence = 53.3, kVls128Firing = 2.665, kVls128PacketOffset = -8.7;
 
 // `bank` is the 32-laser group the block id names (0 for the single-bank models).
@@ -114,13 +125,15 @@ Firing firing(VelodyneModel model, bool dual, std::size_t block, std::size_t cha
       f.block_us = sequence * kHdl32Block;
       break;
     }
-    case VelodyneModel::kHDL64E: {
+    case VelodyneModel::kHDL64E:
+    case VelodyneModel::kHDL64ES3: {
       // An upper (0xEEFF) and a lower (0xDDFF) laser fire together: single return packs one firing of
-      // both banks in blocks 2k, 2k+1; dual return packs both returns of each bank in blocks 4k..4k+3.
+      // both blocks in blocks 2k, 2k+1; dual return packs both returns of one firing in blocks 4k..4k+3.
+      const Hdl64Timing& t = model == VelodyneModel::kHDL64ES3 ? kHdl64S3 : kHdl64S2;
       const double sequence = dual ? static_cast<double>(block / 4) : static_cast<double>(block / 2);
       f.laser = bank * 32 + static_cast<int>(channel);
-      f.time_us = sequence * kHdl64Cycle + c * kHdl64Firing;
-      f.block_us = sequence * kHdl64Cycle;
+      f.time_us = sequence * t.cycle_us + static_cast<double>(channel / 4) * t.group_us + t.in_group_us[channel % 4];
+      f.block_us = sequence * t.cycle_us;
       break;
     }
     case VelodyneModel::kVLS128: {
@@ -141,6 +154,7 @@ Firing firing(VelodyneModel model, bool dual, std::size_t block, std::size_t cha
 int bank_of(VelodyneModel model, uint16_t block_id) {
   switch (model) {
     case VelodyneModel::kHDL64E:
+    case VelodyneModel::kHDL64ES3:
       return block_id == 0xEEFF ? 0 : block_id == 0xDDFF ? 1 : -1;
     case VelodyneModel::kVLS128:
       switch (block_id) {
@@ -155,23 +169,39 @@ int bank_of(VelodyneModel model, uint16_t block_id) {
   }
 }
 
+// In dual return mode, the block holding the other return of block b's firing.
+struct DualPartner {
+  std::size_t block = 0;
+  bool later = false;            // b is the second block of the two
+  bool strongest_block = false;  // b is the block that carries the strongest return
+};
+DualPartner dual_partner(VelodyneModel model, std::size_t b) {
+  if (is_hdl64e(model)) {  // blocks 4k, 4k+1: upper, lower of the strongest return; 4k+2, 4k+3: of the last
+    const bool strongest = b % 4 < 2;
+    return {strongest ? b + 2 : b - 2, !strongest, strongest};
+  }
+  const bool odd = b % 2 == 1;  // blocks 2k: the last return; 2k+1: the strongest
+  return {odd ? b - 1 : b + 1, odd, odd};
+}
+
 // What a return is among the returns of its firing; nullopt for the second copy of a repeated return.
-std::optional<VelodyneReturnType> return_type(std::span<const uint8_t> packet, VelodyneReturnMode mode, std::size_t b,
-                                              std::size_t ch) {
+std::optional<VelodyneReturnType> return_type(std::span<const uint8_t> packet, VelodyneModel model,
+                                              VelodyneReturnMode mode, std::size_t b, std::size_t ch) {
   if (mode != VelodyneReturnMode::kDual) {
     return mode == VelodyneReturnMode::kLast ? VelodyneReturnType::kLast : VelodyneReturnType::kStrongest;
   }
+  const DualPartner partner = dual_partner(model, b);
   const std::size_t at = b * kBlockSize + 4 + 3 * ch;
-  const std::size_t other_at = (b % 2 == 0 ? b + 1 : b - 1) * kBlockSize + 4 + 3 * ch;
+  const std::size_t other_at = partner.block * kBlockSize + 4 + 3 * ch;
   const uint16_t raw = read_u16(packet, at), other = read_u16(packet, other_at);
   const uint8_t raw_intensity = packet[at + 2], other_intensity = packet[other_at + 2];
   if (other == raw || other == 0) {
-    if (other == raw && b % 2 == 1) return std::nullopt;  // the sensor repeated the return: keep one point
+    if (other == raw && partner.later) return std::nullopt;  // the sensor repeated the return: keep one point
     return VelodyneReturnType::kDualOnly;
   }
   const bool first = raw < other;
-  // Equal intensity: the second block of the pair carries the strongest return.
-  const bool strongest = raw_intensity != other_intensity ? raw_intensity > other_intensity : b % 2 == 1;
+  // Equal intensity: the block that carries the strongest return decides.
+  const bool strongest = raw_intensity != other_intensity ? raw_intensity > other_intensity : partner.strongest_block;
   if (first) return strongest ? VelodyneReturnType::kDualFirstStrongest : VelodyneReturnType::kDualFirstWeak;
   return strongest ? VelodyneReturnType::kDualLastStrongest : VelodyneReturnType::kDualLastWeak;
 }
@@ -284,6 +314,7 @@ std::string_view to_string(VelodyneModel model) {
     case VelodyneModel::kVLP32C: return "VLP32C";
     case VelodyneModel::kHDL32E: return "HDL32E";
     case VelodyneModel::kHDL64E: return "HDL64E";
+    case VelodyneModel::kHDL64ES3: return "HDL64E_S3";
     case VelodyneModel::kVLS128: return "VLS128";
   }
   return "unknown";
@@ -294,10 +325,11 @@ VelodyneModel velodyne_model_from_string(std::string_view name) {
   if (n == "VLP16" || n == "PUCK" || n == "VLP16HIRES") return VelodyneModel::kVLP16;
   if (n == "VLP32C" || n == "VLP32") return VelodyneModel::kVLP32C;
   if (n == "HDL32E" || n == "HDL32") return VelodyneModel::kHDL32E;
-  if (n == "HDL64E" || n == "HDL64" || n == "HDL64ES2" || n == "HDL64ES3" || n == "HDL64ES21") return VelodyneModel::kHDL64E;
+  if (n == "HDL64E" || n == "HDL64" || n == "HDL64ES2" || n == "HDL64ES21") return VelodyneModel::kHDL64E;
+  if (n == "HDL64ES3") return VelodyneModel::kHDL64ES3;
   if (n == "VLS128" || n == "ALPHAPRIME") return VelodyneModel::kVLS128;
   throw std::invalid_argument("unknown Velodyne model '" + std::string(name) +
-                              "' (expected VLP16, VLP32C, HDL32E, HDL64E or VLS128)");
+                              "' (expected VLP16, VLP32C, HDL32E, HDL64E (S2), HDL64E_S3 or VLS128)");
 }
 
 std::optional<VelodyneModel> velodyne_model_from_product_id(uint8_t product_id) {
@@ -316,7 +348,8 @@ int velodyne_laser_count(VelodyneModel model) {
     case VelodyneModel::kVLP16: return 16;
     case VelodyneModel::kVLP32C:
     case VelodyneModel::kHDL32E: return 32;
-    case VelodyneModel::kHDL64E: return 64;
+    case VelodyneModel::kHDL64E:
+    case VelodyneModel::kHDL64ES3: return 64;
     case VelodyneModel::kVLS128: return 128;
   }
   return 0;
@@ -406,6 +439,7 @@ VelodyneCalibration default_velodyne_calibration(VelodyneModel model) {
         rotation = kVls128Rotation[i % 8];
         break;
       case VelodyneModel::kHDL64E:
+      case VelodyneModel::kHDL64ES3:
         elevation = i < 32 ? 2.0 - static_cast<double>(i) / 3.0 : -8.83 - 0.5 * static_cast<double>(i - 32);
         break;
     }
@@ -496,7 +530,7 @@ VelodynePacketStatus VelodyneDecoder::identify(std::span<const uint8_t> packet, 
   if (options_.model) {
     p.model = *options_.model;
     // The HDL-64E has no product id: its status bytes may hold anything.
-    if (p.model != VelodyneModel::kHDL64E && named && *named != p.model) return VelodynePacketStatus::kWrongModel;
+    if (!is_hdl64e(p.model) && named && *named != p.model) return VelodynePacketStatus::kWrongModel;
   } else {
     if (!named) return VelodynePacketStatus::kMalformed;
     p.model = *named;
@@ -506,7 +540,7 @@ VelodynePacketStatus VelodyneDecoder::identify(std::span<const uint8_t> packet, 
 
   if (options_.return_mode) {
     p.mode = *options_.return_mode;
-  } else if (p.model == VelodyneModel::kHDL64E) {
+  } else if (is_hdl64e(p.model)) {
     p.mode = VelodyneReturnMode::kStrongest;
   } else {
     const uint8_t m = packet[1204];
@@ -572,7 +606,7 @@ void VelodyneDecoder::emit_points(std::span<const uint8_t> packet, const Packet&
       const std::size_t at = b * kBlockSize + 4 + 3 * ch;
       const uint16_t raw = read_u16(packet, at);
       if (raw == 0) continue;  // no return
-      const std::optional<VelodyneReturnType> type = return_type(packet, p.mode, b, ch);
+      const std::optional<VelodyneReturnType> type = return_type(packet, p.model, p.mode, b, ch);
       if (!type) continue;
       VelodynePoint point;
       if (!make_point(p, b, ch, raw, packet[at + 2], point)) continue;

@@ -187,7 +187,8 @@ int main(int argc, char** argv) {
   dec->add_option("--calibration", d.calibration,
                   "calibration YAML (ROS driver format); without it the built-in table of --model")
       ->check(CLI::ExistingFile);
-  dec->add_option("--model", d.model, "VLP16, VLP32C, HDL32E, HDL64E or VLS128 (default: from each packet)");
+  dec->add_option("--model", d.model,
+                  "VLP16, VLP32C, HDL32E, HDL64E (S2, S2.1), HDL64E_S3 or VLS128 (default: from each packet)");
   dec->add_option("--out", d.out, "folder for the sweeps");
   dec->add_option("--port", d.port, "UDP destination port of the data packets")->capture_default_str();
   dec->add_option("--return-mode", d.return_mode, "strongest, last or dual (default: from each packet)")
