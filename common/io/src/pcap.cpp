@@ -133,21 +133,16 @@ bool PcapReader::handle_ip(std::span<const uint8_t> ip, int64_t stamp_ns, UdpDat
   const uint32_t offset = static_cast<uint32_t>(flags_offset & 0x1FFF) * 8;
   const std::span<const uint8_t> body = ip.subspan(ihl, total - ihl);
   if (!more && offset == 0) return emit_udp(body, src, dst, stamp_ns, out);
+  return add_fragment({src, dst, be16(ip, 4)}, offset, more, body, stamp_ns, out);
+}
 
-  // A fragment: keep it until every byte of its datagram has arrived.
+// Keeps a fragment until every byte of its datagram has arrived, then emits the datagram whole.
+bool PcapReader::add_fragment(const FragmentKey& key, uint32_t offset, bool more, std::span<const uint8_t> body,
+                              int64_t stamp_ns, UdpDatagram& out) {
   ++stats_.fragments;
-  const auto key = std::make_tuple(src, dst, be16(ip, 4));
   auto it = fragments_.find(key);
   if (it == fragments_.end()) {
-    if (fragments_.size() >= kMaxPendingDatagrams) {
-      // Drop the set that started earliest.
-      auto oldest = fragments_.begin();
-      for (auto f = fragments_.begin(); f != fragments_.end(); ++f) {
-        if (f->second.first_record < oldest->second.first_record) oldest = f;
-      }
-      stats_.incomplete_fragments += oldest->second.pieces.size();
-      fragments_.erase(oldest);
-    }
+    if (fragments_.size() >= kMaxPendingDatagrams) drop_oldest_fragments();
     it = fragments_.emplace(key, Fragments{}).first;
     it->second.first_record = out.record;
   }
@@ -176,7 +171,16 @@ bool PcapReader::handle_ip(std::span<const uint8_t> ip, int64_t stamp_ns, UdpDat
   }
   fragments_.erase(it);
   ++stats_.reassembled;
-  return emit_udp(whole, src, dst, stamp_ns, out);
+  return emit_udp(whole, std::get<0>(key), std::get<1>(key), stamp_ns, out);
+}
+
+void PcapReader::drop_oldest_fragments() {
+  auto oldest = fragments_.begin();
+  for (auto f = fragments_.begin(); f != fragments_.end(); ++f) {
+    if (f->second.first_record < oldest->second.first_record) oldest = f;
+  }
+  stats_.incomplete_fragments += oldest->second.pieces.size();
+  fragments_.erase(oldest);
 }
 
 bool PcapReader::emit_udp(std::span<const uint8_t> udp, uint32_t src, uint32_t dst, int64_t stamp_ns, UdpDatagram& out) {

@@ -5,9 +5,11 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <array>
 #include <cctype>
 #include <cmath>
 #include <numbers>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 
@@ -80,7 +82,18 @@ struct Firing {
 constexpr double kVlp16Sequence = 55.296, kVlp16Firing = 2.304;   // 16 firings + recharge
 constexpr double kVlp32Sequence = 55.296, kVlp32Firing = 2.304;   // 16 pairs of lasers + recharge
 constexpr double kHdl32Block = 46.08, kHdl32Firing = 1.152;       // 32 firings + 8 recharge slots
-constexpr double kHdl64Cycle = 139.0 / 3.0, kHdl64Firing = 139.0 / 96.0;  // 3 firings of 32 per 139 us
+
+// HDL-64E "laser firing time table": a firing of an upper and a lower block (one laser of each at a time)
+// takes `cycle_us`; each block's 32 lasers fire in 8 groups of 4, a group every `group_us`, the lasers
+// of a group at the offsets `in_group_us`.
+struct Hdl64Timing {
+  double cycle_us, group_us;
+  std::array<double, 4> in_group_us;
+};
+constexpr Hdl64Timing kHdl64S2{48.0, 6.0, {0.0, 1.26, 2.46, 3.66}};  // S2 / S2.1 manual
+constexpr Hdl64Timing kHdl64S3{57.6, 7.2, {0.0, 1.3, 2.5, 3.7}};     // S3 manual
+
+bool is_hdl64e(VelodyneModel model) { return model == VelodyneModel::kHDL64E || model == VelodyneModel::kHDL64ES3; }
 constexpr double kVls128Sequence = 53.3, kVls128Firing = 2.665, kVls128PacketOffset = -8.7;
 
 // `bank` is the 32-laser group the block id names (0 for the single-bank models).
@@ -112,13 +125,15 @@ Firing firing(VelodyneModel model, bool dual, std::size_t block, std::size_t cha
       f.block_us = sequence * kHdl32Block;
       break;
     }
-    case VelodyneModel::kHDL64E: {
+    case VelodyneModel::kHDL64E:
+    case VelodyneModel::kHDL64ES3: {
       // An upper (0xEEFF) and a lower (0xDDFF) laser fire together: single return packs one firing of
-      // both banks in blocks 2k, 2k+1; dual return packs both returns of each bank in blocks 4k..4k+3.
+      // both blocks in blocks 2k, 2k+1; dual return packs both returns of one firing in blocks 4k..4k+3.
+      const Hdl64Timing& t = model == VelodyneModel::kHDL64ES3 ? kHdl64S3 : kHdl64S2;
       const double sequence = dual ? static_cast<double>(block / 4) : static_cast<double>(block / 2);
       f.laser = bank * 32 + static_cast<int>(channel);
-      f.time_us = sequence * kHdl64Cycle + c * kHdl64Firing;
-      f.block_us = sequence * kHdl64Cycle;
+      f.time_us = sequence * t.cycle_us + static_cast<double>(channel / 4) * t.group_us + t.in_group_us[channel % 4];
+      f.block_us = sequence * t.cycle_us;
       break;
     }
     case VelodyneModel::kVLS128: {
@@ -139,6 +154,7 @@ Firing firing(VelodyneModel model, bool dual, std::size_t block, std::size_t cha
 int bank_of(VelodyneModel model, uint16_t block_id) {
   switch (model) {
     case VelodyneModel::kHDL64E:
+    case VelodyneModel::kHDL64ES3:
       return block_id == 0xEEFF ? 0 : block_id == 0xDDFF ? 1 : -1;
     case VelodyneModel::kVLS128:
       switch (block_id) {
@@ -151,6 +167,77 @@ int bank_of(VelodyneModel model, uint16_t block_id) {
     default:
       return block_id == 0xEEFF ? 0 : -1;
   }
+}
+
+// In dual return mode, the block holding the other return of block b's firing.
+struct DualPartner {
+  std::size_t block = 0;
+  bool later = false;            // b is the second block of the two
+  bool strongest_block = false;  // b is the block that carries the strongest return
+};
+DualPartner dual_partner(VelodyneModel model, std::size_t b) {
+  if (is_hdl64e(model)) {  // blocks 4k, 4k+1: upper, lower of the strongest return; 4k+2, 4k+3: of the last
+    const bool strongest = b % 4 < 2;
+    return {strongest ? b + 2 : b - 2, !strongest, strongest};
+  }
+  const bool odd = b % 2 == 1;  // blocks 2k: the last return; 2k+1: the strongest
+  return {odd ? b - 1 : b + 1, odd, odd};
+}
+
+// What a return is among the returns of its firing; nullopt for the second copy of a repeated return.
+std::optional<VelodyneReturnType> return_type(std::span<const uint8_t> packet, VelodyneModel model,
+                                              VelodyneReturnMode mode, std::size_t b, std::size_t ch) {
+  if (mode != VelodyneReturnMode::kDual) {
+    return mode == VelodyneReturnMode::kLast ? VelodyneReturnType::kLast : VelodyneReturnType::kStrongest;
+  }
+  const DualPartner partner = dual_partner(model, b);
+  const std::size_t at = b * kBlockSize + 4 + 3 * ch;
+  const std::size_t other_at = partner.block * kBlockSize + 4 + 3 * ch;
+  const uint16_t raw = read_u16(packet, at), other = read_u16(packet, other_at);
+  const uint8_t raw_intensity = packet[at + 2], other_intensity = packet[other_at + 2];
+  if (other == raw || other == 0) {
+    if (other == raw && partner.later) return std::nullopt;  // the sensor repeated the return: keep one point
+    return VelodyneReturnType::kDualOnly;
+  }
+  const bool first = raw < other;
+  // Equal intensity: the block that carries the strongest return decides.
+  const bool strongest = raw_intensity != other_intensity ? raw_intensity > other_intensity : partner.strongest_block;
+  if (first) return strongest ? VelodyneReturnType::kDualFirstStrongest : VelodyneReturnType::kDualFirstWeak;
+  return strongest ? VelodyneReturnType::kDualLastStrongest : VelodyneReturnType::kDualLastWeak;
+}
+
+struct SensorXyz {
+  double x = 0, y = 0, z = 0;  // the sensor's own frame: x right, y forward, z up
+};
+
+// A return at `distance` along the laser's line at the azimuth (ca, sa) and elevation (cv, sv), with the
+// per-laser origin offsets, then the two-point distance correction of the HDL-64E, which interpolates
+// the correction on |x| and |y|.
+SensorXyz sensor_xyz(const VelodyneLaserCalibration& l, double distance, double ca, double sa, double cv, double sv) {
+  const double vo = l.vert_offset_correction, ho = l.horiz_offset_correction;
+  double dx = 0, dy = 0;
+  if (l.two_pt_correction) {
+    const double xy0 = distance * cv - vo * sv;
+    const double xx = std::abs(xy0 * sa - ho * ca), yy = std::abs(xy0 * ca + ho * sa);
+    dx = (l.dist_correction - l.dist_correction_x) * (xx - 2.4) / (25.04 - 2.4) + l.dist_correction_x - l.dist_correction;
+    dy = (l.dist_correction - l.dist_correction_y) * (yy - 1.93) / (25.04 - 1.93) + l.dist_correction_y - l.dist_correction;
+  }
+  SensorXyz s;
+  s.x = ((distance + dx) * cv - vo * sv) * sa - ho * ca;
+  s.y = ((distance + dy) * cv - vo * sv) * ca + ho * sa;
+  s.z = (distance + dy) * sv + vo * cv;
+  return s;
+}
+
+// The intensity with the calibration's focal model (HDL-64E), clamped to its limits.
+double corrected_intensity(const VelodyneLaserCalibration& l, uint16_t raw, uint8_t raw_intensity) {
+  double intensity = raw_intensity;
+  if (l.focal_slope != 0.0) {
+    const double focal = 1.0 - l.focal_distance / 13100.0;
+    const double near = 1.0 - static_cast<double>(raw) / 65535.0;
+    intensity += l.focal_slope * std::abs(256.0 * focal * focal - 256.0 * near * near);
+  }
+  return std::clamp(intensity, l.min_intensity, l.max_intensity);
 }
 
 std::string upper_alnum(std::string_view s) {
@@ -170,6 +257,53 @@ void assign_rings(VelodyneCalibration& c) {
   for (std::size_t r = 0; r < order.size(); ++r) c.lasers[order[r]].ring = static_cast<int>(r);
 }
 
+// Reads the entries of a calibration file; every error names the file and the entry.
+struct CalibrationFile {
+  std::string file;
+
+  // The number at `key`; `fallback` when the key is absent, an error when it is absent and required.
+  double number(const YAML::Node& node, const char* key, const std::string& where,
+                std::optional<double> fallback = std::nullopt) const {
+    const YAML::Node v = node[key];
+    if (!v) {
+      if (!fallback) throw FormatError(file + ": " + where + ": missing key '" + key + "'");
+      return *fallback;
+    }
+    try {
+      return v.as<double>();
+    } catch (const YAML::Exception&) {
+      throw FormatError(file + ": " + where + ": '" + key + "' is not a number");
+    }
+  }
+
+  // One entry of `lasers` (all but its laser_id).
+  VelodyneLaserCalibration laser(const YAML::Node& e, const std::string& where) const {
+    VelodyneLaserCalibration l;
+    l.rot_correction = number(e, "rot_correction", where);
+    l.vert_correction = number(e, "vert_correction", where);
+    l.dist_correction = number(e, "dist_correction", where);
+    l.dist_correction_x = number(e, "dist_correction_x", where, 0.0);
+    l.dist_correction_y = number(e, "dist_correction_y", where, 0.0);
+    if (const YAML::Node t = e["two_pt_correction_available"]) {
+      try {
+        l.two_pt_correction = t.as<bool>();
+      } catch (const YAML::Exception&) {
+        throw FormatError(file + ": " + where + ": 'two_pt_correction_available' is not a boolean");
+      }
+    }
+    l.vert_offset_correction = number(e, "vert_offset_correction", where, 0.0);
+    l.horiz_offset_correction = number(e, "horiz_offset_correction", where, 0.0);
+    l.focal_distance = number(e, "focal_distance", where, 0.0);
+    l.focal_slope = number(e, "focal_slope", where, 0.0);
+    l.min_intensity = std::floor(number(e, "min_intensity", where, 0.0));
+    l.max_intensity = std::floor(number(e, "max_intensity", where, 255.0));
+    if (std::abs(l.vert_correction) > std::numbers::pi / 2 || std::abs(l.rot_correction) > std::numbers::pi) {
+      throw FormatError(file + ": " + where + ": vert_correction / rot_correction out of range (radians expected)");
+    }
+    return l;
+  }
+};
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -180,6 +314,7 @@ std::string_view to_string(VelodyneModel model) {
     case VelodyneModel::kVLP32C: return "VLP32C";
     case VelodyneModel::kHDL32E: return "HDL32E";
     case VelodyneModel::kHDL64E: return "HDL64E";
+    case VelodyneModel::kHDL64ES3: return "HDL64E_S3";
     case VelodyneModel::kVLS128: return "VLS128";
   }
   return "unknown";
@@ -190,10 +325,11 @@ VelodyneModel velodyne_model_from_string(std::string_view name) {
   if (n == "VLP16" || n == "PUCK" || n == "VLP16HIRES") return VelodyneModel::kVLP16;
   if (n == "VLP32C" || n == "VLP32") return VelodyneModel::kVLP32C;
   if (n == "HDL32E" || n == "HDL32") return VelodyneModel::kHDL32E;
-  if (n == "HDL64E" || n == "HDL64" || n == "HDL64ES2" || n == "HDL64ES3" || n == "HDL64ES21") return VelodyneModel::kHDL64E;
+  if (n == "HDL64E" || n == "HDL64" || n == "HDL64ES2" || n == "HDL64ES21") return VelodyneModel::kHDL64E;
+  if (n == "HDL64ES3") return VelodyneModel::kHDL64ES3;
   if (n == "VLS128" || n == "ALPHAPRIME") return VelodyneModel::kVLS128;
   throw std::invalid_argument("unknown Velodyne model '" + std::string(name) +
-                              "' (expected VLP16, VLP32C, HDL32E, HDL64E or VLS128)");
+                              "' (expected VLP16, VLP32C, HDL32E, HDL64E (S2), HDL64E_S3 or VLS128)");
 }
 
 std::optional<VelodyneModel> velodyne_model_from_product_id(uint8_t product_id) {
@@ -212,7 +348,8 @@ int velodyne_laser_count(VelodyneModel model) {
     case VelodyneModel::kVLP16: return 16;
     case VelodyneModel::kVLP32C:
     case VelodyneModel::kHDL32E: return 32;
-    case VelodyneModel::kHDL64E: return 64;
+    case VelodyneModel::kHDL64E:
+    case VelodyneModel::kHDL64ES3: return 64;
     case VelodyneModel::kVLS128: return 128;
   }
   return 0;
@@ -241,27 +378,15 @@ VelodyneCalibration read_velodyne_calibration(const std::filesystem::path& path,
     throw FormatError(file + ": not a readable YAML file: " + e.what());
   }
   if (!root.IsMap()) throw FormatError(file + ": expected a map with num_lasers and lasers");
-  auto number = [&](const YAML::Node& node, const char* key, const std::string& where, bool required,
-                    double fallback) -> double {
-    const YAML::Node v = node[key];
-    if (!v) {
-      if (required) throw FormatError(file + ": " + where + ": missing key '" + key + "'");
-      return fallback;
-    }
-    try {
-      return v.as<double>();
-    } catch (const YAML::Exception&) {
-      throw FormatError(file + ": " + where + ": '" + key + "' is not a number");
-    }
-  };
+  const CalibrationFile f{file};
   VelodyneCalibration c;
   c.source = file;
-  const double num = number(root, "num_lasers", "top level", true, 0);
+  const double num = f.number(root, "num_lasers", "top level");
   if (num < 1 || num > 128 || num != std::floor(num)) {
     throw FormatError(file + ": num_lasers must be a whole number in 1..128, not " + std::to_string(num));
   }
   const auto n = static_cast<std::size_t>(num);
-  c.distance_resolution = number(root, "distance_resolution", "top level", false, 0.0);
+  c.distance_resolution = f.number(root, "distance_resolution", "top level", 0.0);
   const YAML::Node lasers = root["lasers"];
   if (!lasers || !lasers.IsSequence()) throw FormatError(file + ": missing sequence 'lasers'");
   if (lasers.size() != n) {
@@ -278,36 +403,15 @@ VelodyneCalibration read_velodyne_calibration(const std::filesystem::path& path,
     const YAML::Node e = lasers[i];
     const std::string where = "lasers[" + std::to_string(i) + "]";
     if (!e.IsMap()) throw FormatError(file + ": " + where + " is not a map");
-    const double id = number(e, "laser_id", where, true, 0);
+    const double id = f.number(e, "laser_id", where);
     if (id < 0 || id >= static_cast<double>(n) || id != std::floor(id)) {
       throw FormatError(file + ": " + where + ": laser_id " + std::to_string(id) + " is not in 0.." + std::to_string(n - 1));
     }
     const auto k = static_cast<std::size_t>(id);
     if (seen[k]) throw FormatError(file + ": " + where + ": laser_id " + std::to_string(k) + " appears twice");
     seen[k] = true;
-    VelodyneLaserCalibration& l = c.lasers[k];
-    l.laser_id = static_cast<int>(k);
-    l.rot_correction = number(e, "rot_correction", where, true, 0);
-    l.vert_correction = number(e, "vert_correction", where, true, 0);
-    l.dist_correction = number(e, "dist_correction", where, true, 0);
-    l.dist_correction_x = number(e, "dist_correction_x", where, false, 0);
-    l.dist_correction_y = number(e, "dist_correction_y", where, false, 0);
-    if (const YAML::Node t = e["two_pt_correction_available"]) {
-      try {
-        l.two_pt_correction = t.as<bool>();
-      } catch (const YAML::Exception&) {
-        throw FormatError(file + ": " + where + ": 'two_pt_correction_available' is not a boolean");
-      }
-    }
-    l.vert_offset_correction = number(e, "vert_offset_correction", where, false, 0);
-    l.horiz_offset_correction = number(e, "horiz_offset_correction", where, false, 0);
-    l.focal_distance = number(e, "focal_distance", where, false, 0);
-    l.focal_slope = number(e, "focal_slope", where, false, 0);
-    l.min_intensity = std::floor(number(e, "min_intensity", where, false, 0));
-    l.max_intensity = std::floor(number(e, "max_intensity", where, false, 255));
-    if (std::abs(l.vert_correction) > std::numbers::pi / 2 || std::abs(l.rot_correction) > std::numbers::pi) {
-      throw FormatError(file + ": " + where + ": vert_correction / rot_correction out of range (radians expected)");
-    }
+    c.lasers[k] = f.laser(e, where);
+    c.lasers[k].laser_id = static_cast<int>(k);
   }
   assign_rings(c);
   return c;
@@ -335,6 +439,7 @@ VelodyneCalibration default_velodyne_calibration(VelodyneModel model) {
         rotation = kVls128Rotation[i % 8];
         break;
       case VelodyneModel::kHDL64E:
+      case VelodyneModel::kHDL64ES3:
         elevation = i < 32 ? 2.0 - static_cast<double>(i) / 3.0 : -8.83 - 0.5 * static_cast<double>(i - 32);
         break;
     }
@@ -386,166 +491,160 @@ VelodyneDecoder::VelodyneDecoder(VelodyneCalibration calibration, VelodyneDecode
   }
 }
 
+// The validated blocks of one packet and what the decoder derives from them.
+struct VelodyneDecoder::Packet {
+  VelodyneModel model = VelodyneModel::kVLP16;
+  VelodyneReturnMode mode = VelodyneReturnMode::kStrongest;
+  bool dual = false;
+  std::size_t used_blocks = kBlocks;
+  std::array<int, kBlocks> bank{};
+  std::array<uint16_t, kBlocks> azimuth{};  // [0.01 deg]
+  std::array<double, kBlocks> block_us{};   // when the block's azimuth was sampled
+  std::array<double, kBlocks> rate{};       // [0.01 deg / us] rotation rate from the block on
+  double unit = 0.0;                        // [m] distance unit
+  long sector_min_h = 0, sector_max_h = 0;  // [0.01 deg]
+
+  bool in_sector(long a) const {
+    return sector_min_h <= sector_max_h ? (a >= sector_min_h && a <= sector_max_h) : (a >= sector_min_h || a <= sector_max_h);
+  }
+};
+
 VelodynePacketStatus VelodyneDecoder::decode(std::span<const uint8_t> packet, int64_t stamp_ns,
                                              std::vector<VelodynePoint>& out) {
   if (packet.size() < kVelodynePacketSize) return VelodynePacketStatus::kTruncated;
   if (packet.size() > kVelodynePacketSize) return VelodynePacketStatus::kMalformed;
-  const uint8_t product = packet[1205];
-  VelodyneModel model;
-  if (options_.model) {
-    model = *options_.model;
-    const auto named = velodyne_model_from_product_id(product);
-    // The HDL-64E has no product id: its status bytes may hold anything.
-    if (model != VelodyneModel::kHDL64E && named && *named != model) return VelodynePacketStatus::kWrongModel;
-  } else {
-    const auto named = velodyne_model_from_product_id(product);
-    if (!named) return VelodynePacketStatus::kMalformed;
-    model = *named;
-  }
-  if (static_cast<int>(calibration_.lasers.size()) != velodyne_laser_count(model)) return VelodynePacketStatus::kWrongModel;
-  model_ = model;
+  Packet p;
+  if (const auto status = identify(packet, p); status != VelodynePacketStatus::kOk) return status;
+  // Validate every block first: a packet is decoded whole or not at all.
+  if (!read_blocks(packet, p)) return VelodynePacketStatus::kMalformed;
+  rotation_rates(p);
+  p.unit = distance_unit(p.model);
+  p.sector_min_h = static_cast<long>(std::lround(options_.sector_min_deg * 100.0));
+  p.sector_max_h = static_cast<long>(std::lround(options_.sector_max_deg * 100.0));
+  emit_points(packet, p, stamp_ns, out);
+  return VelodynePacketStatus::kOk;
+}
 
-  VelodyneReturnMode mode;
+VelodynePacketStatus VelodyneDecoder::identify(std::span<const uint8_t> packet, Packet& p) {
+  const auto named = velodyne_model_from_product_id(packet[1205]);
+  if (options_.model) {
+    p.model = *options_.model;
+    // The HDL-64E has no product id: its status bytes may hold anything.
+    if (!is_hdl64e(p.model) && named && *named != p.model) return VelodynePacketStatus::kWrongModel;
+  } else {
+    if (!named) return VelodynePacketStatus::kMalformed;
+    p.model = *named;
+  }
+  if (static_cast<int>(calibration_.lasers.size()) != velodyne_laser_count(p.model)) return VelodynePacketStatus::kWrongModel;
+  model_ = p.model;
+
   if (options_.return_mode) {
-    mode = *options_.return_mode;
-  } else if (model == VelodyneModel::kHDL64E) {
-    mode = VelodyneReturnMode::kStrongest;
+    p.mode = *options_.return_mode;
+  } else if (is_hdl64e(p.model)) {
+    p.mode = VelodyneReturnMode::kStrongest;
   } else {
     const uint8_t m = packet[1204];
     if (m != 0x37 && m != 0x38 && m != 0x39) return VelodynePacketStatus::kMalformed;
-    mode = static_cast<VelodyneReturnMode>(m);
+    p.mode = static_cast<VelodyneReturnMode>(m);
   }
-  const bool dual = mode == VelodyneReturnMode::kDual;
+  p.dual = p.mode == VelodyneReturnMode::kDual;
   // The VLS-128 packs one firing sequence in blocks 0..7 in dual mode; 8..11 carry nothing.
-  const std::size_t used_blocks = dual && model == VelodyneModel::kVLS128 ? 8 : kBlocks;
+  p.used_blocks = p.dual && p.model == VelodyneModel::kVLS128 ? 8 : kBlocks;
+  return VelodynePacketStatus::kOk;
+}
 
-  // Validate every block first: a packet is decoded whole or not at all.
-  std::array<int, kBlocks> bank{};
-  std::array<uint16_t, kBlocks> azimuth{};
-  std::array<double, kBlocks> block_us{};
-  for (std::size_t b = 0; b < used_blocks; ++b) {
+bool VelodyneDecoder::read_blocks(std::span<const uint8_t> packet, Packet& p) {
+  for (std::size_t b = 0; b < p.used_blocks; ++b) {
     const std::size_t at = b * kBlockSize;
-    bank[b] = bank_of(model, read_u16(packet, at));
-    azimuth[b] = read_u16(packet, at + 2);
-    if (bank[b] < 0 || azimuth[b] >= kAzimuthUnits) return VelodynePacketStatus::kMalformed;
-    block_us[b] = firing(model, dual, b, 0, bank[b]).block_us;
+    p.bank[b] = bank_of(p.model, read_u16(packet, at));
+    p.azimuth[b] = read_u16(packet, at + 2);
+    if (p.bank[b] < 0 || p.azimuth[b] >= kAzimuthUnits) return false;
+    p.block_us[b] = firing(p.model, p.dual, b, 0, p.bank[b]).block_us;
   }
+  return true;
+}
 
-  // Rotation rate [0.01 deg / us] per block: towards the next firing sequence's azimuth in this packet.
-  const double nominal = options_.rpm * 6.0 * 100.0 / 1e6;
+void VelodyneDecoder::rotation_rates(Packet& p) {
+  // Per block: towards the next firing sequence's azimuth in this packet.
   constexpr double kMaxRate = 1.0;  // 1667 rpm: anything faster is a corrupt azimuth
-  std::array<double, kBlocks> rate{};
   double packet_rate = -1.0;
-  for (std::size_t b = 0; b < used_blocks; ++b) {
-    rate[b] = -1.0;
-    for (std::size_t n = b + 1; n < used_blocks; ++n) {
-      if (block_us[n] > block_us[b]) {
-        const int diff = (static_cast<int>(azimuth[n]) - static_cast<int>(azimuth[b]) + kAzimuthUnits) % kAzimuthUnits;
-        const double r = static_cast<double>(diff) / (block_us[n] - block_us[b]);
+  for (std::size_t b = 0; b < p.used_blocks; ++b) {
+    p.rate[b] = -1.0;
+    for (std::size_t n = b + 1; n < p.used_blocks; ++n) {
+      if (p.block_us[n] > p.block_us[b]) {
+        const int diff = (static_cast<int>(p.azimuth[n]) - static_cast<int>(p.azimuth[b]) + kAzimuthUnits) % kAzimuthUnits;
+        const double r = static_cast<double>(diff) / (p.block_us[n] - p.block_us[b]);
         if (r > 0.0 && r <= kMaxRate) {
-          rate[b] = r;
+          p.rate[b] = r;
           packet_rate = r;
         }
         break;
       }
     }
   }
+  const double nominal = options_.rpm * 6.0 * 100.0 / 1e6;
   const double fallback = packet_rate > 0 ? packet_rate : last_rate_h_per_us_ > 0 ? last_rate_h_per_us_ : nominal;
   // The last sequence reuses the rate of the one before it.
-  for (std::size_t b = used_blocks; b-- > 0;) {
-    if (rate[b] < 0) {
-      double previous = -1.0;
-      for (std::size_t p = b; p-- > 0;) {
-        if (rate[p] > 0) {
-          previous = rate[p];
-          break;
-        }
+  for (std::size_t b = p.used_blocks; b-- > 0;) {
+    if (p.rate[b] >= 0) continue;
+    double previous = -1.0;
+    for (std::size_t q = b; q-- > 0;) {
+      if (p.rate[q] > 0) {
+        previous = p.rate[q];
+        break;
       }
-      rate[b] = previous > 0 ? previous : fallback;
     }
+    p.rate[b] = previous > 0 ? previous : fallback;
   }
   if (packet_rate > 0) last_rate_h_per_us_ = packet_rate;
+}
 
-  const double unit = distance_unit(model);
-  const auto min_h = static_cast<long>(std::lround(options_.sector_min_deg * 100.0));
-  const auto max_h = static_cast<long>(std::lround(options_.sector_max_deg * 100.0));
-  auto in_sector = [&](long a) { return min_h <= max_h ? (a >= min_h && a <= max_h) : (a >= min_h || a <= max_h); };
-
-  for (std::size_t b = 0; b < used_blocks; ++b) {
-    const std::size_t at = b * kBlockSize + 4;
-    const std::size_t other_at = (b % 2 == 0 ? b + 1 : b - 1) * kBlockSize + 4;
+void VelodyneDecoder::emit_points(std::span<const uint8_t> packet, const Packet& p, int64_t stamp_ns,
+                                  std::vector<VelodynePoint>& out) const {
+  for (std::size_t b = 0; b < p.used_blocks; ++b) {
     for (std::size_t ch = 0; ch < kChannelsPerBlock; ++ch) {
-      const uint16_t raw = read_u16(packet, at + 3 * ch);
+      const std::size_t at = b * kBlockSize + 4 + 3 * ch;
+      const uint16_t raw = read_u16(packet, at);
       if (raw == 0) continue;  // no return
-      const uint8_t raw_intensity = packet[at + 3 * ch + 2];
-      VelodyneReturnType type = mode == VelodyneReturnMode::kLast ? VelodyneReturnType::kLast : VelodyneReturnType::kStrongest;
-      if (dual) {
-        const uint16_t other = read_u16(packet, other_at + 3 * ch);
-        const uint8_t other_intensity = packet[other_at + 3 * ch + 2];
-        if (other == raw || other == 0) {
-          if (other == raw && b % 2 == 1) continue;  // the sensor repeated the return: keep one point
-          type = VelodyneReturnType::kDualOnly;
-        } else {
-          const bool first = raw < other;
-          // Equal intensity: the second block of the pair carries the strongest return.
-          const bool strongest = raw_intensity != other_intensity ? raw_intensity > other_intensity : b % 2 == 1;
-          type = first ? (strongest ? VelodyneReturnType::kDualFirstStrongest : VelodyneReturnType::kDualFirstWeak)
-                       : (strongest ? VelodyneReturnType::kDualLastStrongest : VelodyneReturnType::kDualLastWeak);
-        }
-      }
-      const Firing f = firing(model, dual, b, ch, bank[b]);
-      const auto li = static_cast<std::size_t>(f.laser);
-      const VelodyneLaserCalibration& l = calibration_.lasers[li];
-      const double distance = static_cast<double>(raw) * unit + l.dist_correction;
-      if (!(distance > options_.min_range && distance < options_.max_range)) continue;
-
-      const double az_f = static_cast<double>(azimuth[b]) + rate[b] * (f.time_us - f.block_us) - rot_correction_h_[li];
-      // Exact halves (common: rates are whole hundredths per sequence) round up whatever the last bit.
-      long az = std::lround(az_f + 1e-6) % kAzimuthUnits;
-      if (az < 0) az += kAzimuthUnits;
-      if (!in_sector(az)) continue;
-
-      const double ca = cos_az_[static_cast<std::size_t>(az)], sa = sin_az_[static_cast<std::size_t>(az)];
-      const double cv = cos_elev_[li], sv = sin_elev_[li];
-      const double vo = l.vert_offset_correction, ho = l.horiz_offset_correction;
-      // The sensor's own frame (x right, y forward) with the per-laser origin offsets, then the
-      // two-point distance correction of the HDL-64E, which interpolates the correction on |x| and |y|.
-      double dx = 0, dy = 0;
-      if (l.two_pt_correction) {
-        const double xy0 = distance * cv - vo * sv;
-        const double xx = std::abs(xy0 * sa - ho * ca), yy = std::abs(xy0 * ca + ho * sa);
-        dx = (l.dist_correction - l.dist_correction_x) * (xx - 2.4) / (25.04 - 2.4) + l.dist_correction_x - l.dist_correction;
-        dy = (l.dist_correction - l.dist_correction_y) * (yy - 1.93) / (25.04 - 1.93) + l.dist_correction_y - l.dist_correction;
-      }
-      const double sensor_x = ((distance + dx) * cv - vo * sv) * sa - ho * ca;
-      const double sensor_y = ((distance + dy) * cv - vo * sv) * ca + ho * sa;
-      const double sensor_z = (distance + dy) * sv + vo * cv;
-
-      double intensity = raw_intensity;
-      if (l.focal_slope != 0.0) {
-        const double focal = 1.0 - l.focal_distance / 13100.0;
-        const double near = 1.0 - static_cast<double>(raw) / 65535.0;
-        intensity += l.focal_slope * std::abs(256.0 * focal * focal - 256.0 * near * near);
-      }
-      intensity = std::clamp(intensity, l.min_intensity, l.max_intensity);
-
-      VelodynePoint p;
-      p.x = static_cast<float>(sensor_y);  // forward
-      p.y = static_cast<float>(-sensor_x);  // left
-      p.z = static_cast<float>(sensor_z);
-      p.intensity = static_cast<float>(intensity);
-      p.distance = static_cast<float>(distance);
-      p.azimuth = static_cast<float>(static_cast<double>(az) * 0.01 * kDegToRad);
-      p.elevation = static_cast<float>(l.vert_correction);
-      p.time_ns = stamp_ns + std::llround(f.time_us * 1000.0);
-      p.ring = static_cast<uint16_t>(l.ring);
-      p.laser_id = static_cast<uint16_t>(f.laser);
-      p.return_type = type;
-      p.block = static_cast<uint8_t>(b);
-      out.push_back(p);
+      const std::optional<VelodyneReturnType> type = return_type(packet, p.model, p.mode, b, ch);
+      if (!type) continue;
+      VelodynePoint point;
+      if (!make_point(p, b, ch, raw, packet[at + 2], point)) continue;
+      point.time_ns += stamp_ns;
+      point.return_type = *type;
+      out.push_back(point);
     }
   }
-  return VelodynePacketStatus::kOk;
+}
+
+bool VelodyneDecoder::make_point(const Packet& p, std::size_t b, std::size_t ch, uint16_t raw, uint8_t raw_intensity,
+                                 VelodynePoint& point) const {
+  const Firing f = firing(p.model, p.dual, b, ch, p.bank[b]);
+  const auto li = static_cast<std::size_t>(f.laser);
+  const VelodyneLaserCalibration& l = calibration_.lasers[li];
+  const double distance = static_cast<double>(raw) * p.unit + l.dist_correction;
+  if (!(distance > options_.min_range && distance < options_.max_range)) return false;
+
+  const double az_f = static_cast<double>(p.azimuth[b]) + p.rate[b] * (f.time_us - f.block_us) - rot_correction_h_[li];
+  // Exact halves (common: rates are whole hundredths per sequence) round up whatever the last bit.
+  long az = std::lround(az_f + 1e-6) % kAzimuthUnits;
+  if (az < 0) az += kAzimuthUnits;
+  if (!p.in_sector(az)) return false;
+
+  const auto ai = static_cast<std::size_t>(az);
+  const SensorXyz s = sensor_xyz(l, distance, cos_az_[ai], sin_az_[ai], cos_elev_[li], sin_elev_[li]);
+  point.x = static_cast<float>(s.y);   // forward
+  point.y = static_cast<float>(-s.x);  // left
+  point.z = static_cast<float>(s.z);
+  point.intensity = static_cast<float>(corrected_intensity(l, raw, raw_intensity));
+  point.distance = static_cast<float>(distance);
+  point.azimuth = static_cast<float>(static_cast<double>(az) * 0.01 * kDegToRad);
+  point.elevation = static_cast<float>(l.vert_correction);
+  point.time_ns = std::llround(f.time_us * 1000.0);
+  point.ring = static_cast<uint16_t>(l.ring);
+  point.laser_id = static_cast<uint16_t>(f.laser);
+  point.block = static_cast<uint8_t>(b);
+  return true;
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -846,9 +846,16 @@ TEST(VelodyneSynthetic, Hdl32eDualReturn) {
   EXPECT_NEAR(pts[32].azimuth, 1000 * 0.01 * kPi / 180, 1e-6);
 }
 
+// The HDL-64E S2 manual's laser firing time table, within a firing of a block pair [us]: 8 groups of 4
+// lasers, a group every 6 us, the lasers of a group 0, 1.26, 2.46 and 3.66 us after its start.
+constexpr double kHdl64S2Cycle = 48.0;
+constexpr double kHdl64S2Offset[32] = {0,  1.26,  2.46,  3.66,  6,  7.26,  8.46,  9.66,  12, 13.26, 14.46,
+                                       15.66, 18, 19.26, 20.46, 21.66, 24, 25.26, 26.46, 27.66, 30, 31.26,
+                                       32.46, 33.66, 36, 37.26, 38.46, 39.66, 42, 43.26, 44.46, 45.66};
+
 TEST(VelodyneSynthetic, Hdl64eBanksTimingAndCalibrationModel) {
-  // HDL-64E S2/S3: blocks alternate upper (0xEEFF, lasers 0-31) and lower (0xDDFF, lasers 32-63);
-  // an upper and a lower laser fire together; 3 firings of the 32 pairs take 139 us.
+  // HDL-64E S2: blocks alternate upper (0xEEFF, lasers 0-31) and lower (0xDDFF, lasers 32-63); an upper
+  // and a lower laser fire together, one firing of both blocks every 48 us (kHdl64S2Offset).
   VelodyneCalibration cal = default_velodyne_calibration(VelodyneModel::kHDL64E);
   // A laser with the full calibration model: origin offsets, two-point distance correction, intensity.
   auto& l = cal.lasers[40];
@@ -877,17 +884,17 @@ TEST(VelodyneSynthetic, Hdl64eBanksTimingAndCalibrationModel) {
   std::vector<VelodynePoint> pts;
   ASSERT_EQ(d.decode(pkt, 0, pts), VelodynePacketStatus::kOk);
   ASSERT_EQ(pts.size(), 384u);
-  const double cycle = 139.0 / 3.0, firing = 139.0 / 96.0;
+  const double cycle = kHdl64S2Cycle;
   for (std::size_t b = 0; b < 12; ++b) {
     for (std::size_t c = 0; c < 32; ++c) {
       const VelodynePoint& p = pts[b * 32 + c];
       const auto laser = static_cast<std::size_t>(b % 2 == 0 ? c : 32 + c);
       const std::string what = "block " + std::to_string(b) + " channel " + std::to_string(c);
       ASSERT_EQ(p.laser_id, laser) << what;
-      const double t_us = cycle * static_cast<double>(b / 2) + firing * static_cast<double>(c);
+      const double t_us = cycle * static_cast<double>(b / 2) + kHdl64S2Offset[c];
       EXPECT_EQ(p.time_ns, std::llround(t_us * 1000)) << what;
-      // Rotation between sequences: 16 per 139/3 us; the last sequence reuses it.
-      const double az = 9000.0 + 16.0 * static_cast<double>(b / 2) + 16.0 * (firing * static_cast<double>(c) / cycle) -
+      // Rotation between sequences: 16 per 48 us; the last sequence reuses it.
+      const double az = 9000.0 + 16.0 * static_cast<double>(b / 2) + 16.0 * (kHdl64S2Offset[c] / cycle) -
                         cal.lasers[laser].rot_correction * 180 / kPi * 100;
       const double raw_m = 0.002 * static_cast<double>(10000 + 37 * c);
       if (laser != 40) {
@@ -922,6 +929,118 @@ TEST(VelodyneSynthetic, Hdl64eBanksTimingAndCalibrationModel) {
   pts.clear();
   EXPECT_EQ(d.decode(bad, 0, pts), VelodynePacketStatus::kMalformed);
   EXPECT_TRUE(pts.empty());
+}
+
+// The point of `laser` decoded from `block`, or nullptr.
+const VelodynePoint* find_point(const std::vector<VelodynePoint>& pts, std::size_t block, std::size_t laser) {
+  for (const auto& p : pts) {
+    if (p.block == block && p.laser_id == laser) return &p;
+  }
+  return nullptr;
+}
+
+// HDL-64E packets as the manuals lay them out: block ids alternate upper (0xEEFF) and lower (0xDDFF);
+// the azimuth steps by `step` every `blocks_per_firing` blocks.
+std::array<Block, 12> hdl64e_blocks(std::size_t blocks_per_firing, int step) {
+  std::array<Block, 12> blocks;
+  for (std::size_t b = 0; b < 12; ++b) {
+    blocks[b].id = b % 2 == 0 ? 0xEEFF : 0xDDFF;
+    blocks[b].azimuth = static_cast<uint16_t>(20000 + step * static_cast<int>(b / blocks_per_firing));
+    for (std::size_t c = 0; c < 32; ++c) {
+      blocks[b].distance[c] = static_cast<uint16_t>(5000 + 10 * c);
+      blocks[b].intensity[c] = 60;
+    }
+  }
+  return blocks;
+}
+
+TEST(VelodyneSynthetic, Hdl64eS2AndS3FiringTimes) {
+  // Values hand-computed from the manuals' laser firing time tables [us after the packet's first firing]:
+  // S2 (48 us per firing of a block pair, groups of 4 lasers every 6 us, 0 / 1.26 / 2.46 / 3.66 us in a
+  // group) and S3 (57.6 us, 7.2 us, 0 / 1.3 / 2.5 / 3.7 us). Blocks 2k and 2k+1 hold firing k.
+  struct Expected {
+    std::size_t block, channel;
+    double s2_us, s3_us;
+  };
+  const Expected expected[] = {
+      {0, 0, 0.0, 0.0},       {1, 0, 0.0, 0.0},       // laser 32 fires with laser 0
+      {0, 1, 1.26, 1.3},      {0, 2, 2.46, 2.5},      {0, 3, 3.66, 3.7},   {0, 4, 6.0, 7.2},
+      {1, 5, 7.26, 8.5},      {0, 31, 45.66, 54.1},   {3, 10, 62.46, 74.5},  // firing 1, laser 42
+      {4, 3, 99.66, 118.9},   {11, 31, 285.66, 342.1},                     // firing 5, laser 63
+  };
+  const auto pkt = make_packet(hdl64e_blocks(2, 17), 0, 0, 0);
+  for (const VelodyneModel model : {VelodyneModel::kHDL64E, VelodyneModel::kHDL64ES3}) {
+    VelodyneDecoderOptions o;
+    o.model = model;
+    VelodyneDecoder d(default_velodyne_calibration(model), o);
+    std::vector<VelodynePoint> pts;
+    const int64_t stamp = 7'000'000'000;
+    ASSERT_EQ(d.decode(pkt, stamp, pts), VelodynePacketStatus::kOk) << to_string(model);
+    ASSERT_EQ(pts.size(), 384u);
+    EXPECT_EQ(d.model(), model);
+    for (const Expected& e : expected) {
+      const std::size_t laser = (e.block % 2 == 0 ? 0 : 32) + e.channel;
+      const std::string what = std::string(to_string(model)) + " block " + std::to_string(e.block) + " channel " +
+                               std::to_string(e.channel);
+      const VelodynePoint* p = find_point(pts, e.block, laser);
+      ASSERT_NE(p, nullptr) << what;
+      const double t_us = model == VelodyneModel::kHDL64E ? e.s2_us : e.s3_us;
+      EXPECT_EQ(p->time_ns, stamp + std::llround(t_us * 1000)) << what;
+      EXPECT_EQ(p->return_type, VelodyneReturnType::kStrongest) << what;
+    }
+    // Lasers firing together share the interpolated azimuth (no per-laser offsets in the nominal table).
+    EXPECT_EQ(find_point(pts, 6, 9)->azimuth, find_point(pts, 7, 41)->azimuth);
+  }
+}
+
+TEST(VelodyneSynthetic, Hdl64eDualReturnLayout) {
+  // Dual return (S3 manual: upper and lower block of one firing fire together): blocks 4k, 4k+1 are
+  // the upper and lower block of firing k's strongest return, 4k+2, 4k+3 of its last return; three
+  // firings per packet, 57.6 us apart.
+  auto blocks = hdl64e_blocks(4, 34);
+  // Firing 0, upper laser 0: strongest nearer and brighter, last farther.
+  blocks[0].distance[0] = 5000;
+  blocks[0].intensity[0] = 90;
+  blocks[2].distance[0] = 6000;
+  blocks[2].intensity[0] = 10;
+  // Firing 2, upper laser 7: two returns of equal intensity (the strongest-return block is strongest).
+  blocks[8].distance[7] = 7000;
+  blocks[10].distance[7] = 7500;
+  // Firing 1, lower laser 40: only the last-return block has a return.
+  blocks[5].distance[8] = 0;
+  const auto pkt = make_packet(blocks, 0, 0, 0);
+  VelodyneDecoderOptions o;
+  o.model = VelodyneModel::kHDL64ES3;
+  o.return_mode = VelodyneReturnMode::kDual;
+  VelodyneDecoder d(default_velodyne_calibration(VelodyneModel::kHDL64ES3), o);
+  std::vector<VelodynePoint> pts;
+  ASSERT_EQ(d.decode(pkt, 0, pts), VelodynePacketStatus::kOk);
+  // One point per laser and firing where both returns are the same, two where they differ.
+  ASSERT_EQ(pts.size(), 3u * 64u + 2u);
+  const VelodynePoint* strongest = find_point(pts, 0, 0);
+  const VelodynePoint* last = find_point(pts, 2, 0);
+  ASSERT_TRUE(strongest != nullptr && last != nullptr);
+  EXPECT_EQ(strongest->return_type, VelodyneReturnType::kDualFirstStrongest);
+  EXPECT_EQ(last->return_type, VelodyneReturnType::kDualLastWeak);
+  EXPECT_EQ(strongest->time_ns, 0);
+  EXPECT_EQ(last->time_ns, 0);
+  EXPECT_EQ(last->azimuth, strongest->azimuth);
+  EXPECT_NEAR(last->distance, 12.0, 1e-6);
+  // A repeated return is kept once, from the strongest-return block.
+  EXPECT_EQ(find_point(pts, 1, 32)->return_type, VelodyneReturnType::kDualOnly);
+  EXPECT_EQ(find_point(pts, 3, 32), nullptr);
+  // Firing 1 (blocks 4-7), lower laser 34 (channel 2): 57.6 + 2.5 us.
+  EXPECT_EQ(find_point(pts, 5, 34)->time_ns, std::llround(60.1 * 1000));
+  EXPECT_EQ(find_point(pts, 7, 40)->return_type, VelodyneReturnType::kDualOnly);
+  EXPECT_EQ(find_point(pts, 5, 40), nullptr);
+  // Firing 2 (blocks 8-11), upper laser 7: 2 * 57.6 + 7.2 + 3.7 us, both returns.
+  const VelodynePoint* a = find_point(pts, 8, 7);
+  const VelodynePoint* b = find_point(pts, 10, 7);
+  ASSERT_TRUE(a != nullptr && b != nullptr);
+  EXPECT_EQ(a->time_ns, std::llround(126.1 * 1000));
+  EXPECT_EQ(b->time_ns, a->time_ns);
+  EXPECT_EQ(a->return_type, VelodyneReturnType::kDualFirstStrongest);
+  EXPECT_EQ(b->return_type, VelodyneReturnType::kDualLastWeak);
 }
 
 TEST(VelodyneSynthetic, RangeAndSectorLimits) {
@@ -1092,10 +1211,15 @@ TEST(VelodyneSweepAssembler, CountsBadPacketsAndNeverCrashes) {
 TEST(VelodyneModelNames, ParseAndPrint) {
   EXPECT_EQ(velodyne_model_from_string("VLP-16"), VelodyneModel::kVLP16);
   EXPECT_EQ(velodyne_model_from_string("vlp32c"), VelodyneModel::kVLP32C);
-  EXPECT_EQ(velodyne_model_from_string("HDL-64E-S3"), VelodyneModel::kHDL64E);
+  EXPECT_EQ(velodyne_model_from_string("HDL-64E-S3"), VelodyneModel::kHDL64ES3);
+  EXPECT_EQ(velodyne_model_from_string("HDL-64E"), VelodyneModel::kHDL64E);
+  EXPECT_EQ(velodyne_model_from_string("HDL-64E S2"), VelodyneModel::kHDL64E);
+  EXPECT_EQ(velodyne_model_from_string("hdl64e_s2.1"), VelodyneModel::kHDL64E);
+  EXPECT_EQ(velodyne_model_from_string("HDL64E_S3"), VelodyneModel::kHDL64ES3);
   EXPECT_EQ(velodyne_model_from_string("VLS128"), VelodyneModel::kVLS128);
   EXPECT_THROW(velodyne_model_from_string("OS1"), std::invalid_argument);
-  for (auto m : {VelodyneModel::kVLP16, VelodyneModel::kVLP32C, VelodyneModel::kHDL32E, VelodyneModel::kHDL64E, VelodyneModel::kVLS128}) {
+  for (auto m : {VelodyneModel::kVLP16, VelodyneModel::kVLP32C, VelodyneModel::kHDL32E, VelodyneModel::kHDL64E,
+                 VelodyneModel::kHDL64ES3, VelodyneModel::kVLS128}) {
     EXPECT_EQ(velodyne_model_from_string(to_string(m)), m);
   }
 }

@@ -14,10 +14,13 @@
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <optional>
+#include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace {
 
@@ -60,6 +63,64 @@ struct DecodeArgs {
   bool keep_incomplete = false;
 };
 
+// Writes sweeps as OUT/velodyne/NNNNNN.bin, OUT/velodyne_meta/NNNNNN.bin and a line of OUT/times.txt each;
+// without a folder it only counts them.
+class SweepFiles {
+ public:
+  explicit SweepFiles(const std::string& out) : out_(out) {
+    if (out_.empty()) return;
+    std::filesystem::create_directories(out_ / "velodyne");
+    std::filesystem::create_directories(out_ / "velodyne_meta");
+    times_.open(out_ / "times.txt");
+    if (!times_) throw std::runtime_error(out + "/times.txt: cannot be written");
+  }
+
+  void write(const VelodyneSweep& s) {
+    if (out_.empty()) return;
+    std::vector<CloudPoint> points;
+    points.reserve(s.points.size());
+    for (const auto& p : s.points) {
+      CloudPoint c;
+      c.x = p.x;
+      c.y = p.y;
+      c.z = p.z;
+      c.intensity = p.intensity;
+      c.time_offset = static_cast<float>(s.time_offset_s(p));
+      c.ring = p.ring;
+      points.push_back(c);
+    }
+    char name[32];
+    std::snprintf(name, sizeof(name), "%06llu.bin", static_cast<unsigned long long>(written_));
+    write_kitti_bin(out_ / "velodyne" / name, points);
+    write_point_meta(out_ / "velodyne_meta" / name, points);
+    times_ << s.stamp_ns << "\n";
+    ++written_;
+  }
+
+  uint64_t written() const { return written_; }
+
+ private:
+  std::filesystem::path out_;
+  std::ofstream times_;
+  uint64_t written_ = 0;
+};
+
+void print_counts(const PcapStats& p, uint64_t other_ports, const VelodyneSweepAssembler& assembler, uint64_t written) {
+  const VelodyneSweepStats& s = assembler.stats();
+  const auto model = assembler.decoder().model();
+  std::printf(
+      "{\"records\": %llu, \"datagrams\": %llu, \"other_ports\": %llu, \"packets\": %llu, \"decoded\": %llu, "
+      "\"truncated\": %llu, \"malformed\": %llu, \"out_of_order\": %llu, \"gaps\": %llu, \"sweeps\": %llu, "
+      "\"incomplete_sweeps\": %llu, \"points\": %llu, \"written\": %llu, \"model\": \"%s\"}\n",
+      static_cast<unsigned long long>(p.records), static_cast<unsigned long long>(p.datagrams),
+      static_cast<unsigned long long>(other_ports), static_cast<unsigned long long>(s.packets),
+      static_cast<unsigned long long>(s.decoded), static_cast<unsigned long long>(s.truncated),
+      static_cast<unsigned long long>(s.malformed), static_cast<unsigned long long>(s.out_of_order),
+      static_cast<unsigned long long>(s.gaps), static_cast<unsigned long long>(s.sweeps),
+      static_cast<unsigned long long>(s.incomplete_sweeps), static_cast<unsigned long long>(s.points),
+      static_cast<unsigned long long>(written), model ? std::string(to_string(*model)).c_str() : "unknown");
+}
+
 int decode(DecodeArgs& a) {
   std::optional<VelodyneModel> model;
   if (!a.model.empty()) model = velodyne_model_from_string(a.model);
@@ -71,40 +132,13 @@ int decode(DecodeArgs& a) {
   const VelodyneCalibration cal =
       a.calibration.empty() ? default_velodyne_calibration(model.value()) : read_velodyne_calibration(a.calibration, model);
   VelodyneSweepAssembler assembler(cal, a.decoder, a.sweep);
-  std::ofstream times;
-  if (!a.out.empty()) {
-    std::filesystem::create_directories(std::filesystem::path(a.out) / "velodyne");
-    std::filesystem::create_directories(std::filesystem::path(a.out) / "velodyne_meta");
-    times.open(std::filesystem::path(a.out) / "times.txt");
-    if (!times) throw std::runtime_error(a.out + "/times.txt: cannot be written");
-  }
-  uint64_t written = 0, other_ports = 0;
+  SweepFiles files(a.out);
   auto drain = [&]() {
-    while (assembler.has_sweep()) {
-      const VelodyneSweep s = assembler.take();
-      if (a.out.empty()) continue;
-      std::vector<CloudPoint> points;
-      points.reserve(s.points.size());
-      for (const auto& p : s.points) {
-        CloudPoint c;
-        c.x = p.x;
-        c.y = p.y;
-        c.z = p.z;
-        c.intensity = p.intensity;
-        c.time_offset = static_cast<float>(s.time_offset_s(p));
-        c.ring = p.ring;
-        points.push_back(c);
-      }
-      char name[32];
-      std::snprintf(name, sizeof(name), "%06llu.bin", static_cast<unsigned long long>(written));
-      write_kitti_bin(std::filesystem::path(a.out) / "velodyne" / name, points);
-      write_point_meta(std::filesystem::path(a.out) / "velodyne_meta" / name, points);
-      times << s.stamp_ns << "\n";
-      ++written;
-    }
+    while (assembler.has_sweep()) files.write(assembler.take());
   };
   PcapReader reader(a.pcap);
   UdpDatagram d;
+  uint64_t other_ports = 0;
   std::string error;
   try {
     while (reader.next(d)) {
@@ -120,20 +154,7 @@ int decode(DecodeArgs& a) {
   }
   assembler.flush();
   drain();
-  const VelodyneSweepStats& s = assembler.stats();
-  const PcapStats& p = reader.stats();
-  std::printf(
-      "{\"records\": %llu, \"datagrams\": %llu, \"other_ports\": %llu, \"packets\": %llu, \"decoded\": %llu, "
-      "\"truncated\": %llu, \"malformed\": %llu, \"out_of_order\": %llu, \"gaps\": %llu, \"sweeps\": %llu, "
-      "\"incomplete_sweeps\": %llu, \"points\": %llu, \"written\": %llu, \"model\": \"%s\"}\n",
-      static_cast<unsigned long long>(p.records), static_cast<unsigned long long>(p.datagrams),
-      static_cast<unsigned long long>(other_ports), static_cast<unsigned long long>(s.packets),
-      static_cast<unsigned long long>(s.decoded), static_cast<unsigned long long>(s.truncated),
-      static_cast<unsigned long long>(s.malformed), static_cast<unsigned long long>(s.out_of_order),
-      static_cast<unsigned long long>(s.gaps), static_cast<unsigned long long>(s.sweeps),
-      static_cast<unsigned long long>(s.incomplete_sweeps), static_cast<unsigned long long>(s.points),
-      static_cast<unsigned long long>(written),
-      assembler.decoder().model() ? std::string(to_string(*assembler.decoder().model())).c_str() : "unknown");
+  print_counts(reader.stats(), other_ports, assembler, files.written());
   if (!error.empty()) {
     std::cerr << "cdc-velodyne-pcap: " << error << "\n";
     return 2;
@@ -166,7 +187,8 @@ int main(int argc, char** argv) {
   dec->add_option("--calibration", d.calibration,
                   "calibration YAML (ROS driver format); without it the built-in table of --model")
       ->check(CLI::ExistingFile);
-  dec->add_option("--model", d.model, "VLP16, VLP32C, HDL32E, HDL64E or VLS128 (default: from each packet)");
+  dec->add_option("--model", d.model,
+                  "VLP16, VLP32C, HDL32E, HDL64E (S2, S2.1), HDL64E_S3 or VLS128 (default: from each packet)");
   dec->add_option("--out", d.out, "folder for the sweeps");
   dec->add_option("--port", d.port, "UDP destination port of the data packets")->capture_default_str();
   dec->add_option("--return-mode", d.return_mode, "strongest, last or dual (default: from each packet)")

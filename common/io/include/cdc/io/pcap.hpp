@@ -60,14 +60,18 @@ class PcapReader {
     int64_t stamp_ns = 0;
     uint64_t first_record = 0;
   };
+  using FragmentKey = std::tuple<uint32_t, uint32_t, uint16_t>;  // (src, dst, id)
   bool handle_ip(std::span<const uint8_t> ip, int64_t stamp_ns, UdpDatagram& out);
+  bool add_fragment(const FragmentKey& key, uint32_t offset, bool more, std::span<const uint8_t> body, int64_t stamp_ns,
+                    UdpDatagram& out);
+  void drop_oldest_fragments();  // the set that started earliest, to make room
   bool emit_udp(std::span<const uint8_t> udp, uint32_t src, uint32_t dst, int64_t stamp_ns, UdpDatagram& out);
 
   std::string path_;
   void* pcap_ = nullptr;  // pcap_t
   int link_type_ = 0;
   PcapStats stats_;
-  std::map<std::tuple<uint32_t, uint32_t, uint16_t>, Fragments> fragments_;  // (src, dst, id)
+  std::map<FragmentKey, Fragments> fragments_;
 };
 
 class PcapWriter {

@@ -28,12 +28,15 @@ namespace cdc::io {
 
 inline constexpr std::size_t kVelodynePacketSize = 1206;
 
-enum class VelodyneModel { kVLP16, kVLP32C, kHDL32E, kHDL64E, kVLS128 };
+// kHDL64E is the HDL-64E S2 and S2.1 (KITTI's sensor), kHDL64ES3 the S3. Their packets look alike and
+// carry no product id; their firing timing differs, so the configured model tells them apart.
+enum class VelodyneModel { kVLP16, kVLP32C, kHDL32E, kHDL64E, kHDL64ES3, kVLS128 };
 
-// "VLP16", "VLP32C", "HDL32E", "HDL64E", "VLS128".
+// "VLP16", "VLP32C", "HDL32E", "HDL64E", "HDL64E_S3", "VLS128".
 std::string_view to_string(VelodyneModel model);
-// Accepts the names above, case-insensitive, with or without '-' ("VLP-16", "vlp32" for the VLP-32C,
-// "HDL-64E-S3", ...); throws std::invalid_argument naming the text otherwise.
+// Accepts the names above, case-insensitive, with or without '-' or '_' ("VLP-16", "vlp32" for the
+// VLP-32C, "HDL-64E-S2" and "HDL-64E-S2.1" for the HDL64E, "HDL-64E-S3", ...); throws
+// std::invalid_argument naming the text otherwise.
 VelodyneModel velodyne_model_from_string(std::string_view name);
 // The model a packet's product-id byte (1205) names: 0x21 HDL-32E, 0x22 VLP-16, 0x24 VLP-16 Hi-Res,
 // 0x28 VLP-32C, 0xA1 VLS-128. The HDL-64E has no product id (it uses those bytes for its status).
@@ -159,6 +162,16 @@ class VelodyneDecoder {
   const VelodyneDecoderOptions& options() const { return options_; }
 
  private:
+  struct Packet;  // one packet's validated blocks (velodyne.cpp)
+  // The steps of decode(): the packet's model and return mode; its blocks' banks, azimuths and times
+  // (false when one is malformed); the rotation rate per block; the points.
+  VelodynePacketStatus identify(std::span<const uint8_t> packet, Packet& p);
+  static bool read_blocks(std::span<const uint8_t> packet, Packet& p);
+  void rotation_rates(Packet& p);
+  void emit_points(std::span<const uint8_t> packet, const Packet& p, int64_t stamp_ns, std::vector<VelodynePoint>& out) const;
+  bool make_point(const Packet& p, std::size_t block, std::size_t channel, uint16_t raw, uint8_t raw_intensity,
+                  VelodynePoint& point) const;
+
   VelodyneCalibration calibration_;
   VelodyneDecoderOptions options_;
   std::optional<VelodyneModel> model_;
