@@ -1,37 +1,63 @@
-// DDS glue of the central optimiser: validated keyframes, loops and world hints in; optimised
-// poses (liveliness-monitored writer, asserted from the work loop), acknowledgements and the
-// central's status out.
+// DDS shell of the central optimiser: validated keyframes, loops and world hints in; optimised poses
+// (liveliness-monitored writer, asserted from the work loop), acknowledgements and the central's
+// status out. The graph is CentralCore's.
 #pragma once
 
+#include "central_config.hpp"
+
 #include "cdc/central_optimiser/central_core.hpp"
+#include "cdc/central_optimiser/update_schedule.hpp"
+#include "cdc/dds/pubsub.hpp"
+#include "cdc/dds/types.hpp"
+#include "cdc/runtime/input.hpp"
+#include "cdc/runtime/service.hpp"
 
-#include <Eigen/Core>
+#include <nlohmann/json.hpp>
 
-#include <cstdint>
-#include <string>
+#include <deque>
+#include <vector>
 
 namespace cdc::central {
 
-struct CentralNodeOptions {
-  uint32_t domain = 0;
-  std::string dds_config;     // empty: CYCLONEDDS_URI
-  CentralConfig core;
-  uint32_t central_id = 200;  // node id of the central in status messages
-  int central_on_robot = 0;   // the central rides on this robot; -1: fixed position
-  Eigen::Vector3d central_position = Eigen::Vector3d::Zero();
-  int lease_ms = 1000;        // liveliness lease of the results writer
-  int update_period_ms = 100; // least time between optimisations
-  int max_result_age_ms = 2000; // results of an unsettled graph are held back at most this long
-  int status_period_ms = 250;
-  std::string graph_out;      // write the final graph (g2o) here at shutdown
-  std::string stats_out;      // write counters (JSON) here at shutdown
-  std::string log_level = "info";
+class CentralNode {
+ public:
+  explicit CentralNode(const CentralNodeOptions& options);
+  // Works until shutdown is asked for.
+  void spin();
+  // The final optimisation over the whole graph, then --graph-out and --stats-out.
+  void finish();
+  nlohmann::json stats(double final_cost) const;
+
+ private:
+  void on_keyframe(const cdc_msg_Keyframe& m);
+  void on_loop(const cdc_msg_LoopClosure& m);
+  void on_world(const cdc_msg_WorldTransform& m);
+  void optimise(UpdateSchedule::Clock::time_point now);
+  void publish_results();
+  void publish_result(const RobotEstimate& e);
+  void publish_acknowledgements();
+  void publish_status();
+
+  CentralNodeOptions o_;
+  uint32_t incarnation_;
+  runtime::Service service_;
+  runtime::Input<cdc_msg_Keyframe> keyframes_;
+  runtime::Input<cdc_msg_LoopClosure> loops_;
+  runtime::Input<cdc_msg_WorldTransform> world_;
+  dds::Topic<cdc_msg_OptimizedPoses> t_opt_;
+  dds::Topic<cdc_msg_Acknowledgement> t_ack_;
+  dds::Topic<cdc_msg_RobotStatus> t_status_, t_alive_;
+  dds::Writer<cdc_msg_RobotStatus> w_alive_;
+  std::deque<dds::Writer<cdc_msg_OptimizedPoses>> w_results_;  // one per robot, in the robot's partition
+  dds::Writer<cdc_msg_Acknowledgement> w_ack_;
+  dds::Writer<cdc_msg_RobotStatus> w_status_;
+
+  CentralCore core_;
+  UpdateSchedule schedule_;
+  UpdateSchedule::Clock::time_point last_status_;
+  Eigen::Vector3d central_position_;
+  bool acks_dirty_ = false;
+  std::vector<cdc_msg_KeyframePose> pose_storage_;
 };
-
-// Loads a YAML configuration file over the defaults; throws config::ConfigError listing problems.
-CentralNodeOptions load_options(const std::string& path);
-
-// Runs until SIGINT/SIGTERM. Returns the process exit code.
-int run_central(const CentralNodeOptions& options);
 
 }  // namespace cdc::central

@@ -1,0 +1,81 @@
+// What a service node stands on: its DDS domains, one waitset with the shutdown guard, and the
+// boundary that validates, counts and logs every sample it refuses.
+#pragma once
+
+#include "cdc/dds/participant.hpp"
+#include "cdc/dds/robot_domains.hpp"
+#include "cdc/dds/validate.hpp"
+#include "cdc/dds/waitset.hpp"
+
+#include <chrono>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace cdc::runtime {
+
+// Validation at a node's boundary: a refused sample is counted by topic and logged with its reason.
+class Boundary {
+ public:
+  explicit Boundary(dds::ValidationLimits limits) : limits_(std::move(limits)) {}
+  const dds::ValidationLimits& limits() const noexcept { return limits_; }
+  // Counts and logs v when it refuses a sample of `topic`; true when it did.
+  bool refuse(std::string_view topic, const dds::Validation& v);
+  // The sample passes dds::validate.
+  template <class Msg>
+  bool admit(std::string_view topic, const Msg& m) {
+    return !refuse(topic, dds::validate(m, limits_));
+  }
+  const dds::RejectionCounter& rejected() const noexcept { return rejected_; }
+
+ private:
+  dds::ValidationLimits limits_;
+  dds::RejectionCounter rejected_;
+};
+
+// How a service's domains are laid out.
+enum class Domains {
+  kSingle,       // one participant
+  kRobot,        // the SLAM (radio) domain and, optionally, the robot's own; SIGUSR1/2 cut and restore the radio
+  kWithSensors,  // the SLAM domain and, optionally, a domain for sensors and lock-step progress
+};
+
+class Service {
+ public:
+  // secondary: the robot's own domain (kRobot) or the sensors' (kWithSensors); nullopt for none.
+  Service(Domains kind, const dds::ParticipantOptions& primary, const std::optional<dds::ParticipantOptions>& secondary,
+          dds::ValidationLimits limits);
+  ~Service();
+  Service(const Service&) = delete;
+  Service& operator=(const Service&) = delete;
+
+  // The SLAM domain (the radio for a robot's services).
+  const dds::Participant& radio() const noexcept;
+  // The second domain, or the SLAM domain when there is none.
+  const dds::Participant& secondary() const noexcept;
+  bool split() const noexcept;
+  // The radio switch of a robot's services (nullptr otherwise).
+  const dds::RobotDomains* robot_domains() const noexcept { return robot_ ? &*robot_ : nullptr; }
+
+  Boundary& boundary() noexcept { return boundary_; }
+  const Boundary& boundary() const noexcept { return boundary_; }
+
+  // wait() returns when this reader holds samples.
+  void watch(dds_entity_t reader);
+  // Sleeps until a watched reader holds samples, shutdown is asked for, or timeout passes.
+  // Returns false once shutdown is asked for.
+  bool wait(std::chrono::nanoseconds timeout);
+  static bool running() noexcept;
+
+ private:
+  std::optional<dds::RobotDomains> robot_;
+  std::optional<dds::Participant> primary_, secondary_;
+  Boundary boundary_;
+  dds::GuardCondition stop_;
+  dds::WaitSet waitset_;
+  std::vector<std::unique_ptr<dds::ReadCondition>> conditions_;
+};
+
+}  // namespace cdc::runtime

@@ -1,0 +1,55 @@
+#include "cdc/runtime/service.hpp"
+
+#include "cdc/dds/shutdown.hpp"
+#include "cdc/runtime/logging.hpp"
+
+#include <spdlog/spdlog.h>
+
+namespace cdc::runtime {
+
+bool Boundary::refuse(std::string_view topic, const dds::Validation& v) {
+  if (!rejected_.record(topic, v)) return false;
+  spdlog::warn("rejected {}: {}", topic, v.reason());
+  return true;
+}
+
+Service::Service(Domains kind, const dds::ParticipantOptions& primary,
+                 const std::optional<dds::ParticipantOptions>& secondary, dds::ValidationLimits limits)
+    : boundary_(std::move(limits)) {
+  if (kind == Domains::kRobot) {
+    robot_.emplace(primary, secondary, log_radio_switch);
+  } else {
+    primary_.emplace(primary);
+    if (kind == Domains::kWithSensors && secondary && secondary->domain_id != primary.domain_id) {
+      secondary_.emplace(*secondary);
+    }
+  }
+  waitset_.attach(stop_.handle(), 0);
+  dds::ShutdownSignal::add_guard(&stop_);
+}
+
+Service::~Service() { dds::ShutdownSignal::remove_guard(&stop_); }
+
+const dds::Participant& Service::radio() const noexcept { return robot_ ? robot_->radio() : *primary_; }
+
+const dds::Participant& Service::secondary() const noexcept {
+  if (robot_) return robot_->local();
+  return secondary_ ? *secondary_ : *primary_;
+}
+
+bool Service::split() const noexcept { return robot_ ? robot_->split() : secondary_.has_value(); }
+
+void Service::watch(dds_entity_t reader) {
+  conditions_.push_back(std::make_unique<dds::ReadCondition>(reader));
+  waitset_.attach(conditions_.back()->handle(), static_cast<intptr_t>(conditions_.size()));
+}
+
+bool Service::wait(std::chrono::nanoseconds timeout) {
+  if (!running()) return false;
+  waitset_.wait(timeout);
+  return running();
+}
+
+bool Service::running() noexcept { return !dds::ShutdownSignal::requested(); }
+
+}  // namespace cdc::runtime

@@ -1,0 +1,87 @@
+#include "map_node.hpp"
+
+#include "cdc/dds/convert.hpp"
+#include "cdc/dds/qos.hpp"
+#include "cdc/dds/topics.hpp"
+#include "cdc/runtime/stats.hpp"
+
+#include <spdlog/spdlog.h>
+
+namespace cdc::map {
+namespace {
+
+dds::ValidationLimits limits(const MapNodeOptions& o) {
+  dds::ValidationLimits l;
+  l.robot_count = o.robots;
+  l.extra_node_ids = {o.central_id};
+  return l;
+}
+
+}  // namespace
+
+MapNode::MapNode(const runtime::ServiceOptions& common, const MapNodeOptions& o, std::filesystem::path out_dir)
+    : common_(common),
+      o_(o),
+      dir_(std::move(out_dir)),
+      service_(runtime::Domains::kSingle, common.radio(), std::nullopt, limits(o)),
+      keyframes_(service_, service_.radio(), dds::topics::kKeyframe,
+                 dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader())),
+      poses_(service_, service_.radio(), dds::topics::kCentralOptimized,
+             dds::qos::monitored_reader().partitions(dds::partitions::all_robots_reader())),
+      core_(o.core),
+      last_write_(std::chrono::steady_clock::now()) {
+  std::filesystem::create_directories(dir_);
+  keyframes_.on([this](const cdc_msg_Keyframe& m) { on_keyframe(m); });
+  poses_.on([this](const cdc_msg_OptimizedPoses& m) { on_poses(m); });
+  spdlog::info("map service up: cloud voxel {} m, OctoMap resolution {} m, writing to {}", o.core.voxel_m,
+               o.core.octree_resolution_m, dir_.string());
+}
+
+void MapNode::spin(std::atomic<bool>& write_requested) {
+  while (service_.wait(std::chrono::milliseconds(200))) {
+    keyframes_.poll(64);
+    poses_.poll(16);
+    const bool periodic = o_.write_period_s > 0 && std::chrono::steady_clock::now() - last_write_ >=
+                                                       std::chrono::duration<double>(o_.write_period_s);
+    if (write_requested.exchange(false) || periodic) {
+      write();
+      last_write_ = std::chrono::steady_clock::now();
+    }
+  }
+}
+
+void MapNode::on_keyframe(const cdc_msg_Keyframe& m) {
+  cloud_.clear();
+  for (uint32_t i = 0; i < m.cloud._length; ++i) cloud_.emplace_back(m.cloud._buffer[i].x, m.cloud._buffer[i].y, m.cloud._buffer[i].z);
+  core_.add_keyframe(m.robot_id, m.keyframe_id, cloud_);
+}
+
+void MapNode::on_poses(const cdc_msg_OptimizedPoses& m) {
+  pose_list_.clear();
+  for (uint32_t i = 0; i < m.poses._length; ++i) {
+    pose_list_.emplace_back(m.poses._buffer[i].keyframe_id, dds::to_eigen(m.poses._buffer[i].pose));
+  }
+  core_.set_poses(m.robot_id, pose_list_);
+}
+
+void MapNode::write() {
+  core_.write_pcd((dir_ / "map.pcd").string());
+  core_.write_octomap((dir_ / "map.bt").string());
+  ++writes_;
+  spdlog::info("wrote {} and {}: {} keyframes placed", (dir_ / "map.pcd").string(), (dir_ / "map.bt").string(),
+               core_.placed_keyframes());
+}
+
+nlohmann::json MapNode::stats() const {
+  const MapStats& s = core_.stats();
+  return {{"keyframes", s.keyframes},       {"placed", core_.placed_keyframes()},
+          {"placements", s.placements},     {"pose_updates", s.pose_updates},
+          {"octree_rebuilds", s.octree_rebuilds}, {"writes", writes_}};
+}
+
+void MapNode::finish() {
+  write();
+  runtime::write_stats(common_.stats_out, stats(), service_.boundary());
+}
+
+}  // namespace cdc::map

@@ -1,0 +1,49 @@
+// DDS shell of the map service: every robot's keyframe clouds and the central optimiser's latest poses
+// in; OUT/map.pcd and OUT/map.bt written on request (SIGUSR1), every write period and at shutdown. The
+// map is MapCore's.
+#pragma once
+
+#include "map_config.hpp"
+
+#include "cdc/dds/types.hpp"
+#include "cdc/runtime/input.hpp"
+#include "cdc/runtime/options.hpp"
+#include "cdc/runtime/service.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <filesystem>
+#include <vector>
+
+namespace cdc::map {
+
+class MapNode {
+ public:
+  MapNode(const runtime::ServiceOptions& common, const MapNodeOptions& options, std::filesystem::path out_dir);
+  // Works until shutdown is asked for; writes the map when `write_requested` is set (and clears it).
+  void spin(std::atomic<bool>& write_requested);
+  nlohmann::json stats() const;
+  // Writes the map and --stats-out.
+  void finish();
+
+ private:
+  void on_keyframe(const cdc_msg_Keyframe& m);
+  void on_poses(const cdc_msg_OptimizedPoses& m);
+  void write();
+
+  runtime::ServiceOptions common_;
+  MapNodeOptions o_;
+  std::filesystem::path dir_;
+  runtime::Service service_;
+  runtime::Input<cdc_msg_Keyframe> keyframes_;
+  runtime::Input<cdc_msg_OptimizedPoses> poses_;
+  MapCore core_;
+  uint64_t writes_ = 0;
+  std::chrono::steady_clock::time_point last_write_;
+  std::vector<Eigen::Vector3f> cloud_;
+  std::vector<std::pair<uint32_t, Eigen::Isometry3d>> pose_list_;
+};
+
+}  // namespace cdc::map
