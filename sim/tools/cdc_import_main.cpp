@@ -92,7 +92,7 @@ int main(int argc, char** argv) {
   bag->add_option("--imu-topic", bo.imu_topic, "sensor_msgs/Imu topic (default: the only one; none: ignore the IMU)");
   bag->add_option("--calibration", bo.velodyne_calibration, "VelodyneScan: the sensor's calibration YAML (ROS driver format)")
       ->check(CLI::ExistingFile);
-  bag->add_option("--model", bo.velodyne_model, "VelodyneScan: VLP16, VLP32C, HDL32E, HDL64E or VLS128 (default: from the packets)");
+  bag->add_option("--model", bo.velodyne_model, "VelodyneScan: VLP16, VLP32C, HDL32E, HDL64E (S2), HDL64E_S3 or VLS128 (default: from the packets)");
   bag->add_option("--scan-phase", bo.velodyne_scan_phase_deg, "VelodyneScan: azimuth [deg] where sweeps are cut")->capture_default_str();
   bag->add_option("--min-range", bo.min_range_m, "VelodyneScan: nearest return kept [m]")->capture_default_str();
   bag->add_option("--max-range", bo.max_range_m, "VelodyneScan: farthest return kept [m]")->capture_default_str();

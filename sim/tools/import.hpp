@@ -97,7 +97,7 @@ struct BagImportOptions {
   std::string lidar_topic;          // default: the bag's only PointCloud2 or VelodyneScan topic
   std::string imu_topic;            // default: the bag's only Imu topic; "none": ignore the IMU
   std::filesystem::path velodyne_calibration;  // VelodyneScan: the sensor's calibration (default: built-in table)
-  std::string velodyne_model;       // VelodyneScan: VLP16, VLP32C, HDL32E, HDL64E, VLS128 (default: from the packets)
+  std::string velodyne_model;       // VelodyneScan: VLP16, VLP32C, HDL32E, HDL64E (S2), HDL64E_S3, VLS128 (default: from the packets)
   double velodyne_scan_phase_deg = 0;  // where a Velodyne sweep is cut
   double min_range_m = 0.4, max_range_m = 200;
   Eigen::Isometry3d T_lidar_imu = Eigen::Isometry3d::Identity();

@@ -36,7 +36,7 @@ VelodyneDriverConfig load_driver_config(const std::string& path) {
       return false;
     }
   };
-  r.get<std::string>("sensor.model", model, model_ok, "auto, VLP16, VLP32C, HDL32E, HDL64E or VLS128");
+  r.get<std::string>("sensor.model", model, model_ok, "auto, VLP16, VLP32C, HDL32E, HDL64E (S2), HDL64E_S3 or VLS128");
   r.get<std::string>("sensor.calibration", calibration);
   r.get<std::string>("sensor.return_mode", return_mode,
                      [](const std::string& v) { return v == "auto" || v == "strongest" || v == "last" || v == "dual"; },
