@@ -24,10 +24,6 @@ int main(int argc, char** argv) {
     o.dds_config = common.dds_config;
     o.graph_out = graph_out;
     o.stats_out = common.stats_out;
-    rt::start_logging(spec, common, o.log_level);
-    cdc::central::CentralNode node(o);
-    node.spin();
-    node.finish();
-    return 0;
+    return rt::run_node<cdc::central::CentralNode>(spec, common, o.log_level, o);
   });
 }

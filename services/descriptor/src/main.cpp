@@ -18,10 +18,6 @@ int main(int argc, char** argv) {
   return rt::service_main(argc, argv, spec, common, {}, [&] {
     const cdc::descriptor::DescriptorNodeOptions o = cdc::descriptor::load_descriptor_options(common.config);
     common.check_robot(o.robots);
-    rt::start_logging(spec, common, o.log_level);
-    cdc::descriptor::DescriptorNode node(common, o);
-    node.spin();
-    node.finish();
-    return 0;
+    return rt::run_node<cdc::descriptor::DescriptorNode>(spec, common, o.log_level, common, o);
   });
 }

@@ -56,10 +56,6 @@ int main(int argc, char** argv) {
     if (f.lidar_only) o.use_imu = false;
     if (f.no_corrections) o.take_corrections = false;
     if (f.imu_wait_ms >= 0) o.imu_wait = std::chrono::milliseconds(f.imu_wait_ms);
-    rt::start_logging(spec, common, o.log_level);
-    cdc::frontend::FrontendNode node(o);
-    node.spin();
-    node.finish();
-    return 0;
+    return rt::run_node<cdc::frontend::FrontendNode>(spec, common, o.log_level, o);
   });
 }

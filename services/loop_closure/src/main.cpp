@@ -52,10 +52,6 @@ int main(int argc, char** argv) {
     o.stats_out = common.stats_out;
     o.backlog_out = f.backlog_out;
     o.state_file = f.state_file;
-    rt::start_logging(spec, common, o.log_level);
-    cdc::loops::LoopNode node(o);
-    node.spin();
-    node.finish();
-    return 0;
+    return rt::run_node<cdc::loops::LoopNode>(spec, common, o.log_level, o);
   });
 }

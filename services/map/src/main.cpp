@@ -31,10 +31,6 @@ int main(int argc, char** argv) {
       if (signal == SIGUSR1) g_write_requested = true;
     });
     const cdc::map::MapNodeOptions o = cdc::map::load_map_options(common.config);
-    rt::start_logging(spec, common, o.log_level);
-    cdc::map::MapNode node(common, o, out_dir);
-    node.spin(g_write_requested);
-    node.finish();
-    return 0;
+    return rt::run_node<cdc::map::MapNode>(spec, common, o.log_level, common, o, out_dir, g_write_requested);
   });
 }

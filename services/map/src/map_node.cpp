@@ -19,10 +19,12 @@ dds::ValidationLimits limits(const MapNodeOptions& o) {
 
 }  // namespace
 
-MapNode::MapNode(const runtime::ServiceOptions& common, const MapNodeOptions& o, std::filesystem::path out_dir)
+MapNode::MapNode(const runtime::ServiceOptions& common, const MapNodeOptions& o, std::filesystem::path out_dir,
+                 std::atomic<bool>& write_requested)
     : common_(common),
       o_(o),
       dir_(std::move(out_dir)),
+      write_requested_(&write_requested),
       service_(runtime::Domains::kSingle, common.radio(), std::nullopt, limits(o)),
       keyframes_(service_, service_.radio(), dds::topics::kKeyframe,
                  dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader())),
@@ -37,13 +39,13 @@ MapNode::MapNode(const runtime::ServiceOptions& common, const MapNodeOptions& o,
                o.core.octree_resolution_m, dir_.string());
 }
 
-void MapNode::spin(std::atomic<bool>& write_requested) {
+void MapNode::spin() {
   while (service_.wait(std::chrono::milliseconds(200))) {
     keyframes_.poll(64);
     poses_.poll(16);
     const bool periodic = o_.write_period_s > 0 && std::chrono::steady_clock::now() - last_write_ >=
                                                        std::chrono::duration<double>(o_.write_period_s);
-    if (write_requested.exchange(false) || periodic) {
+    if (write_requested_->exchange(false) || periodic) {
       write();
       last_write_ = std::chrono::steady_clock::now();
     }

@@ -21,9 +21,11 @@ namespace cdc::map {
 
 class MapNode {
  public:
-  MapNode(const runtime::ServiceOptions& common, const MapNodeOptions& options, std::filesystem::path out_dir);
-  // Works until shutdown is asked for; writes the map when `write_requested` is set (and clears it).
-  void spin(std::atomic<bool>& write_requested);
+  // write_requested: set (from a signal handler) to have the map written; the node clears it.
+  MapNode(const runtime::ServiceOptions& common, const MapNodeOptions& options, std::filesystem::path out_dir,
+          std::atomic<bool>& write_requested);
+  // Works until shutdown is asked for.
+  void spin();
   nlohmann::json stats() const;
   // Writes the map and --stats-out.
   void finish();
@@ -36,6 +38,7 @@ class MapNode {
   runtime::ServiceOptions common_;
   MapNodeOptions o_;
   std::filesystem::path dir_;
+  std::atomic<bool>* write_requested_;
   runtime::Service service_;
   runtime::Input<cdc_msg_Keyframe> keyframes_;
   runtime::Input<cdc_msg_OptimizedPoses> poses_;

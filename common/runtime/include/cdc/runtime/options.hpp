@@ -9,6 +9,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace CLI {
 class App;
@@ -68,5 +69,16 @@ void start_logging(const ServiceSpec& spec, const ServiceOptions& o, const std::
 // returns 2; any other exception returns 1; --help and parse errors as CLI11 does.
 int service_main(int argc, char** argv, const ServiceSpec& spec, ServiceOptions& o,
                  const std::function<void(CLI::App&)>& own_options, const std::function<int()>& run);
+
+// A node's life: logging started, the node built from args, run until shutdown (spin) and finished (its
+// files and statistics written). Returns the exit code 0.
+template <class Node, class... Args>
+int run_node(const ServiceSpec& spec, const ServiceOptions& o, const std::string& config_level, Args&&... args) {
+  start_logging(spec, o, config_level);
+  Node node(std::forward<Args>(args)...);
+  node.spin();
+  node.finish();
+  return 0;
+}
 
 }  // namespace cdc::runtime
