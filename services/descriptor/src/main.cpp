@@ -4,7 +4,6 @@
 // yet) asks for the missing range on cdc/place/descriptor_sync and gets just those again.
 #include "cdc/config/reader.hpp"
 #include "cdc/dds/convert.hpp"
-#include "cdc/dds/descriptor_convert.hpp"
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/robot_domains.hpp"
@@ -13,6 +12,7 @@
 #include "cdc/dds/traffic_json.hpp"
 #include "cdc/dds/validate.hpp"
 #include "cdc/dds/waitset.hpp"
+#include "cdc/dds_lidar/descriptor_convert.hpp"
 #include "cdc/lidar/scan_context.hpp"
 #include "cdc/runtime/logging.hpp"
 
@@ -154,7 +154,7 @@ int run(const Options& o) {
       d.incarnation = m.incarnation;
       d.stamp_ns = m.stamp_ns;
       d.pose_hint = dds::to_msg_f(dds::to_eigen(m.T_odom_keyframe));
-      dds::descriptor_to_msg(q, static_cast<float>(o.sc.max_range_m), d, cells);
+      dds_lidar::descriptor_to_msg(q, static_cast<float>(o.sc.max_range_m), d, cells);
       w_desc.write(d);
       if (w_desc_local) w_desc_local->write(d);
       ++published;

@@ -6,7 +6,6 @@
 
 #include "cdc/dds/compact.hpp"
 #include "cdc/dds/convert.hpp"
-#include "cdc/dds/descriptor_convert.hpp"
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/robot_domains.hpp"
@@ -16,6 +15,7 @@
 #include "cdc/dds/validate.hpp"
 #include "cdc/geometry/metrics.hpp"
 #include "cdc/dds/waitset.hpp"
+#include "cdc/dds_lidar/descriptor_convert.hpp"
 #include "cdc/runtime/logging.hpp"
 
 #include <nlohmann/json.hpp>
@@ -321,7 +321,7 @@ int run_loop_closure(const LoopNodeOptions& o) {
         traffic.in(dds::serialized_size(m), m.robot_id);
         reach.heard(m.robot_id, now_ns());
       }
-      for (DescriptorIn& d : sequencer.add(DescriptorIn{m.robot_id, m.keyframe_id, dds::descriptor_from_msg(m),
+      for (DescriptorIn& d : sequencer.add(DescriptorIn{m.robot_id, m.keyframe_id, dds_lidar::descriptor_from_msg(m),
                                                         dds::to_eigen(m.pose_hint)})) {
         to_search.push(std::move(d), now_ns());
       }
