@@ -10,10 +10,10 @@
 //  * A loop-closure service restarted under the same incarnation numbers its loops on.
 #include "cdc/dds/compact.hpp"
 #include "cdc/dds/convert.hpp"
-#include "cdc/dds/descriptor_convert.hpp"
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/topics.hpp"
+#include "cdc/dds_lidar/descriptor_convert.hpp"
 #include "cdc/lidar/scan_context.hpp"
 #include "cdc/sim/lidar.hpp"
 #include "cdc/sim/world.hpp"
@@ -497,8 +497,8 @@ TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
     d.keyframe_id = k;
     d.incarnation = 1;
     d.pose_hint = dds::to_msg_f(Eigen::Isometry3d::Identity());
-    dds::descriptor_to_msg(lidar::quantize(lidar::make_scan_context(cloud(k), sc)), static_cast<float>(sc.max_range_m), d,
-                           cells);
+    dds_lidar::descriptor_to_msg(lidar::quantize(lidar::make_scan_context(cloud(k), sc)),
+                                 static_cast<float>(sc.max_range_m), d, cells);
   };
   std::vector<uint8_t> cells;
   cdc_msg_Descriptor d{};

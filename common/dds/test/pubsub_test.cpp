@@ -36,6 +36,20 @@ std::string unique_topic(const std::string& base) {
   return "cdc/test/" + base + "_" + std::to_string(::getpid());
 }
 
+// A participant with one writer and one reader of a fresh topic, both with the same QoS.
+template <class T>
+struct WriterAndReader {
+  WriterAndReader(const std::string& topic_base, const Qos& qos)
+      : topic(participant, unique_topic(topic_base)),
+        writer(participant, topic, qos),
+        reader(participant, topic, qos) {}
+
+  Participant participant{test_options()};
+  Topic<T> topic;
+  Writer<T> writer;
+  Reader<T> reader;
+};
+
 TEST(Participant, RefusesToStartWithoutExplicitConfiguration) {
   const char* saved = std::getenv("CYCLONEDDS_URI");
   ASSERT_NE(saved, nullptr) << "ctest must run DDS tests with CYCLONEDDS_URI set to the loopback configuration";
@@ -97,10 +111,8 @@ struct KeyframeSample {
 };
 
 TEST(PubSub, KeyframeWithCloudRoundTripsThroughAWaitset) {
-  Participant p(test_options());
-  Topic<cdc_msg_Keyframe> topic(p, unique_topic("keyframe"));
-  Writer<cdc_msg_Keyframe> writer(p, topic, qos::keyed_state());
-  Reader<cdc_msg_Keyframe> reader(p, topic, qos::keyed_state());
+  WriterAndReader<cdc_msg_Keyframe> wr("keyframe", qos::keyed_state());
+  auto& [p, topic, writer, reader] = wr;
   ASSERT_TRUE(writer.wait_for_readers(1, 5s));
 
   ReadCondition rc(reader.handle());
@@ -133,10 +145,8 @@ TEST(PubSub, KeyframeWithCloudRoundTripsThroughAWaitset) {
 }
 
 TEST(PubSub, PerTopicTrafficCountsSerialisedBytesWrittenAndTaken) {
-  Participant p(test_options());
-  Topic<cdc_msg_Keyframe> topic(p, unique_topic("traffic"));
-  Writer<cdc_msg_Keyframe> writer(p, topic, qos::event_stream());
-  Reader<cdc_msg_Keyframe> reader(p, topic, qos::event_stream());
+  WriterAndReader<cdc_msg_Keyframe> wr("traffic", qos::event_stream());
+  auto& [p, topic, writer, reader] = wr;
   ASSERT_TRUE(writer.wait_for_readers(1, 5s));
   KeyframeSample small(1000), large(2000);
   writer.write(small.msg);
@@ -154,10 +164,8 @@ TEST(PubSub, PerTopicTrafficCountsSerialisedBytesWrittenAndTaken) {
 }
 
 TEST(PubSub, MalformedSampleIsRejectedAtTheReaderBoundary) {
-  Participant p(test_options());
-  Topic<cdc_msg_Keyframe> topic(p, unique_topic("bad_keyframe"));
-  Writer<cdc_msg_Keyframe> writer(p, topic, qos::event_stream());
-  Reader<cdc_msg_Keyframe> reader(p, topic, qos::event_stream());
+  WriterAndReader<cdc_msg_Keyframe> wr("bad_keyframe", qos::event_stream());
+  auto& [p, topic, writer, reader] = wr;
   ASSERT_TRUE(writer.wait_for_readers(1, 5s));
 
   KeyframeSample good(10);
@@ -219,10 +227,8 @@ TEST(PubSub, TransientLocalStateReachesALateJoiner) {
 // a large one must still get every sample once, in order, and stay within the wrapper's arrays (the
 // asan preset checks the latter).
 TEST(PubSub, TakesOfDifferentSizesOnOneReaderGetEverySampleOnce) {
-  Participant p(test_options());
-  Topic<cdc_msg_ModeState> topic(p, unique_topic("take_sizes"));
-  Writer<cdc_msg_ModeState> writer(p, topic, qos::event_stream(256));
-  Reader<cdc_msg_ModeState> reader(p, topic, qos::event_stream(256));
+  WriterAndReader<cdc_msg_ModeState> wr("take_sizes", qos::event_stream(256));
+  auto& [p, topic, writer, reader] = wr;
   ASSERT_TRUE(writer.wait_for_readers(1, 5000ms));
   cdc_msg_ModeState m{};
   m.robot_id = 1;
@@ -257,10 +263,8 @@ TEST(PubSub, TakesOfDifferentSizesOnOneReaderGetEverySampleOnce) {
 // Samples stay valid while held: a second take while the first is still out fills other buffers,
 // and the buffers handed back are reused, sequences and all, by the next take.
 TEST(PubSub, SamplesStillHeldKeepTheirDataWhenTheReaderTakesAgain) {
-  Participant p(test_options());
-  Topic<cdc_msg_Keyframe> topic(p, unique_topic("held"));
-  Writer<cdc_msg_Keyframe> writer(p, topic, qos::event_stream(16));
-  Reader<cdc_msg_Keyframe> reader(p, topic, qos::event_stream(16));
+  WriterAndReader<cdc_msg_Keyframe> wr("held", qos::event_stream(16));
+  auto& [p, topic, writer, reader] = wr;
   ASSERT_TRUE(writer.wait_for_readers(1, 5s));
   KeyframeSample big(3000), small(10), medium(200);
   big.msg.keyframe_id = 1;
@@ -300,10 +304,8 @@ TEST(PubSub, SamplesStillHeldKeepTheirDataWhenTheReaderTakesAgain) {
 // A backlog taken at once: the samples beyond the first few give their clouds back when the set is
 // returned (a backlog must not pin its memory), and the recycled buffers read the next backlog right.
 TEST(PubSub, RecycledBuffersReadTheNextBacklogExactly) {
-  Participant p(test_options());
-  Topic<cdc_msg_Keyframe> topic(p, unique_topic("backlog"));
-  Writer<cdc_msg_Keyframe> writer(p, topic, qos::event_stream(64));
-  Reader<cdc_msg_Keyframe> reader(p, topic, qos::event_stream(64));
+  WriterAndReader<cdc_msg_Keyframe> wr("backlog", qos::event_stream(64));
+  auto& [p, topic, writer, reader] = wr;
   ASSERT_TRUE(writer.wait_for_readers(1, 5s));
   for (const size_t base : {100u, 7u}) {
     std::vector<uint32_t> want, got;

@@ -48,19 +48,40 @@ std::ifstream open_or_throw(const std::string& path) {
   return in;
 }
 
+// The non-empty, non-comment lines of a file, split into columns, with their line numbers.
+class DataLines {
+ public:
+  explicit DataLines(const std::string& path) : in_(open_or_throw(path)) {}
+
+  // The next data line's number and columns; false at the end of the file.
+  bool next(size_t& number, std::vector<std::string>& columns) {
+    std::string line;
+    while (std::getline(in_, line)) {
+      ++n_;
+      const std::string t = trim(line);
+      if (t.empty() || t[0] == '#') {
+        continue;
+      }
+      number = n_;
+      columns = split_ws(t);
+      return true;
+    }
+    return false;
+  }
+
+ private:
+  std::ifstream in_;
+  size_t n_ = 0;
+};
+
 // Calls f(line_number, columns) for every non-empty, non-comment line.
 template <class F>
 void for_each_data_line(const std::string& path, F&& f) {
-  std::ifstream in = open_or_throw(path);
-  std::string line;
+  DataLines lines(path);
   size_t n = 0;
-  while (std::getline(in, line)) {
-    ++n;
-    const std::string t = trim(line);
-    if (t.empty() || t[0] == '#') {
-      continue;
-    }
-    f(n, split_ws(t));
+  std::vector<std::string> cols;
+  while (lines.next(n, cols)) {
+    f(n, cols);
   }
 }
 
@@ -251,26 +272,21 @@ std::vector<int64_t> read_times(const std::string& path) {
 }
 
 TrajectoryFormat detect_format(const std::string& path) {
-  std::ifstream in = open_or_throw(path);
-  std::string line;
+  DataLines lines(path);
   size_t n = 0;
-  while (std::getline(in, line)) {
-    ++n;
-    const std::string t = trim(line);
-    if (t.empty() || t[0] == '#') {
-      continue;
-    }
-    const size_t cols = split_ws(t).size();
-    if (cols == 8) {
-      return TrajectoryFormat::kTum;
-    }
-    if (cols == 12) {
-      return TrajectoryFormat::kKitti;
-    }
-    throw TrajectoryFileError(path, n, "cannot tell the format: " + std::to_string(cols) +
-                                           " columns (TUM has 8, KITTI 12)");
+  std::vector<std::string> columns;
+  if (!lines.next(n, columns)) {
+    throw TrajectoryFileError(path, 0, "no poses in file");
   }
-  throw TrajectoryFileError(path, 0, "no poses in file");
+  const size_t cols = columns.size();
+  if (cols == 8) {
+    return TrajectoryFormat::kTum;
+  }
+  if (cols == 12) {
+    return TrajectoryFormat::kKitti;
+  }
+  throw TrajectoryFileError(path, n, "cannot tell the format: " + std::to_string(cols) +
+                                         " columns (TUM has 8, KITTI 12)");
 }
 
 std::optional<TrajectoryFormat> parse_format(const std::string& name) {

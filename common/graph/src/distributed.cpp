@@ -55,6 +55,15 @@ struct Exchange {
   }
 };
 
+// Moves every pose of robot r by the rigid correction C (T <- C * T).
+void move_robot(PoseGraph& graph, uint32_t r, const Eigen::Isometry3d& C) {
+  for (auto& [k, T] : graph.poses) {
+    if (robot_of(k) == r) {
+      T = C * T;
+    }
+  }
+}
+
 // Solves for one rigid correction C of robot r's poses against the given inter-robot factors
 // (the other robots fixed) and applies it.
 void rigid_correction(PoseGraph& graph, uint32_t r, const std::vector<const Factor*>& factors,
@@ -90,11 +99,129 @@ void rigid_correction(PoseGraph& graph, uint32_t r, const std::vector<const Fact
   Eigen::Isometry3d C = Eigen::Isometry3d::Identity();
   C.linear() = Eigen::Quaterniond(cq[3], cq[0], cq[1], cq[2]).normalized().toRotationMatrix();
   C.translation() = Eigen::Vector3d(ct[0], ct[1], ct[2]);
-  for (auto& [k, T] : graph.poses) {
-    if (robot_of(k) == r) {
-      T = C * T;
+  move_robot(graph, r, C);
+}
+
+// Chordal initialisation of robot r's own subgraph (intra-robot factors only), in a frame anchored
+// at its first pose's current value (identity when it has none).
+void initialise_robot(PoseGraph& graph, uint32_t r) {
+  PoseGraph local;
+  local.dimension = graph.dimension;
+  for (const Factor& f : graph.factors) {
+    if (robot_of(f.a) == r && robot_of(f.b) == r) {
+      local.factors.push_back(f);
     }
   }
+  if (local.factors.empty()) {
+    return;
+  }
+  Key first = ~Key{0};
+  for (const Factor& f : local.factors) {
+    first = std::min({first, f.a, f.b});
+  }
+  auto it = graph.poses.find(first);
+  local.poses[first] = it != graph.poses.end() ? it->second : Eigen::Isometry3d::Identity();
+  chordal_initialise(local);
+  for (const auto& [k, T] : local.poses) {
+    graph.poses[k] = T;
+  }
+}
+
+// Whether f is an inter-robot factor between robot r and a placed robot.
+bool links_to_placed(const Factor& f, uint32_t r, const std::set<uint32_t>& placed) {
+  return f.kind != FactorKind::kPrior && f.inter_robot() &&
+         ((robot_of(f.a) == r && placed.count(robot_of(f.b)) != 0) ||
+          (robot_of(f.b) == r && placed.count(robot_of(f.a)) != 0));
+}
+
+// Places robot r in the world through the most informative inter-robot factor to a placed robot,
+// then refines the placement with all of them. False when r shares none with a placed robot.
+bool place_robot(PoseGraph& graph, uint32_t r, const std::set<uint32_t>& placed) {
+  const Factor* best = nullptr;
+  std::vector<const Factor*> to_placed;
+  for (const Factor& f : graph.factors) {
+    if (!links_to_placed(f, r, placed)) {
+      continue;
+    }
+    to_placed.push_back(&f);
+    if (best == nullptr || f.information.trace() > best->information.trace()) {
+      best = &f;
+    }
+  }
+  if (best == nullptr) {
+    return false;
+  }
+  // T_world_new = T_world_other * T_other_mine * inv(T_local_mine): a rigid move of robot r.
+  const bool mine_is_b = robot_of(best->b) == r;
+  const Key mine = mine_is_b ? best->b : best->a;
+  const Key other = mine_is_b ? best->a : best->b;
+  const Eigen::Isometry3d T_other_mine = mine_is_b ? best->measurement : best->measurement.inverse();
+  move_robot(graph, r, graph.poses.at(other) * T_other_mine * graph.poses.at(mine).inverse());
+  rigid_correction(graph, r, to_placed, SolverOptions{});
+  return true;
+}
+
+// Per robot: the factors touching its poses.
+std::map<uint32_t, std::vector<const Factor*>> factors_by_robot(const PoseGraph& graph) {
+  std::map<uint32_t, std::vector<const Factor*>> factors;
+  for (const Factor& f : graph.factors) {
+    factors[robot_of(f.a)].push_back(&f);
+    if (robot_of(f.b) != robot_of(f.a)) {
+      factors[robot_of(f.b)].push_back(&f);
+    }
+  }
+  return factors;
+}
+
+// Robot r's local problem: its factors, the poses they name (the neighbours' separator poses as
+// last received, held fixed) and the gauge when it is r's.
+struct LocalProblem {
+  PoseGraph graph;
+  std::set<Key> fixed;
+};
+
+LocalProblem local_problem(const PoseGraph& graph, uint32_t r, const std::vector<const Factor*>& factors, Key gauge) {
+  LocalProblem local;
+  local.graph.dimension = graph.dimension;
+  for (const Factor* f : factors) {
+    local.graph.factors.push_back(*f);
+    for (Key k : {f->a, f->b}) {
+      local.graph.poses[k] = graph.poses.at(k);
+      if (robot_of(k) != r) {
+        local.fixed.insert(k);  // a neighbour's separator pose, as last received
+      }
+    }
+  }
+  if (local.graph.factors.empty()) {
+    return local;
+  }
+  if (robot_of(gauge) == r) {
+    local.fixed.insert(gauge);
+  }
+  if (local.fixed.empty()) {
+    local.fixed.insert(local.graph.poses.begin()->first);  // an isolated robot anchors itself
+  }
+  return local;
+}
+
+// Moves robot r's poses in `graph` towards their local solution by the over-relaxation factor g
+// (translation linearly, rotation along the geodesic). Returns the largest move [m, rad].
+double relax_towards(PoseGraph& graph, uint32_t r, const PoseGraph& solution, double g) {
+  double max_change = 0.0;
+  for (const auto& [k, T] : solution.poses) {
+    if (robot_of(k) != r) {
+      continue;
+    }
+    const Eigen::Isometry3d old = graph.poses.at(k);
+    Eigen::Isometry3d next = Eigen::Isometry3d::Identity();
+    next.translation() = old.translation() + g * (T.translation() - old.translation());
+    const Eigen::AngleAxisd step(old.rotation().transpose() * T.rotation());
+    next.linear() = old.rotation() * Eigen::AngleAxisd(g * step.angle(), step.axis()).toRotationMatrix();
+    const double dt = (next.translation() - old.translation()).norm();
+    max_change = std::max({max_change, dt, g * step.angle()});
+    graph.poses[k] = next;
+  }
+  return max_change;
 }
 
 }  // namespace
@@ -104,32 +231,10 @@ bool initialise_distributed(PoseGraph& graph, DistributedResult* accounting) {
   if (robots.empty()) {
     return true;
   }
-  // 1. Each robot: chordal initialisation of its own subgraph (intra-robot factors only), in a
-  //    frame anchored at its first pose's current value (identity when it has none).
   for (uint32_t r : robots) {
-    PoseGraph local;
-    local.dimension = graph.dimension;
-    for (const Factor& f : graph.factors) {
-      if (robot_of(f.a) == r && robot_of(f.b) == r) {
-        local.factors.push_back(f);
-      }
-    }
-    if (local.factors.empty()) {
-      continue;
-    }
-    Key first = ~Key{0};
-    for (const Factor& f : local.factors) {
-      first = std::min({first, f.a, f.b});
-    }
-    auto it = graph.poses.find(first);
-    local.poses[first] = it != graph.poses.end() ? it->second : Eigen::Isometry3d::Identity();
-    chordal_initialise(local);
-    for (const auto& [k, T] : local.poses) {
-      graph.poses[k] = T;
-    }
+    initialise_robot(graph, r);
   }
-  // 2. Place robots in the world, breadth-first from the anchor robot, each through the most
-  //    informative inter-robot factor to an already placed robot.
+  // Place robots in the world, breadth-first from the anchor robot.
   Exchange exchange(graph, accounting);
   std::set<uint32_t> placed{*robots.begin()};
   exchange.send_separators(*robots.begin());
@@ -137,44 +242,9 @@ bool initialise_distributed(PoseGraph& graph, DistributedResult* accounting) {
   while (placed.size() < robots.size() && progress) {
     progress = false;
     for (uint32_t r : robots) {
-      if (placed.count(r) != 0) {
+      if (placed.count(r) != 0 || !place_robot(graph, r, placed)) {
         continue;
       }
-      const Factor* best = nullptr;
-      for (const Factor& f : graph.factors) {
-        if (f.kind == FactorKind::kPrior || !f.inter_robot()) {
-          continue;
-        }
-        const bool links = (robot_of(f.a) == r && placed.count(robot_of(f.b)) != 0) ||
-                           (robot_of(f.b) == r && placed.count(robot_of(f.a)) != 0);
-        if (links && (best == nullptr || f.information.trace() > best->information.trace())) {
-          best = &f;
-        }
-      }
-      if (best == nullptr) {
-        continue;
-      }
-      // T_world_new = T_world_other * T_other_mine * inv(T_local_mine): a rigid move of robot r.
-      const bool mine_is_b = robot_of(best->b) == r;
-      const Key mine = mine_is_b ? best->b : best->a;
-      const Key other = mine_is_b ? best->a : best->b;
-      const Eigen::Isometry3d T_other_mine = mine_is_b ? best->measurement : best->measurement.inverse();
-      const Eigen::Isometry3d correction = graph.poses.at(other) * T_other_mine * graph.poses.at(mine).inverse();
-      for (auto& [k, T] : graph.poses) {
-        if (robot_of(k) == r) {
-          T = correction * T;
-        }
-      }
-      // Refine with every inter-robot factor to a placed robot, not just the best one.
-      std::vector<const Factor*> to_placed;
-      for (const Factor& f : graph.factors) {
-        if (f.kind != FactorKind::kPrior && f.inter_robot() &&
-            ((robot_of(f.a) == r && placed.count(robot_of(f.b)) != 0) ||
-             (robot_of(f.b) == r && placed.count(robot_of(f.a)) != 0))) {
-          to_placed.push_back(&f);
-        }
-      }
-      rigid_correction(graph, r, to_placed, SolverOptions{});
       placed.insert(r);
       exchange.send_separators(r);
       progress = true;
@@ -189,55 +259,17 @@ DistributedResult solve_distributed(PoseGraph& graph, const DistributedOptions& 
   const Key gauge = graph.poses.empty() ? 0 : graph.poses.begin()->first;
   result.objective_per_round.push_back(objective(graph, options.local.objective));
   Exchange exchange(graph, &result);
-
-  // Per robot: the factors touching its poses, and the other robots' keys those factors name.
-  std::map<uint32_t, std::vector<const Factor*>> factors;
-  for (const Factor& f : graph.factors) {
-    factors[robot_of(f.a)].push_back(&f);
-    if (robot_of(f.b) != robot_of(f.a)) {
-      factors[robot_of(f.b)].push_back(&f);
-    }
-  }
+  std::map<uint32_t, std::vector<const Factor*>> factors = factors_by_robot(graph);
 
   for (int round = 1; round <= options.max_rounds; ++round) {
     double max_change = 0.0;
     for (uint32_t r : robots) {
-      PoseGraph local;
-      local.dimension = graph.dimension;
-      std::set<Key> fixed;
-      for (const Factor* f : factors[r]) {
-        local.factors.push_back(*f);
-        for (Key k : {f->a, f->b}) {
-          local.poses[k] = graph.poses.at(k);
-          if (robot_of(k) != r) {
-            fixed.insert(k);  // a neighbour's separator pose, as last received
-          }
-        }
-      }
-      if (local.factors.empty()) {
+      LocalProblem local = local_problem(graph, r, factors[r], gauge);
+      if (local.graph.factors.empty()) {
         continue;
       }
-      if (robot_of(gauge) == r) {
-        fixed.insert(gauge);
-      }
-      if (fixed.empty()) {
-        fixed.insert(local.poses.begin()->first);  // an isolated robot anchors itself
-      }
-      solve(local, options.local, fixed);
-      for (const auto& [k, T] : local.poses) {
-        if (robot_of(k) != r) {
-          continue;
-        }
-        const Eigen::Isometry3d old = graph.poses.at(k);
-        const double g = options.over_relaxation;
-        Eigen::Isometry3d next = Eigen::Isometry3d::Identity();
-        next.translation() = old.translation() + g * (T.translation() - old.translation());
-        const Eigen::AngleAxisd step(old.rotation().transpose() * T.rotation());
-        next.linear() = old.rotation() * Eigen::AngleAxisd(g * step.angle(), step.axis()).toRotationMatrix();
-        const double dt = (next.translation() - old.translation()).norm();
-        max_change = std::max({max_change, dt, g * step.angle()});
-        graph.poses[k] = next;
-      }
+      solve(local.graph, options.local, local.fixed);
+      max_change = std::max(max_change, relax_towards(graph, r, local.graph, options.over_relaxation));
       exchange.send_separators(r);
     }
     result.rounds = round;

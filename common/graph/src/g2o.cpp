@@ -19,31 +19,35 @@ struct LineReader {
   const std::string& path;
   size_t line;
   std::istringstream in;
+  bool* symbols = nullptr;  // set when an id carries a robot letter in its top byte
 
   [[noreturn]] void fail(const std::string& msg) const {
     throw G2oError(path + ":" + std::to_string(line) + ": " + msg);
   }
-  double number(const char* what) {
+  std::string token(const char* what) {
     std::string tok;
     if (!(in >> tok)) {
       fail(std::string("missing ") + what);
     }
-    double v = 0;
+    return tok;
+  }
+  template <class T>
+  static bool parse(const std::string& tok, T& v) {
     auto [p, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), v);
-    if (ec != std::errc() || p != tok.data() + tok.size() || !std::isfinite(v)) {
+    return ec == std::errc() && p == tok.data() + tok.size();
+  }
+  double number(const char* what) {
+    const std::string tok = token(what);
+    double v = 0;
+    if (!parse(tok, v) || !std::isfinite(v)) {
       fail(std::string(what) + ": '" + tok + "' is not a finite number");
     }
     return v;
   }
-  bool* symbols = nullptr;
   uint64_t id(const char* what) {
-    std::string tok;
-    if (!(in >> tok)) {
-      fail(std::string("missing ") + what);
-    }
+    const std::string tok = token(what);
     uint64_t v = 0;
-    auto [p, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), v);
-    if (ec != std::errc() || p != tok.data() + tok.size()) {
+    if (!parse(tok, v)) {
       fail(std::string(what) + ": '" + tok + "' is not a vertex id");
     }
     if (symbols != nullptr && (v >> 56) >= 'a' && (v >> 56) <= 'z') {
@@ -71,6 +75,18 @@ Eigen::Quaterniond read_quat(LineReader& r) {
   return q.normalized();
 }
 
+// A 3D pose as g2o writes it: x, y, z (named by the caller), then the quaternion qx qy qz qw.
+Eigen::Isometry3d read_se3(LineReader& r, const char* x_name, const char* y_name, const char* z_name) {
+  const double x = r.number(x_name);  // one statement each: argument order is unspecified
+  const double y = r.number(y_name);
+  const double z = r.number(z_name);
+  const Eigen::Quaterniond q = read_quat(r);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = q.toRotationMatrix();
+  T.translation() = Eigen::Vector3d(x, y, z);
+  return T;
+}
+
 Eigen::Isometry3d planar(double x, double y, double theta) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.translation() = Eigen::Vector3d(x, y, 0);
@@ -86,12 +102,123 @@ void check_information(LineReader& r, const Matrix6d& info) {
   }
 }
 
+// Where a file's records go: the graph, and the edges already read from other robots' files
+// (null: a single file).
+struct Target {
+  PoseGraph& graph;
+  std::set<std::pair<Key, Key>>* seen_edges;
+
+  void add_edge(Key a, Key b, const Eigen::Isometry3d& T, const Matrix6d& info) {
+    if (seen_edges != nullptr && !seen_edges->insert({a, b}).second) {
+      return;  // an inter-robot edge listed by both robots
+    }
+    graph.add_between(a, b, T, info);
+  }
+};
+
+// The edge's two vertex ids; fails for an edge from a vertex to itself (checked once the line is read).
+std::pair<Key, Key> read_edge_ends(LineReader& r) {
+  const Key a = from_g2o_key(r.id("from id"));
+  const Key b = from_g2o_key(r.id("to id"));
+  return {a, b};
+}
+
+void check_edge_ends(LineReader& r, Key a, Key b) {
+  if (a == b) {
+    r.fail("edge from a vertex to itself");
+  }
+}
+
+void read_vertex_se3(LineReader& r, PoseGraph& graph) {
+  const Key k = from_g2o_key(r.id("vertex id"));
+  const Eigen::Isometry3d T = read_se3(r, "x", "y", "z");
+  r.expect_end();
+  graph.poses[k] = T;
+}
+
+void read_vertex_se2(LineReader& r, PoseGraph& graph) {
+  const Key k = from_g2o_key(r.id("vertex id"));
+  const double x = r.number("x");
+  const double y = r.number("y");
+  const double th = r.number("theta");
+  r.expect_end();
+  graph.poses[k] = planar(x, y, th);
+}
+
+// EDGE_SE3:QUAT: the measurement and the upper triangle of the 6x6 information, row by row.
+void read_edge_se3(LineReader& r, Target& target) {
+  const auto [a, b] = read_edge_ends(r);
+  const Eigen::Isometry3d T = read_se3(r, "tx", "ty", "tz");
+  Matrix6d info;
+  for (int i = 0; i < 6; ++i) {
+    for (int j = i; j < 6; ++j) {
+      info(i, j) = info(j, i) = r.number("information entry");
+    }
+  }
+  r.expect_end();
+  check_edge_ends(r, a, b);
+  check_information(r, info);
+  target.add_edge(a, b, T, info);
+}
+
+// EDGE_SE2: (dx, dy, dtheta) and the upper triangle of its 3x3 information, lifted into 3D.
+void read_edge_se2(LineReader& r, Target& target) {
+  const auto [a, b] = read_edge_ends(r);
+  const double dx = r.number("dx");
+  const double dy = r.number("dy");
+  const double dth = r.number("dtheta");
+  const double i11 = r.number("I11");
+  const double i12 = r.number("I12");
+  const double i13 = r.number("I13");
+  const double i22 = r.number("I22");
+  const double i23 = r.number("I23");
+  const double i33 = r.number("I33");
+  r.expect_end();
+  check_edge_ends(r, a, b);
+  // (x, y, theta) -> (tx, ty, tz, rx, ry, rz): theta is rz; z, roll, pitch held planar.
+  Matrix6d info = Matrix6d::Zero();
+  info(0, 0) = i11;
+  info(0, 1) = info(1, 0) = i12;
+  info(1, 1) = i22;
+  info(0, 5) = info(5, 0) = i13;
+  info(1, 5) = info(5, 1) = i23;
+  info(5, 5) = i33;
+  info(2, 2) = info(3, 3) = info(4, 4) = kPlanarLiftInformation;
+  check_information(r, info);
+  target.add_edge(a, b, planar(dx, dy, dth), info);
+}
+
+// The dimension a record speaks of: none (FIX), 2 or 3.
+int read_record(const std::string& tag, LineReader& r, Target& target) {
+  if (tag == "VERTEX_SE3:QUAT") {
+    read_vertex_se3(r, target.graph);
+    return 3;
+  }
+  if (tag == "VERTEX_SE2") {
+    read_vertex_se2(r, target.graph);
+    return 2;
+  }
+  if (tag == "EDGE_SE3:QUAT") {
+    read_edge_se3(r, target);
+    return 3;
+  }
+  if (tag == "EDGE_SE2") {
+    read_edge_se2(r, target);
+    return 2;
+  }
+  if (tag == "FIX") {
+    return 0;  // the solver fixes the gauge itself
+  }
+  r.fail("unsupported record '" + tag + "' (expected VERTEX_SE3:QUAT, EDGE_SE3:QUAT, VERTEX_SE2, EDGE_SE2)");
+}
+
 void parse_into(const std::string& path, PoseGraph& graph, std::set<std::pair<Key, Key>>* seen_edges,
                 const G2oReadOptions& options) {
   std::ifstream file(path);
   if (!file) {
     throw G2oError(path + ": cannot open file");
   }
+  Target target{graph, seen_edges};
   std::string text;
   size_t n = 0;
   bool saw_2d = false, saw_3d = false;
@@ -104,90 +231,9 @@ void parse_into(const std::string& path, PoseGraph& graph, std::set<std::pair<Ke
       continue;
     }
     try {
-    if (tag == "VERTEX_SE3:QUAT") {
-      const Key k = from_g2o_key(r.id("vertex id"));
-      const double x = r.number("x");  // one statement each: argument order is unspecified
-      const double y = r.number("y");
-      const double z = r.number("z");
-      const Eigen::Vector3d t(x, y, z);
-      const Eigen::Quaterniond q = read_quat(r);
-      r.expect_end();
-      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-      T.linear() = q.toRotationMatrix();
-      T.translation() = t;
-      graph.poses[k] = T;
-      saw_3d = true;
-    } else if (tag == "VERTEX_SE2") {
-      const Key k = from_g2o_key(r.id("vertex id"));
-      const double x = r.number("x");
-      const double y = r.number("y");
-      const double th = r.number("theta");
-      r.expect_end();
-      graph.poses[k] = planar(x, y, th);
-      saw_2d = true;
-    } else if (tag == "EDGE_SE3:QUAT") {
-      const Key a = from_g2o_key(r.id("from id"));
-      const Key b = from_g2o_key(r.id("to id"));
-      const double tx = r.number("tx");
-      const double ty = r.number("ty");
-      const double tz = r.number("tz");
-      const Eigen::Vector3d t(tx, ty, tz);
-      const Eigen::Quaterniond q = read_quat(r);
-      Matrix6d info;
-      for (int i = 0; i < 6; ++i) {
-        for (int j = i; j < 6; ++j) {
-          info(i, j) = info(j, i) = r.number("information entry");
-        }
-      }
-      r.expect_end();
-      if (a == b) {
-        r.fail("edge from a vertex to itself");
-      }
-      check_information(r, info);
-      saw_3d = true;
-      if (seen_edges != nullptr && !seen_edges->insert({a, b}).second) {
-        continue;  // an inter-robot edge listed by both robots
-      }
-      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-      T.linear() = q.toRotationMatrix();
-      T.translation() = t;
-      graph.add_between(a, b, T, info);
-    } else if (tag == "EDGE_SE2") {
-      const Key a = from_g2o_key(r.id("from id"));
-      const Key b = from_g2o_key(r.id("to id"));
-      const double dx = r.number("dx");
-      const double dy = r.number("dy");
-      const double dth = r.number("dtheta");
-      const double i11 = r.number("I11");
-      const double i12 = r.number("I12");
-      const double i13 = r.number("I13");
-      const double i22 = r.number("I22");
-      const double i23 = r.number("I23");
-      const double i33 = r.number("I33");
-      r.expect_end();
-      if (a == b) {
-        r.fail("edge from a vertex to itself");
-      }
-      // (x, y, theta) -> (tx, ty, tz, rx, ry, rz): theta is rz; z, roll, pitch held planar.
-      Matrix6d info = Matrix6d::Zero();
-      info(0, 0) = i11;
-      info(0, 1) = info(1, 0) = i12;
-      info(1, 1) = i22;
-      info(0, 5) = info(5, 0) = i13;
-      info(1, 5) = info(5, 1) = i23;
-      info(5, 5) = i33;
-      info(2, 2) = info(3, 3) = info(4, 4) = kPlanarLiftInformation;
-      check_information(r, info);
-      saw_2d = true;
-      if (seen_edges != nullptr && !seen_edges->insert({a, b}).second) {
-        continue;
-      }
-      graph.add_between(a, b, planar(dx, dy, dth), info);
-    } else if (tag == "FIX") {
-      continue;  // the solver fixes the gauge itself
-    } else {
-      r.fail("unsupported record '" + tag + "' (expected VERTEX_SE3:QUAT, EDGE_SE3:QUAT, VERTEX_SE2, EDGE_SE2)");
-    }
+      const int dimension = read_record(tag, r, target);
+      saw_2d = saw_2d || dimension == 2;
+      saw_3d = saw_3d || dimension == 3;
     } catch (const G2oError& e) {
       if (!options.skip_malformed) {
         throw;

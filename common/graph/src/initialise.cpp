@@ -6,6 +6,7 @@
 #include <Eigen/SparseCholesky>
 
 #include <deque>
+#include <optional>
 #include <unordered_map>
 #include <vector>
 
@@ -76,6 +77,126 @@ Indexing index_unknowns(const PoseGraph& g, Key anchor) {
 
 using Triplets = std::vector<Eigen::Triplet<double>>;
 
+// Solves the symmetric system given by the triplets of its n x n matrix for the columns of b;
+// nothing when the factorisation fails.
+std::optional<Eigen::MatrixXd> solve_sparse(int n, const Triplets& triplets, const Eigen::MatrixXd& b) {
+  Eigen::SparseMatrix<double> A(n, n);
+  A.setFromTriplets(triplets.begin(), triplets.end());
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(A);
+  if (ldlt.info() != Eigen::Success) {
+    return std::nullopt;
+  }
+  return Eigen::MatrixXd(ldlt.solve(b));
+}
+
+// The rotation step's normal equations. The rows of the rotations decouple: with x_i = row r of R_i
+// (a 1x3 row), each edge asks x_j - x_i R_ij = 0 with weight kappa. One 3n x 3n system, three
+// right-hand sides (one per row r).
+struct RotationSystem {
+  Triplets H;
+  Eigen::MatrixXd b;
+
+  explicit RotationSystem(int n) : b(Eigen::MatrixXd::Zero(3 * n, 3)) {}
+
+  void add_block(int r, int c, const Eigen::Matrix3d& M) {
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) {
+        if (M(i, j) != 0.0) {
+          H.emplace_back(3 * r + i, 3 * c + j, M(i, j));
+        }
+      }
+    }
+  }
+
+  // Edge i -> j (index -1: the anchor, whose rotation R0 is known) measuring Rij with weight kappa.
+  void add_edge(int i, int j, const Eigen::Matrix3d& Rij, double kappa, const Eigen::Matrix3d& R0) {
+    // Residual as column vectors: e = x_j^T - Rij^T x_i^T = [ -Rij^T  I ] [x_i; x_j].
+    const Eigen::Matrix3d A_i = -Rij.transpose();
+    const Eigen::Matrix3d I3 = Eigen::Matrix3d::Identity();
+    if (i >= 0) add_block(i, i, kappa * A_i.transpose() * A_i);
+    if (j >= 0) add_block(j, j, kappa * I3);
+    if (i >= 0 && j >= 0) {
+      add_block(i, j, kappa * A_i.transpose());
+      add_block(j, i, kappa * A_i);
+    }
+    // Known anchor terms move to the right-hand side (for each row r of R_anchor).
+    for (int r = 0; r < 3; ++r) {
+      const Eigen::Vector3d x0 = R0.row(r).transpose();
+      if (i < 0 && j >= 0) {
+        b.block<3, 1>(3 * j, r) -= kappa * (A_i * x0);
+      } else if (j < 0 && i >= 0) {
+        b.block<3, 1>(3 * i, r) -= kappa * A_i.transpose() * x0;
+      }
+    }
+  }
+};
+
+// Rotations of the unknowns by the chordal relaxation, projected onto SO(3); translations reset.
+bool chordal_rotations(PoseGraph& graph, const Indexing& ix, const Eigen::Isometry3d& T0) {
+  const int n = static_cast<int>(ix.keys.size());
+  RotationSystem system(n);
+  for (const Factor& f : graph.factors) {
+    if (f.kind == FactorKind::kPrior) {
+      continue;
+    }
+    system.add_edge(ix.index.at(f.a), ix.index.at(f.b), f.measurement.rotation(),
+                    isotropic_weights(f, graph.dimension).kappa, T0.rotation());
+  }
+  const std::optional<Eigen::MatrixXd> X = solve_sparse(3 * n, system.H, system.b);
+  if (!X) {
+    return false;
+  }
+  for (int k = 0; k < n; ++k) {
+    Eigen::Matrix3d M;
+    for (int r = 0; r < 3; ++r) {
+      M.row(r) = X->block<3, 1>(3 * k, r).transpose();
+    }
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.linear() = geometry::project_to_so3(M);
+    graph.poses[ix.keys[static_cast<size_t>(k)]] = T;
+  }
+  return true;
+}
+
+// Translations given the rotations: t_j - t_i = R_i t_ij with weight tau; coordinates decouple
+// (weighted Laplacian).
+bool chordal_translations(PoseGraph& graph, const Indexing& ix, const Eigen::Isometry3d& T0) {
+  const int n = static_cast<int>(ix.keys.size());
+  Triplets L;
+  Eigen::MatrixXd b = Eigen::MatrixXd::Zero(n, 3);
+  for (const Factor& f : graph.factors) {
+    if (f.kind == FactorKind::kPrior) {
+      continue;
+    }
+    const double tau = isotropic_weights(f, graph.dimension).tau;
+    const int i = ix.index.at(f.a), j = ix.index.at(f.b);
+    const Eigen::Vector3d d = graph.poses.at(f.a).rotation() * f.measurement.translation();
+    if (i >= 0) {
+      L.emplace_back(i, i, tau);
+      b.row(i) -= tau * d.transpose();
+    }
+    if (j >= 0) {
+      L.emplace_back(j, j, tau);
+      b.row(j) += tau * d.transpose();
+    }
+    if (i >= 0 && j >= 0) {
+      L.emplace_back(i, j, -tau);
+      L.emplace_back(j, i, -tau);
+    } else if (i < 0 && j >= 0) {
+      b.row(j) += tau * T0.translation().transpose();
+    } else if (j < 0 && i >= 0) {
+      b.row(i) += tau * T0.translation().transpose();
+    }
+  }
+  const std::optional<Eigen::MatrixXd> X = solve_sparse(n, L, b);
+  if (!X) {
+    return false;
+  }
+  for (int k = 0; k < n; ++k) {
+    graph.poses[ix.keys[static_cast<size_t>(k)]].translation() = X->row(k).transpose();
+  }
+  return true;
+}
 
 }  // namespace
 
@@ -86,108 +207,12 @@ bool chordal_initialise(PoseGraph& graph) {
   const Key anchor = anchor_key(graph);
   const Eigen::Isometry3d T0 = anchor_pose(graph, anchor);
   const Indexing ix = index_unknowns(graph, anchor);
-  const int n = static_cast<int>(ix.keys.size());
   graph.poses[anchor] = T0;
-  if (n == 0) {
+  if (ix.keys.empty()) {
     return ix.connected;
   }
-
-  // Rotations. The rows of the rotations decouple: with x_i = row r of R_i (a 1x3 row), each
-  // edge asks x_j - x_i R_ij = 0 with weight kappa. One 3n x 3n system, three right-hand sides.
-  {
-    Triplets H;
-    Eigen::MatrixXd b = Eigen::MatrixXd::Zero(3 * n, 3);
-    auto add_block = [&](int r, int c, const Eigen::Matrix3d& M) {
-      for (int i = 0; i < 3; ++i) {
-        for (int j = 0; j < 3; ++j) {
-          if (M(i, j) != 0.0) {
-            H.emplace_back(3 * r + i, 3 * c + j, M(i, j));
-          }
-        }
-      }
-    };
-    for (const Factor& f : graph.factors) {
-      if (f.kind == FactorKind::kPrior) {
-        continue;
-      }
-      const double kappa = isotropic_weights(f, graph.dimension).kappa;
-      const Eigen::Matrix3d Rij = f.measurement.rotation();
-      const int i = ix.index.at(f.a), j = ix.index.at(f.b);
-      // Residual as column vectors: e = x_j^T - Rij^T x_i^T = [ -Rij^T  I ] [x_i; x_j].
-      const Eigen::Matrix3d A_i = -Rij.transpose();
-      const Eigen::Matrix3d I3 = Eigen::Matrix3d::Identity();
-      if (i >= 0) add_block(i, i, kappa * A_i.transpose() * A_i);
-      if (j >= 0) add_block(j, j, kappa * I3);
-      if (i >= 0 && j >= 0) {
-        add_block(i, j, kappa * A_i.transpose());
-        add_block(j, i, kappa * A_i);
-      }
-      // Known anchor terms move to the right-hand side (for each row r of R_anchor).
-      for (int r = 0; r < 3; ++r) {
-        const Eigen::Vector3d x0 = T0.rotation().row(r).transpose();
-        if (i < 0 && j >= 0) {
-          b.block<3, 1>(3 * j, r) -= kappa * (A_i * x0);
-        } else if (j < 0 && i >= 0) {
-          b.block<3, 1>(3 * i, r) -= kappa * A_i.transpose() * x0;
-        }
-      }
-    }
-    Eigen::SparseMatrix<double> Hs(3 * n, 3 * n);
-    Hs.setFromTriplets(H.begin(), H.end());
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(Hs);
-    if (ldlt.info() != Eigen::Success) {
-      return false;
-    }
-    const Eigen::MatrixXd X = ldlt.solve(b);
-    for (int k = 0; k < n; ++k) {
-      Eigen::Matrix3d M;
-      for (int r = 0; r < 3; ++r) {
-        M.row(r) = X.block<3, 1>(3 * k, r).transpose();
-      }
-      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-      T.linear() = geometry::project_to_so3(M);
-      graph.poses[ix.keys[static_cast<size_t>(k)]] = T;
-    }
-  }
-
-  // Translations: t_j - t_i = R_i t_ij with weight tau; coordinates decouple (weighted Laplacian).
-  {
-    Triplets L;
-    Eigen::MatrixXd b = Eigen::MatrixXd::Zero(n, 3);
-    for (const Factor& f : graph.factors) {
-      if (f.kind == FactorKind::kPrior) {
-        continue;
-      }
-      const double tau = isotropic_weights(f, graph.dimension).tau;
-      const int i = ix.index.at(f.a), j = ix.index.at(f.b);
-      const Eigen::Vector3d d = graph.poses.at(f.a).rotation() * f.measurement.translation();
-      if (i >= 0) {
-        L.emplace_back(i, i, tau);
-        b.row(i) -= tau * d.transpose();
-      }
-      if (j >= 0) {
-        L.emplace_back(j, j, tau);
-        b.row(j) += tau * d.transpose();
-      }
-      if (i >= 0 && j >= 0) {
-        L.emplace_back(i, j, -tau);
-        L.emplace_back(j, i, -tau);
-      } else if (i < 0 && j >= 0) {
-        b.row(j) += tau * T0.translation().transpose();
-      } else if (j < 0 && i >= 0) {
-        b.row(i) += tau * T0.translation().transpose();
-      }
-    }
-    Eigen::SparseMatrix<double> Ls(n, n);
-    Ls.setFromTriplets(L.begin(), L.end());
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(Ls);
-    if (ldlt.info() != Eigen::Success) {
-      return false;
-    }
-    const Eigen::MatrixXd X = ldlt.solve(b);
-    for (int k = 0; k < n; ++k) {
-      graph.poses[ix.keys[static_cast<size_t>(k)]].translation() = X.row(k).transpose();
-    }
+  if (!chordal_rotations(graph, ix, T0) || !chordal_translations(graph, ix, T0)) {
+    return false;
   }
   return ix.connected;
 }

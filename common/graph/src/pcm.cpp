@@ -6,15 +6,14 @@
 
 #include <algorithm>
 #include <array>
-#include <functional>
 #include <limits>
 #include <set>
+#include <utility>
 
 namespace cdc::graph {
 namespace {
 
 using Vector6d = Eigen::Matrix<double, 6, 1>;
-
 
 // Adjoint of T for tangent vectors ordered (translation, rotation), right perturbations:
 // T * Exp(d) = Exp(Ad(T) d) * T.
@@ -232,6 +231,76 @@ std::vector<size_t> greedy_clique(const std::vector<std::vector<bool>>& adj, con
   return best;
 }
 
+// Exact maximum clique: branch and bound with a greedy-colouring bound (Tomita and Seki's MCQ),
+// starting from a known clique. A colour class holds pairwise non-adjacent vertices, so a candidate
+// set coloured with k colours holds no clique larger than k. Past max_steps expansions the search
+// stops with the largest clique found so far (still a clique, perhaps not the largest).
+class CliqueSearch {
+ public:
+  CliqueSearch(const std::vector<std::vector<bool>>& adj, std::vector<size_t> start, size_t max_steps)
+      : adj_(adj), best_(std::move(start)), max_steps_(max_steps) {}
+
+  // Searches from the candidates (all vertices, in order of decreasing degree, at the top level).
+  void expand(const std::vector<size_t>& cand) {
+    if (++steps_ > max_steps_) {
+      aborted_ = true;
+      return;
+    }
+    std::vector<size_t> order, colour;
+    colour_greedily(cand, order, colour);
+    for (size_t i = order.size(); i-- > 0;) {
+      if (current_.size() + colour[i] <= best_.size()) return;  // bound
+      const size_t v = order[i];
+      std::vector<size_t> next;
+      for (size_t j = 0; j < i; ++j) {
+        if (adj_[v][order[j]]) next.push_back(order[j]);
+      }
+      current_.push_back(v);
+      if (next.empty()) {
+        if (current_.size() > best_.size()) best_ = current_;
+      } else {
+        expand(next);
+      }
+      current_.pop_back();
+      if (aborted_) return;
+    }
+  }
+
+  const std::vector<size_t>& best() const { return best_; }
+  bool aborted() const { return aborted_; }
+
+ private:
+  // The candidates in order of colour class (each vertex into the first class it has no neighbour
+  // in), with each vertex's colour 1, 2, ...: the bound on a clique among it and those before it.
+  void colour_greedily(const std::vector<size_t>& cand, std::vector<size_t>& order,
+                       std::vector<size_t>& colour) const {
+    std::vector<std::vector<size_t>> classes;
+    for (size_t v : cand) {
+      auto k = std::find_if(classes.begin(), classes.end(), [&](const std::vector<size_t>& c) {
+        return std::none_of(c.begin(), c.end(), [&](size_t u) { return adj_[v][u]; });
+      });
+      if (k == classes.end()) {
+        classes.emplace_back();
+        k = classes.end() - 1;
+      }
+      k->push_back(v);
+    }
+    for (size_t k = 0; k < classes.size(); ++k) {
+      for (size_t v : classes[k]) {
+        order.push_back(v);
+        colour.push_back(k + 1);
+      }
+    }
+  }
+
+  const std::vector<std::vector<bool>>& adj_;
+  std::vector<size_t> best_;
+  std::vector<size_t> current_;
+  size_t max_steps_;
+  size_t steps_ = 0;
+  bool aborted_ = false;
+};
+
 }  // namespace
 
 std::vector<size_t> maximum_clique(const std::vector<std::vector<bool>>& adj, size_t exact_limit, size_t max_steps,
@@ -246,62 +315,15 @@ std::vector<size_t> maximum_clique(const std::vector<std::vector<bool>>& adj, si
     degree[i] = static_cast<size_t>(std::count(adj[i].begin(), adj[i].end(), true));
   }
   std::vector<size_t> best = greedy_clique(adj, degree);
-  if (n > exact_limit) {
-    std::sort(best.begin(), best.end());
-    return best;
+  if (n <= exact_limit) {
+    std::vector<size_t> all(n);
+    for (size_t i = 0; i < n; ++i) all[i] = i;
+    std::sort(all.begin(), all.end(), [&](size_t a, size_t b) { return degree[a] > degree[b]; });
+    CliqueSearch search(adj, std::move(best), max_steps);
+    search.expand(all);
+    if (exact != nullptr) *exact = !search.aborted();
+    best = search.best();
   }
-  // Exact: branch and bound with a greedy-colouring bound (Tomita and Seki's MCQ), starting from
-  // the greedy clique. A colour class holds pairwise non-adjacent vertices, so a candidate set
-  // coloured with k colours holds no clique larger than k. Past max_steps expansions the search
-  // stops with the largest clique found so far (still a clique, perhaps not the largest).
-  std::vector<size_t> current;
-  size_t steps = 0;
-  bool aborted = false;
-  std::function<void(const std::vector<size_t>&)> expand = [&](const std::vector<size_t>& cand) {
-    if (++steps > max_steps) {
-      aborted = true;
-      return;
-    }
-    std::vector<std::vector<size_t>> classes;
-    for (size_t v : cand) {
-      auto k = std::find_if(classes.begin(), classes.end(), [&](const std::vector<size_t>& c) {
-        return std::none_of(c.begin(), c.end(), [&](size_t u) { return adj[v][u]; });
-      });
-      if (k == classes.end()) {
-        classes.emplace_back();
-        k = classes.end() - 1;
-      }
-      k->push_back(v);
-    }
-    std::vector<size_t> order, colour;
-    for (size_t k = 0; k < classes.size(); ++k) {
-      for (size_t v : classes[k]) {
-        order.push_back(v);
-        colour.push_back(k + 1);
-      }
-    }
-    for (size_t i = order.size(); i-- > 0;) {
-      if (current.size() + colour[i] <= best.size()) return;  // bound
-      const size_t v = order[i];
-      std::vector<size_t> next;
-      for (size_t j = 0; j < i; ++j) {
-        if (adj[v][order[j]]) next.push_back(order[j]);
-      }
-      current.push_back(v);
-      if (next.empty()) {
-        if (current.size() > best.size()) best = current;
-      } else {
-        expand(next);
-      }
-      current.pop_back();
-      if (aborted) return;
-    }
-  };
-  std::vector<size_t> all(n);
-  for (size_t i = 0; i < n; ++i) all[i] = i;
-  std::sort(all.begin(), all.end(), [&](size_t a, size_t b) { return degree[a] > degree[b]; });
-  expand(all);
-  if (exact != nullptr) *exact = !aborted;
   std::sort(best.begin(), best.end());
   return best;
 }

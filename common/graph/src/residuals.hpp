@@ -12,6 +12,20 @@ namespace cdc::graph::detail {
 
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 
+// The weighted error of an estimated pose against a measured one:
+//   r = sqrt(Omega) [ t_est - t_meas ; 2 vec(q_meas^-1 q_est) ]
+// (twice the vector part of the error quaternion: the rotation angle for small errors).
+template <typename T>
+void weighted_pose_error(const Eigen::Matrix<T, 3, 1>& t_est, const Eigen::Quaternion<T>& q_est,
+                         const Eigen::Vector3d& t_meas, const Eigen::Quaterniond& q_meas, const Matrix6d& sqrt_info,
+                         T* out) {
+  const Eigen::Quaternion<T> dq = q_meas.template cast<T>().conjugate() * q_est;
+  Eigen::Map<Eigen::Matrix<T, 6, 1>> r(out);
+  r.template head<3>() = t_est - t_meas.template cast<T>();
+  r.template tail<3>() = T(2.0) * dq.vec();
+  r.applyOnTheLeft(sqrt_info.template cast<T>());
+}
+
 // Between factor, full information (the residual of Ceres' pose_graph_3d example):
 //   T_ab_est = inv(T_a) T_b,  r = sqrt(Omega) [ t_ab_est - t_ab ; 2 vec(q_ab^-1 q_ab_est) ].
 struct BetweenResidual {
@@ -25,11 +39,7 @@ struct BetweenResidual {
     const Eigen::Quaternion<T> q_a_inv = q_a.conjugate();
     const Eigen::Quaternion<T> q_ab_est = q_a_inv * q_b;
     const Eigen::Matrix<T, 3, 1> p_ab_est = q_a_inv * (p_b - p_a);
-    const Eigen::Quaternion<T> dq = q_ab.template cast<T>().conjugate() * q_ab_est;
-    Eigen::Map<Eigen::Matrix<T, 6, 1>> r(out);
-    r.template head<3>() = p_ab_est - t_ab.template cast<T>();
-    r.template tail<3>() = T(2.0) * dq.vec();
-    r.applyOnTheLeft(sqrt_info.template cast<T>());
+    weighted_pose_error(p_ab_est, q_ab_est, t_ab, q_ab, sqrt_info, out);
     return true;
   }
 
@@ -103,13 +113,9 @@ struct PriorResidual {
 
   template <typename T>
   bool operator()(const T* t, const T* q, T* out) const {
-    Eigen::Map<const Eigen::Matrix<T, 3, 1>> p(t);
-    Eigen::Map<const Eigen::Quaternion<T>> qq(q);
-    const Eigen::Quaternion<T> dq = q0.template cast<T>().conjugate() * qq;
-    Eigen::Map<Eigen::Matrix<T, 6, 1>> r(out);
-    r.template head<3>() = p - t0.template cast<T>();
-    r.template tail<3>() = T(2.0) * dq.vec();
-    r.applyOnTheLeft(sqrt_info.template cast<T>());
+    const Eigen::Matrix<T, 3, 1> p(t[0], t[1], t[2]);
+    const Eigen::Quaternion<T> qq(q[3], q[0], q[1], q[2]);  // Eigen's storage is x, y, z, w
+    weighted_pose_error(p, qq, t0, q0, sqrt_info, out);
     return true;
   }
 

@@ -5,6 +5,7 @@
 
 #include <Eigen/Cholesky>
 
+#include <cmath>
 #include <memory>
 #include <unordered_map>
 
@@ -16,22 +17,10 @@ struct PoseBlock {
   double q[4];  // x, y, z, w
 };
 
-Matrix6d sqrt_information(const Matrix6d& info) {
-  // Upper-triangular L^T with info = L L^T, so r^T info r = |L^T r|^2.
-  return info.llt().matrixL().transpose();
-}
+using PoseBlocks = std::unordered_map<Key, PoseBlock>;
 
-double objective(const PoseGraph& g, Objective o) {
-  return o == Objective::kSeSync ? sesync_objective(g) : full_information_cost(g);
-}
-
-}  // namespace
-
-SolveResult solve(PoseGraph& graph, const SolverOptions& options, const std::set<Key>& fixed) {
-  SolveResult result;
-  result.initial_cost = objective(graph, options.objective);
-
-  std::unordered_map<Key, PoseBlock> blocks;
+PoseBlocks to_blocks(const PoseGraph& graph) {
+  PoseBlocks blocks;
   blocks.reserve(graph.poses.size());
   for (const auto& [k, T] : graph.poses) {
     PoseBlock b{};
@@ -46,22 +35,43 @@ SolveResult solve(PoseGraph& graph, const SolverOptions& options, const std::set
     b.q[3] = q.w();
     blocks.emplace(k, b);
   }
+  return blocks;
+}
 
-  ceres::Problem::Options popts;
-  popts.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  popts.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-  // One robust loss shared by every robust factor, owned here (outlives the problem).
-  std::unique_ptr<ceres::LossFunction> robust;
-  if (options.robust_loss_scale > 0.0) {
-    robust = std::make_unique<ceres::CauchyLoss>(options.robust_loss_scale);
+void from_blocks(const PoseBlocks& blocks, PoseGraph& graph) {
+  for (auto& [k, T] : graph.poses) {
+    const PoseBlock& b = blocks.at(k);
+    T = Eigen::Isometry3d::Identity();
+    T.linear() = Eigen::Quaterniond(b.q[3], b.q[0], b.q[1], b.q[2]).normalized().toRotationMatrix();
+    T.translation() = Eigen::Vector3d(b.t[0], b.t[1], b.t[2]);
   }
-  ceres::Problem problem(popts);
-  ceres::EigenQuaternionManifold quaternion_manifold;
-  // Planar graphs stay planar: z held, rotation about z only.
-  ceres::SubsetManifold planar_translation(3, {2});
-  ceres::AutoDiffManifold<detail::YawOnlyQuaternion, 4, 1> yaw_only;
-  const bool planar = graph.dimension == 2;
+}
 
+Matrix6d sqrt_information(const Matrix6d& info) {
+  // Upper-triangular L^T with info = L L^T, so r^T info r = |L^T r|^2.
+  return info.llt().matrixL().transpose();
+}
+
+// The square-root weight of a between factor under the objective. SE-Sync's objective is the same
+// residual with isotropic information diag(tau I, 2 kappa I): ||R_j - R_i R_ij||_F^2 = 8 sin^2(theta/2)
+// = 2 * |2 vec(q_err)|^2, and the translation term is rotation invariant. This form is far closer to
+// linear in the tangent space than the residual vec(R_j - R_i R_ij): on sphere2500 LM needs 10
+// iterations instead of 58.
+Matrix6d between_sqrt_information(const Factor& f, Objective objective, int dimension) {
+  if (objective != Objective::kSeSync) {
+    return sqrt_information(f.information);
+  }
+  const IsotropicWeights w = isotropic_weights(f, dimension);
+  Matrix6d sqrt_info = Matrix6d::Zero();
+  sqrt_info.diagonal() << std::sqrt(w.tau), std::sqrt(w.tau), std::sqrt(w.tau), std::sqrt(2.0 * w.kappa),
+      std::sqrt(2.0 * w.kappa), std::sqrt(2.0 * w.kappa);
+  return sqrt_info;
+}
+
+// One residual per factor, in the order of the graph's factors; robust factors share `robust`
+// (null: none). Returns whether some factor is a prior.
+bool add_factors(const PoseGraph& graph, Objective objective, ceres::LossFunction* robust, PoseBlocks& blocks,
+                 ceres::Problem& problem) {
   bool has_prior = false;
   for (const Factor& f : graph.factors) {
     PoseBlock& a = blocks.at(f.a);
@@ -72,30 +82,36 @@ SolveResult solve(PoseGraph& graph, const SolverOptions& options, const std::set
       continue;
     }
     PoseBlock& b = blocks.at(f.b);
-    ceres::LossFunction* loss = f.robust ? robust.get() : nullptr;
-    // SE-Sync's objective is the same residual with isotropic information diag(tau I, 2 kappa I):
-    // ||R_j - R_i R_ij||_F^2 = 8 sin^2(theta/2) = 2 * |2 vec(q_err)|^2, and the translation term is
-    // rotation invariant. This form is far closer to linear in the tangent space than the
-    // residual vec(R_j - R_i R_ij): on sphere2500 LM needs 10 iterations instead of 58.
-    Matrix6d sqrt_info;
-    if (options.objective == Objective::kSeSync) {
-      const IsotropicWeights w = isotropic_weights(f, graph.dimension);
-      sqrt_info.setZero();
-      sqrt_info.diagonal() << std::sqrt(w.tau), std::sqrt(w.tau), std::sqrt(w.tau), std::sqrt(2.0 * w.kappa),
-          std::sqrt(2.0 * w.kappa), std::sqrt(2.0 * w.kappa);
-    } else {
-      sqrt_info = sqrt_information(f.information);
-    }
-    problem.AddResidualBlock(detail::BetweenResidual::create(f.measurement, sqrt_info), loss, a.t, a.q, b.t, b.q);
+    ceres::LossFunction* loss = f.robust ? robust : nullptr;
+    problem.AddResidualBlock(
+        detail::BetweenResidual::create(f.measurement, between_sqrt_information(f, objective, graph.dimension)), loss,
+        a.t, a.q, b.t, b.q);
   }
-  for (auto& [k, b] : blocks) {
-    if (problem.HasParameterBlock(b.q)) {
-      problem.SetManifold(b.q, planar ? static_cast<ceres::Manifold*>(&yaw_only) : &quaternion_manifold);
-      if (planar) {
-        problem.SetManifold(b.t, &planar_translation);
+  return has_prior;
+}
+
+// The manifolds of the pose blocks, owned here (they outlive the problem that borrows them).
+// Planar graphs stay planar: z held, rotation about z only.
+struct PoseManifolds {
+  ceres::EigenQuaternionManifold quaternion;
+  ceres::SubsetManifold planar_translation{3, {2}};
+  ceres::AutoDiffManifold<detail::YawOnlyQuaternion, 4, 1> yaw_only;
+
+  void apply(PoseBlocks& blocks, bool planar, ceres::Problem& problem) {
+    for (auto& [k, b] : blocks) {
+      if (problem.HasParameterBlock(b.q)) {
+        problem.SetManifold(b.q, planar ? static_cast<ceres::Manifold*>(&yaw_only) : &quaternion);
+        if (planar) {
+          problem.SetManifold(b.t, &planar_translation);
+        }
       }
     }
   }
+};
+
+// Holds the poses in `fixed` constant; with neither a prior nor a fixed pose, the first pose (gauge).
+void hold_fixed(const PoseGraph& graph, const std::set<Key>& fixed, bool has_prior, PoseBlocks& blocks,
+                ceres::Problem& problem) {
   auto hold = [&](Key k) {
     PoseBlock& b = blocks.at(k);
     if (problem.HasParameterBlock(b.t)) {
@@ -111,7 +127,9 @@ SolveResult solve(PoseGraph& graph, const SolverOptions& options, const std::set
   if (!has_prior && fixed.empty() && !graph.poses.empty()) {
     hold(graph.poses.begin()->first);  // gauge freedom
   }
+}
 
+ceres::Solver::Options ceres_options(const SolverOptions& options) {
   ceres::Solver::Options sopts;
   sopts.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
   switch (options.sparse_backend) {
@@ -127,26 +145,52 @@ SolveResult solve(PoseGraph& graph, const SolverOptions& options, const std::set
   sopts.num_threads = options.threads;
   sopts.initial_trust_region_radius = options.initial_trust_region_radius;
   sopts.logging_type = options.full_report ? ceres::PER_MINIMIZER_ITERATION : ceres::SILENT;
-  ceres::Solver::Summary summary;
-  ceres::Solve(sopts, &problem, &summary);
+  return sopts;
+}
 
-  for (auto& [k, T] : graph.poses) {
-    const PoseBlock& b = blocks.at(k);
-    T = Eigen::Isometry3d::Identity();
-    T.linear() = Eigen::Quaterniond(b.q[3], b.q[0], b.q[1], b.q[2]).normalized().toRotationMatrix();
-    T.translation() = Eigen::Vector3d(b.t[0], b.t[1], b.t[2]);
-  }
+void record_summary(const ceres::Solver::Summary& summary, bool full_report, SolveResult& result) {
   result.converged = summary.termination_type == ceres::CONVERGENCE;
   result.iterations = static_cast<int>(summary.iterations.size()) - 1;
   result.time_s = summary.total_time_in_seconds;
-  result.final_cost = objective(graph, options.objective);
   result.message = summary.message;
   for (const auto& it : summary.iterations) {
     result.trace.emplace_back(it.cumulative_time_in_seconds, it.cost);
   }
-  if (options.full_report) {
+  if (full_report) {
     result.report = summary.FullReport();
   }
+}
+
+double objective(const PoseGraph& g, Objective o) {
+  return o == Objective::kSeSync ? sesync_objective(g) : full_information_cost(g);
+}
+
+}  // namespace
+
+SolveResult solve(PoseGraph& graph, const SolverOptions& options, const std::set<Key>& fixed) {
+  SolveResult result;
+  result.initial_cost = objective(graph, options.objective);
+  PoseBlocks blocks = to_blocks(graph);
+
+  ceres::Problem::Options popts;
+  popts.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  popts.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  // One robust loss shared by every robust factor, owned here (outlives the problem).
+  std::unique_ptr<ceres::LossFunction> robust;
+  if (options.robust_loss_scale > 0.0) {
+    robust = std::make_unique<ceres::CauchyLoss>(options.robust_loss_scale);
+  }
+  PoseManifolds manifolds;
+  ceres::Problem problem(popts);
+  const bool has_prior = add_factors(graph, options.objective, robust.get(), blocks, problem);
+  manifolds.apply(blocks, graph.dimension == 2, problem);
+  hold_fixed(graph, fixed, has_prior, blocks, problem);
+
+  ceres::Solver::Summary summary;
+  ceres::Solve(ceres_options(options), &problem, &summary);
+  from_blocks(blocks, graph);
+  record_summary(summary, options.full_report, result);
+  result.final_cost = objective(graph, options.objective);
   return result;
 }
 

@@ -13,190 +13,271 @@
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <stdexcept>
+
+namespace {
+
+namespace graph = cdc::graph;
+using Clock = std::chrono::steady_clock;
+
+struct Options {
+  std::string input, out_path, init = "chordal";
+  bool json = false, sesync_weights = false, verbose = false, distributed = false, share_loops = false;
+  int max_rounds = 30;
+  double tilt_scale = 1.0;
+  double over_relaxation = graph::DistributedOptions{}.over_relaxation;
+  int max_iterations = 100;
+  double tolerance = 1e-10;
+  double trust_region = 1e12;
+  std::string backend = "suitesparse";
+};
+
+void add_options(CLI::App& app, Options& o) {
+  app.add_option("input", o.input, "a .g2o file, or a folder of per-robot .g2o files")
+      ->required()
+      ->check(CLI::ExistingPath);
+  app.add_option("--init", o.init,
+                 "initial values: chordal (rotation relaxation), odometry (chained), file (VERTEX lines)")
+      ->check(CLI::IsMember({"chordal", "odometry", "file"}))
+      ->capture_default_str();
+  app.add_flag("--sesync-weights", o.sesync_weights,
+               "optimise SE-Sync's isotropic chordal objective instead of the full-information cost");
+  app.add_flag("--share-loops", o.share_loops,
+               "divide each loop closure's information by the most loops either of its keyframes takes part in"
+               " (as the optimiser services do; --out then writes the divided information)");
+  app.add_option("--loop-tilt-scale", o.tilt_scale,
+                 "scale each loop closure's roll/pitch information by this factor in its keyframe's level frame"
+                 " (world z up, from the estimate read), as the loop-closure service does for robots whose odometry"
+                 " holds its tilt with gravity; for graphs whose loops were not levelled")
+      ->check(CLI::Range(0.0, 1.0))->capture_default_str();
+  app.add_option("--max-iterations", o.max_iterations, "solver iteration limit")->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--tolerance", o.tolerance, "relative cost-change tolerance at which the solver stops")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--trust-region", o.trust_region, "initial trust-region radius (1 / initial LM damping)")
+      ->check(CLI::PositiveNumber)->capture_default_str();
+  app.add_option("--sparse-backend", o.backend, "sparse Cholesky library")
+      ->check(CLI::IsMember({"suitesparse", "eigen", "cxsparse"}))->capture_default_str();
+  app.add_option("--out", o.out_path, "write the optimised graph to this .g2o file");
+  app.add_flag("--json", o.json, "print one JSON line instead of text");
+  app.add_flag("--distributed", o.distributed,
+               "also run the distributed algorithm (robots = top byte of the keys; exchanges separator poses only)"
+               " and compare it with the centralized solution");
+  app.add_option("--over-relaxation", o.over_relaxation, "distributed: over-relaxation factor gamma (1 = Gauss-Seidel)")
+      ->check(CLI::Range(0.1, 1.99))->capture_default_str();
+  app.add_option("--max-rounds", o.max_rounds, "distributed: round limit")->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_flag("--verbose", o.verbose, "print the solver's full report to stderr");
+}
+
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+graph::PoseGraph read_graph(const std::string& input) {
+  return std::filesystem::is_directory(input) ? graph::read_g2o_folder(input) : graph::read_g2o(input);
+}
+
+bool has_missing_vertices(const graph::PoseGraph& g) {
+  for (const auto& f : g.factors) {
+    if (g.poses.count(f.a) == 0 || g.poses.count(f.b) == 0) {
+      return true;
+    }
+  }
+  return false;
+}
+
+// Initial values as --init asks; a graph whose file lacks some vertices is chained from odometry.
+void initialise(graph::PoseGraph& g, const Options& o) {
+  const bool missing_vertices = has_missing_vertices(g);
+  bool connected = true;
+  if (o.init == "chordal") {
+    connected = graph::chordal_initialise(g);
+  } else if (o.init == "odometry" || missing_vertices) {
+    connected = graph::initialise_from_odometry(g);
+  }
+  if (!connected) {
+    throw std::runtime_error(o.input + ": the graph is not connected; only the anchor's component is solved");
+  }
+}
+
+graph::SolverOptions solver_options(const Options& o) {
+  graph::SolverOptions opts;
+  opts.max_iterations = o.max_iterations;
+  opts.function_tolerance = o.tolerance;
+  opts.initial_trust_region_radius = o.trust_region;
+  opts.sparse_backend = o.backend == "eigen"      ? graph::SparseBackend::kEigen
+                        : o.backend == "cxsparse" ? graph::SparseBackend::kCxSparse
+                                                  : graph::SparseBackend::kSuiteSparse;
+  opts.objective = o.sesync_weights ? graph::Objective::kSeSync : graph::Objective::kFullInformation;
+  opts.full_report = o.verbose;
+  return opts;
+}
+
+void print_report(const graph::SolveResult& r) {
+  std::cerr << r.report << "\niteration  time_s  objective\n";
+  for (size_t i = 0; i < r.trace.size(); ++i) {
+    std::fprintf(stderr, "%9zu  %6.3f  %.10g\n", i, r.trace[i].first, 2.0 * r.trace[i].second);
+  }
+}
+
+// The first round whose objective is within 1 % of the centralized one; -1 if none is.
+int rounds_to_1pct(const std::vector<double>& objective_per_round, double f_central) {
+  for (size_t i = 0; i < objective_per_round.size(); ++i) {
+    if (objective_per_round[i] <= 1.01 * f_central) {
+      return static_cast<int>(i);
+    }
+  }
+  return -1;
+}
+
+// RMS distance between the positions of the same keys in two graphs [m].
+double position_rmse(const graph::PoseGraph& reference, const graph::PoseGraph& other) {
+  double se = 0.0;
+  for (const auto& [k, T] : reference.poses) {
+    se += (other.poses.at(k).translation() - T.translation()).squaredNorm();
+  }
+  return std::sqrt(se / static_cast<double>(reference.poses.size()));
+}
+
+// Bytes each robot sent, initialisation and rounds together, keyed by the robot's number as text.
+nlohmann::json bytes_per_robot(const graph::DistributedResult& init, graph::DistributedResult& rounds) {
+  nlohmann::json bytes;
+  for (const auto& [robot, b] : init.bytes_sent) {
+    bytes[std::to_string(robot)] = b + rounds.bytes_sent[robot];
+  }
+  for (const auto& [robot, b] : rounds.bytes_sent) {
+    if (!bytes.contains(std::to_string(robot))) {
+      bytes[std::to_string(robot)] = b;
+    }
+  }
+  return bytes;
+}
+
+// Runs the distributed algorithm from the input file and compares it with the centralized solution
+// `central` (objective f_central); returns its figures and leaves its solution in `solution`.
+nlohmann::json run_distributed(const Options& o, const graph::SolverOptions& local, const graph::PoseGraph& central,
+                               double f_central, graph::PoseGraph& solution) {
+  solution = read_graph(o.input);
+  graph::DistributedResult init;
+  const auto d0 = Clock::now();
+  if (!graph::initialise_distributed(solution, &init)) {
+    throw std::runtime_error(o.input + ": some robot shares no inter-robot factor with the others");
+  }
+  graph::DistributedOptions dopts;
+  dopts.max_rounds = o.max_rounds;
+  dopts.local = local;
+  dopts.over_relaxation = o.over_relaxation;
+  graph::DistributedResult dr = graph::solve_distributed(solution, dopts);
+  const double dist_s = seconds_since(d0);
+  const double f_dist = dr.objective_per_round.back();
+  return {{"rounds", dr.rounds},
+          {"converged", dr.converged},
+          {"rounds_to_1pct", rounds_to_1pct(dr.objective_per_round, f_central)},
+          {"distributed_objective", f_dist},
+          {"centralized_objective", f_central},
+          {"gap_to_centralized", (f_dist - f_central) / f_central},
+          {"ate_to_centralized_m", position_rmse(central, solution)},
+          {"bytes_per_robot", bytes_per_robot(init, dr)},
+          {"objective_per_round", dr.objective_per_round},
+          {"distributed_time_s", dist_s}};
+}
+
+// What the run found, as the JSON line and the text both show it.
+struct Summary {
+  graph::SolveResult solve;
+  double init_s = 0, total_s = 0;
+  double full = 0, sesync = 0;  // the centralized solution's costs
+  nlohmann::json distributed;   // empty without --distributed
+};
+
+void print_json(const Options& o, const graph::PoseGraph& g, const Summary& s) {
+  nlohmann::json j{{"file", o.input},
+                   {"poses", g.poses.size()},
+                   {"factors", g.factors.size()},
+                   {"init", o.init},
+                   {"objective", o.sesync_weights ? "sesync" : "full_information"},
+                   {"iterations", s.solve.iterations},
+                   {"converged", s.solve.converged},
+                   {"init_time_s", s.init_s},
+                   {"solve_time_s", s.solve.time_s},
+                   {"time_s", s.total_s},
+                   {"initial_cost", s.solve.initial_cost},
+                   {"cost", s.full},
+                   {"sesync_objective", s.sesync}};
+  if (o.distributed) {
+    j.update(s.distributed);
+  }
+  std::cout << j.dump() << '\n';
+}
+
+void print_distributed_text(const nlohmann::json& d) {
+  std::printf("distributed      %d rounds (1%% of centralized after %d), objective %.6g, gap %.2e, ATE to "
+              "centralized %.4g m\n",
+              d["rounds"].get<int>(), d["rounds_to_1pct"].get<int>(), d["distributed_objective"].get<double>(),
+              d["gap_to_centralized"].get<double>(), d["ate_to_centralized_m"].get<double>());
+  for (const auto& [robot, b] : d["bytes_per_robot"].items()) {
+    std::printf("  robot %s sent %llu bytes of separator poses\n", robot.c_str(),
+                static_cast<unsigned long long>(b.get<uint64_t>()));
+  }
+}
+
+void print_text(const Options& o, const graph::PoseGraph& g, const Summary& s) {
+  std::printf("%s: %zu poses, %zu factors (init %s, objective %s)\n", o.input.c_str(), g.poses.size(),
+              g.factors.size(), o.init.c_str(), o.sesync_weights ? "SE-Sync" : "full information");
+  std::printf("iterations       %d (%s)\n", s.solve.iterations, s.solve.message.c_str());
+  std::printf("time             %.3f s (init %.3f s, solve %.3f s)\n", s.total_s, s.init_s, s.solve.time_s);
+  std::printf("cost             %.6g (full information, no 1/2)\n", s.full);
+  std::printf("sesync_objective %.6g\n", s.sesync);
+  if (o.distributed) {
+    print_distributed_text(s.distributed);
+  }
+}
+
+// Reads, initialises and solves the graph (and the distributed algorithm when asked), writes --out
+// and prints the figures.
+void run(const Options& o) {
+  graph::PoseGraph g = read_graph(o.input);
+  if (o.share_loops) {
+    graph::share_loop_information(g);
+  }
+  graph::level_loop_information(g, o.tilt_scale);
+  Summary s;
+  const auto t0 = Clock::now();
+  initialise(g, o);
+  s.init_s = seconds_since(t0);
+  const graph::SolverOptions opts = solver_options(o);
+  s.solve = graph::solve(g, opts);
+  if (o.verbose) {
+    print_report(s.solve);
+  }
+  s.total_s = seconds_since(t0);
+  s.full = graph::full_information_cost(g);
+  s.sesync = graph::sesync_objective(g);
+  if (o.distributed) {
+    graph::PoseGraph solution;
+    s.distributed = run_distributed(o, opts, g, o.sesync_weights ? s.sesync : s.full, solution);
+    g = std::move(solution);  // --out writes the distributed solution
+  }
+  if (!o.out_path.empty()) {
+    graph::write_g2o(o.out_path, g);
+  }
+  if (o.json) {
+    print_json(o, g, s);
+  } else {
+    print_text(o, g, s);
+  }
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{
       "cdc-pgo: optimise a pose graph (g2o: VERTEX_SE3:QUAT/EDGE_SE3:QUAT, or SE2 lifted into 3D).\n"
       "Prints iterations, time, final cost (full information, no 1/2) and SE-Sync's objective f."};
-  std::string input, out_path, init = "chordal";
-  bool json = false, sesync_weights = false, verbose = false, distributed = false, share_loops = false;
-  int max_rounds = 30;
-  double tilt_scale = 1.0;
-  double sor = cdc::graph::DistributedOptions{}.over_relaxation;
-  int max_iterations = 100;
-  double tolerance = 1e-10;
-  double radius = 1e12;
-  std::string backend = "suitesparse";
-  app.add_option("input", input, "a .g2o file, or a folder of per-robot .g2o files")->required()->check(CLI::ExistingPath);
-  app.add_option("--init", init, "initial values: chordal (rotation relaxation), odometry (chained), file (VERTEX lines)")
-      ->check(CLI::IsMember({"chordal", "odometry", "file"}))
-      ->capture_default_str();
-  app.add_flag("--sesync-weights", sesync_weights,
-               "optimise SE-Sync's isotropic chordal objective instead of the full-information cost");
-  app.add_flag("--share-loops", share_loops,
-               "divide each loop closure's information by the most loops either of its keyframes takes part in"
-               " (as the optimiser services do; --out then writes the divided information)");
-  app.add_option("--loop-tilt-scale", tilt_scale,
-                 "scale each loop closure's roll/pitch information by this factor in its keyframe's level frame"
-                 " (world z up, from the estimate read), as the loop-closure service does for robots whose odometry"
-                 " holds its tilt with gravity; for graphs whose loops were not levelled")
-      ->check(CLI::Range(0.0, 1.0))->capture_default_str();
-  app.add_option("--max-iterations", max_iterations, "solver iteration limit")->check(CLI::PositiveNumber)
-      ->capture_default_str();
-  app.add_option("--tolerance", tolerance, "relative cost-change tolerance at which the solver stops")
-      ->check(CLI::PositiveNumber)->capture_default_str();
-  app.add_option("--trust-region", radius, "initial trust-region radius (1 / initial LM damping)")
-      ->check(CLI::PositiveNumber)->capture_default_str();
-  app.add_option("--sparse-backend", backend, "sparse Cholesky library")
-      ->check(CLI::IsMember({"suitesparse", "eigen", "cxsparse"}))->capture_default_str();
-  app.add_option("--out", out_path, "write the optimised graph to this .g2o file");
-  app.add_flag("--json", json, "print one JSON line instead of text");
-  app.add_flag("--distributed", distributed,
-               "also run the distributed algorithm (robots = top byte of the keys; exchanges separator poses only)"
-               " and compare it with the centralized solution");
-  app.add_option("--over-relaxation", sor, "distributed: over-relaxation factor gamma (1 = Gauss-Seidel)")
-      ->check(CLI::Range(0.1, 1.99))->capture_default_str();
-  app.add_option("--max-rounds", max_rounds, "distributed: round limit")->check(CLI::PositiveNumber)
-      ->capture_default_str();
-  app.add_flag("--verbose", verbose, "print the solver's full report to stderr");
+  Options o;
+  add_options(app, o);
   CLI11_PARSE(app, argc, argv);
-
   try {
-    cdc::graph::PoseGraph graph = std::filesystem::is_directory(input) ? cdc::graph::read_g2o_folder(input)
-                                                                        : cdc::graph::read_g2o(input);
-    if (share_loops) {
-      cdc::graph::share_loop_information(graph);
-    }
-    cdc::graph::level_loop_information(graph, tilt_scale);
-    const auto t0 = std::chrono::steady_clock::now();
-    bool missing_vertices = false;
-    for (const auto& f : graph.factors) {
-      if (graph.poses.count(f.a) == 0 || graph.poses.count(f.b) == 0) {
-        missing_vertices = true;
-        break;
-      }
-    }
-    bool connected = true;
-    if (init == "chordal") {
-      connected = cdc::graph::chordal_initialise(graph);
-    } else if (init == "odometry" || missing_vertices) {
-      connected = cdc::graph::initialise_from_odometry(graph);
-    }
-    if (!connected) {
-      std::cerr << "cdc-pgo: " << input << ": the graph is not connected; only the anchor's component is solved\n";
-      return 1;
-    }
-    const double init_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    cdc::graph::SolverOptions opts;
-    opts.max_iterations = max_iterations;
-    opts.function_tolerance = tolerance;
-    opts.initial_trust_region_radius = radius;
-    opts.sparse_backend = backend == "eigen"     ? cdc::graph::SparseBackend::kEigen
-                          : backend == "cxsparse" ? cdc::graph::SparseBackend::kCxSparse
-                                                  : cdc::graph::SparseBackend::kSuiteSparse;
-    opts.objective = sesync_weights ? cdc::graph::Objective::kSeSync : cdc::graph::Objective::kFullInformation;
-    opts.full_report = verbose;
-    const cdc::graph::SolveResult r = cdc::graph::solve(graph, opts);
-    if (verbose) {
-      std::cerr << r.report << "\niteration  time_s  objective\n";
-      for (size_t i = 0; i < r.trace.size(); ++i) {
-        std::fprintf(stderr, "%9zu  %6.3f  %.10g\n", i, r.trace[i].first, 2.0 * r.trace[i].second);
-      }
-    }
-    const double total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    const double full = cdc::graph::full_information_cost(graph);
-    const double sesync = cdc::graph::sesync_objective(graph);
-    nlohmann::json dist_json;
-    if (distributed) {
-      cdc::graph::PoseGraph dgraph = std::filesystem::is_directory(input) ? cdc::graph::read_g2o_folder(input)
-                                                                           : cdc::graph::read_g2o(input);
-      cdc::graph::DistributedResult acc;
-      const auto d0 = std::chrono::steady_clock::now();
-      if (!cdc::graph::initialise_distributed(dgraph, &acc)) {
-        std::cerr << "cdc-pgo: " << input << ": some robot shares no inter-robot factor with the others\n";
-        return 1;
-      }
-      cdc::graph::DistributedOptions dopts;
-      dopts.max_rounds = max_rounds;
-      dopts.local = opts;
-      dopts.over_relaxation = sor;
-      cdc::graph::DistributedResult dr = cdc::graph::solve_distributed(dgraph, dopts);
-      const double dist_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - d0).count();
-      const double f_central = sesync_weights ? sesync : full;
-      const double f_dist = dr.objective_per_round.back();
-      int rounds_to_1pct = -1;
-      for (size_t i = 0; i < dr.objective_per_round.size(); ++i) {
-        if (dr.objective_per_round[i] <= 1.01 * f_central) {
-          rounds_to_1pct = static_cast<int>(i);
-          break;
-        }
-      }
-      double se = 0.0;
-      for (const auto& [k, T] : graph.poses) {
-        se += (dgraph.poses.at(k).translation() - T.translation()).squaredNorm();
-      }
-      const double ate = std::sqrt(se / static_cast<double>(graph.poses.size()));
-      nlohmann::json bytes;
-      for (const auto& [robot, b] : acc.bytes_sent) {
-        bytes[std::to_string(robot)] = b + dr.bytes_sent[robot];
-      }
-      for (const auto& [robot, b] : dr.bytes_sent) {
-        if (!bytes.contains(std::to_string(robot))) {
-          bytes[std::to_string(robot)] = b;
-        }
-      }
-      dist_json = {{"rounds", dr.rounds},
-                   {"converged", dr.converged},
-                   {"rounds_to_1pct", rounds_to_1pct},
-                   {"distributed_objective", f_dist},
-                   {"centralized_objective", f_central},
-                   {"gap_to_centralized", (f_dist - f_central) / f_central},
-                   {"ate_to_centralized_m", ate},
-                   {"bytes_per_robot", bytes},
-                   {"objective_per_round", dr.objective_per_round},
-                   {"distributed_time_s", dist_s}};
-      graph = dgraph;  // --out writes the distributed solution
-    }
-    if (!out_path.empty()) {
-      cdc::graph::write_g2o(out_path, graph);
-    }
-    if (json) {
-      nlohmann::json j{{"file", input},
-                       {"poses", graph.poses.size()},
-                       {"factors", graph.factors.size()},
-                       {"init", init},
-                       {"objective", sesync_weights ? "sesync" : "full_information"},
-                       {"iterations", r.iterations},
-                       {"converged", r.converged},
-                       {"init_time_s", init_s},
-                       {"solve_time_s", r.time_s},
-                       {"time_s", total_s},
-                       {"initial_cost", r.initial_cost},
-                       {"cost", full},
-                       {"sesync_objective", sesync}};
-      if (distributed) {
-        j.update(dist_json);
-      }
-      std::cout << j.dump() << '\n';
-    } else {
-      std::printf("%s: %zu poses, %zu factors (init %s, objective %s)\n", input.c_str(), graph.poses.size(),
-                  graph.factors.size(), init.c_str(), sesync_weights ? "SE-Sync" : "full information");
-      std::printf("iterations       %d (%s)\n", r.iterations, r.message.c_str());
-      std::printf("time             %.3f s (init %.3f s, solve %.3f s)\n", total_s, init_s, r.time_s);
-      std::printf("cost             %.6g (full information, no 1/2)\n", full);
-      std::printf("sesync_objective %.6g\n", sesync);
-      if (distributed) {
-        std::printf("distributed      %d rounds (1%% of centralized after %d), objective %.6g, gap %.2e, ATE to "
-                    "centralized %.4g m\n",
-                    dist_json["rounds"].get<int>(), dist_json["rounds_to_1pct"].get<int>(),
-                    dist_json["distributed_objective"].get<double>(), dist_json["gap_to_centralized"].get<double>(),
-                    dist_json["ate_to_centralized_m"].get<double>());
-        for (const auto& [robot, b] : dist_json["bytes_per_robot"].items()) {
-          std::printf("  robot %s sent %llu bytes of separator poses\n", robot.c_str(),
-                      static_cast<unsigned long long>(b.get<uint64_t>()));
-        }
-      }
-    }
+    run(o);
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "cdc-pgo: " << e.what() << '\n';

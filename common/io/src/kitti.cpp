@@ -39,12 +39,21 @@ Eigen::Isometry3d read_kitti_calib(const std::string& path, const std::string& k
   throw std::runtime_error(path + ": no entry '" + key + "'");
 }
 
-geometry::Trajectory kitti_lidar_trajectory(const std::string& poses_path, const Eigen::Isometry3d& Tr) {
-  geometry::Trajectory cam = geometry::read_kitti(poses_path, nullptr, 100'000'000);
+namespace {
+
+// Camera-frame poses T_world_cam0 into the LiDAR's: inv(Tr) * T * Tr.
+void camera_to_lidar(geometry::Trajectory& poses, const Eigen::Isometry3d& Tr) {
   const Eigen::Isometry3d Tr_inv = Tr.inverse();
-  for (auto& sp : cam) {
+  for (auto& sp : poses) {
     sp.pose = Tr_inv * sp.pose * Tr;
   }
+}
+
+}  // namespace
+
+geometry::Trajectory kitti_lidar_trajectory(const std::string& poses_path, const Eigen::Isometry3d& Tr) {
+  geometry::Trajectory cam = geometry::read_kitti(poses_path, nullptr, 100'000'000);
+  camera_to_lidar(cam, Tr);
   return cam;
 }
 
@@ -81,9 +90,16 @@ std::vector<geometry::Trajectory> split_robots(const geometry::Trajectory& seq, 
   return out;
 }
 
-KittiSequence read_kitti_sequence(const std::filesystem::path& dir, const KittiSequenceOptions& o) {
-  namespace fs = std::filesystem;
-  KittiSequence seq;
+namespace {
+
+namespace fs = std::filesystem;
+
+bool is_frame_number(const std::string& stem) {
+  return !stem.empty() && std::all_of(stem.begin(), stem.end(), [](char c) { return c >= '0' && c <= '9'; });
+}
+
+// The sweeps of the folder in frame order (a missing frame number is an error unless gaps are allowed).
+void list_sweeps(const fs::path& dir, const KittiSequenceOptions& o, KittiSequence& seq) {
   // A sequence folder (velodyne/, times.txt, calib.txt) or a bare folder of .bin sweeps.
   const fs::path sweeps_dir = fs::is_directory(dir / "velodyne") ? dir / "velodyne" : dir;
   if (!fs::is_directory(sweeps_dir)) throw FormatError(dir.string() + ": not a folder");
@@ -91,7 +107,7 @@ KittiSequence read_kitti_sequence(const std::filesystem::path& dir, const KittiS
   for (const auto& e : fs::directory_iterator(sweeps_dir)) {
     if (e.path().extension() != ".bin") continue;
     const std::string stem = e.path().stem().string();
-    if (stem.empty() || !std::all_of(stem.begin(), stem.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+    if (!is_frame_number(stem)) {
       throw FormatError(e.path().string() + ": a KITTI sweep is named by its frame number (NNNNNN.bin)");
     }
     files.emplace_back(static_cast<size_t>(std::stoull(stem)), e.path());
@@ -109,7 +125,10 @@ KittiSequence read_kitti_sequence(const std::filesystem::path& dir, const KittiS
     seq.frames.push_back(files[i].first);
     seq.sweeps.push_back(files[i].second);
   }
-  // Times: an explicit file, else times.txt of the sequence, else frame * period.
+}
+
+// Times: an explicit file, else times.txt of the sequence, else frame * period; they must increase.
+void stamp_frames(const fs::path& dir, const KittiSequenceOptions& o, KittiSequence& seq) {
   fs::path times_path = o.times;
   if (times_path.empty() && fs::exists(dir / "times.txt")) times_path = dir / "times.txt";
   std::vector<int64_t> all_times;
@@ -120,7 +139,8 @@ KittiSequence read_kitti_sequence(const std::filesystem::path& dir, const KittiS
   for (const size_t f : seq.frames) {
     if (!all_times.empty()) {
       if (f >= all_times.size()) {
-        throw FormatError(times_path.string() + ": " + std::to_string(all_times.size()) + " lines, no time for frame " + std::to_string(f));
+        throw FormatError(times_path.string() + ": " + std::to_string(all_times.size()) + " lines, no time for frame " +
+                          std::to_string(f));
       }
       seq.stamps_ns.push_back(all_times[f]);
     } else {
@@ -129,27 +149,40 @@ KittiSequence read_kitti_sequence(const std::filesystem::path& dir, const KittiS
   }
   for (size_t i = 1; i < seq.stamps_ns.size(); ++i) {
     if (seq.stamps_ns[i] <= seq.stamps_ns[i - 1]) {
-      throw FormatError(times_path.string() + ": time of frame " + std::to_string(seq.frames[i]) + " does not increase");
+      throw FormatError(times_path.string() + ": time of frame " + std::to_string(seq.frames[i]) +
+                        " does not increase");
     }
   }
-  // Poses: camera-frame ground truth turned into the LiDAR frame with Tr, or LiDAR-frame poses as they are.
+}
+
+// Poses: camera-frame ground truth turned into the LiDAR frame with Tr, or LiDAR-frame poses as they are.
+void attach_poses(const fs::path& dir, const KittiSequenceOptions& o, KittiSequence& seq) {
+  geometry::Trajectory all = geometry::read_kitti(o.poses.string(), nullptr, o.period_ns);
+  if (o.poses_frame == KittiPosesFrame::kCamera) {
+    fs::path calib = o.calib;
+    if (calib.empty() && fs::exists(dir / "calib.txt")) calib = dir / "calib.txt";
+    if (calib.empty()) {
+      throw FormatError(o.poses.string() + ": camera-frame poses need the calibration (calib.txt with Tr)");
+    }
+    camera_to_lidar(all, read_kitti_calib(calib.string(), o.calib_key));
+  }
+  for (size_t i = 0; i < seq.frames.size(); ++i) {
+    if (seq.frames[i] >= all.size()) {
+      throw FormatError(o.poses.string() + ": " + std::to_string(all.size()) + " poses, none for frame " +
+                        std::to_string(seq.frames[i]));
+    }
+    seq.poses.push_back({seq.stamps_ns[i], all[seq.frames[i]].pose});
+  }
+}
+
+}  // namespace
+
+KittiSequence read_kitti_sequence(const std::filesystem::path& dir, const KittiSequenceOptions& o) {
+  KittiSequence seq;
+  list_sweeps(dir, o, seq);
+  stamp_frames(dir, o, seq);
   if (!o.poses.empty()) {
-    geometry::Trajectory all = geometry::read_kitti(o.poses.string(), nullptr, o.period_ns);
-    if (o.poses_frame == KittiPosesFrame::kCamera) {
-      fs::path calib = o.calib;
-      std::string key = o.calib_key;
-      if (calib.empty() && fs::exists(dir / "calib.txt")) calib = dir / "calib.txt";
-      if (calib.empty()) throw FormatError(o.poses.string() + ": camera-frame poses need the calibration (calib.txt with Tr)");
-      const Eigen::Isometry3d Tr = read_kitti_calib(calib.string(), key);
-      const Eigen::Isometry3d Tr_inv = Tr.inverse();
-      for (auto& sp : all) sp.pose = Tr_inv * sp.pose * Tr;
-    }
-    for (size_t i = 0; i < seq.frames.size(); ++i) {
-      if (seq.frames[i] >= all.size()) {
-        throw FormatError(o.poses.string() + ": " + std::to_string(all.size()) + " poses, none for frame " + std::to_string(seq.frames[i]));
-      }
-      seq.poses.push_back({seq.stamps_ns[i], all[seq.frames[i]].pose});
-    }
+    attach_poses(dir, o, seq);
   }
   return seq;
 }

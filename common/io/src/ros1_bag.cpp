@@ -165,8 +165,8 @@ class BagFile {
   uint64_t size_ = 0;
 };
 
-// A record in the file: its header is read, its data only located.
-struct FileRecord {
+// A record: its header is read, its data only located.
+struct Record {
   uint64_t pos = 0;
   std::optional<Fields> header;
   uint64_t data_pos = 0;
@@ -175,77 +175,65 @@ struct FileRecord {
   uint8_t op = 0;
 };
 
-FileRecord read_file_record(BagFile& file, uint64_t pos, const Locator& loc) {
-  const uint64_t size = file.size();
-  FileRecord r;
-  r.pos = pos;
-  uint8_t len_bytes[4];
-  if (size - pos < 4) {
-    loc.fail(pos, "record header length needs 4 bytes, the file ends at byte " + std::to_string(size));
-  }
-  file.read(pos, len_bytes, 4, loc);
-  const uint32_t header_len = load_u32(len_bytes);
-  if (header_len > size - pos - 4) {
-    loc.fail(pos, "record header of " + std::to_string(header_len) +
-                      " bytes runs past the end of the file (" + std::to_string(size) + " bytes)");
-  }
-  if (header_len > kMaxHeaderBytes) {
-    loc.fail(pos, "record header of " + std::to_string(header_len) + " bytes exceeds the " +
-                      std::to_string(kMaxHeaderBytes) + " bytes this reader accepts");
-  }
-  const std::vector<uint8_t> header_bytes = file.read(pos + 4, header_len, loc);
-  r.header.emplace(header_bytes, pos + 4, pos, loc);
-  r.op = r.header->u8("op");
-  r.data_pos = pos + 4 + header_len;
-  if (size - r.data_pos < 4) {
-    loc.fail(r.data_pos,
-             "record data length needs 4 bytes, the file ends at byte " + std::to_string(size));
-  }
-  file.read(r.data_pos, len_bytes, 4, loc);
-  r.data_len = load_u32(len_bytes);
-  r.data_pos += 4;
-  if (r.data_len > size - r.data_pos) {
-    loc.fail(r.data_pos - 4, "record data of " + std::to_string(r.data_len) +
-                                 " bytes runs past the end of the file (" + std::to_string(size) +
-                                 " bytes)");
-  }
-  r.end = r.data_pos + r.data_len;
-  return r;
-}
+// Records in the file, read on demand; a record header may not exceed kMaxHeaderBytes.
+struct FileBytes {
+  static constexpr const char* kName = "file";
+  static constexpr uint64_t kMaxHeader = kMaxHeaderBytes;
+  BagFile& file;
 
-// A record inside a chunk's uncompressed data.
-struct ChunkRecord {
-  std::optional<Fields> header;
-  uint64_t data_pos = 0;
-  uint32_t data_len = 0;
-  uint64_t end = 0;
-  uint8_t op = 0;
+  uint64_t size() const { return file.size(); }
+  uint32_t u32(uint64_t pos, const Locator& loc) const {
+    uint8_t bytes[4];
+    file.read(pos, bytes, 4, loc);
+    return load_u32(bytes);
+  }
+  std::vector<uint8_t> bytes(uint64_t pos, uint64_t n, const Locator& loc) const { return file.read(pos, n, loc); }
 };
 
-ChunkRecord read_chunk_record(std::span<const uint8_t> buf, uint64_t pos, const Locator& loc) {
-  const uint64_t size = buf.size();
-  ChunkRecord r;
+// Records in a chunk's uncompressed data, in memory; the chunk bounds a record header.
+struct ChunkBytes {
+  static constexpr const char* kName = "chunk";
+  static constexpr uint64_t kMaxHeader = 0;  // none
+  std::span<const uint8_t> buf;
+
+  uint64_t size() const { return buf.size(); }
+  uint32_t u32(uint64_t pos, const Locator&) const { return load_u32(buf.data() + pos); }
+  std::span<const uint8_t> bytes(uint64_t pos, uint64_t n, const Locator&) const { return buf.subspan(pos, n); }
+};
+
+// The record at pos: uint32 header length, header, uint32 data length, data; every length checked
+// against the bytes of the source.
+template <class Source>
+Record read_record(const Source& src, uint64_t pos, const Locator& loc) {
+  const uint64_t size = src.size();
+  const std::string end_of = std::string(" the ") + Source::kName;
+  Record r;
+  r.pos = pos;
   if (size - pos < 4) {
-    loc.fail(pos, "record header length needs 4 bytes, the chunk ends at byte " + std::to_string(size));
+    loc.fail(pos, "record header length needs 4 bytes," + end_of + " ends at byte " + std::to_string(size));
   }
-  const uint32_t header_len = load_u32(buf.data() + pos);
+  const uint32_t header_len = src.u32(pos, loc);
   if (header_len > size - pos - 4) {
-    loc.fail(pos, "record header of " + std::to_string(header_len) +
-                      " bytes runs past the end of the chunk (" + std::to_string(size) + " bytes)");
+    loc.fail(pos, "record header of " + std::to_string(header_len) + " bytes runs past the end of" + end_of + " (" +
+                      std::to_string(size) + " bytes)");
   }
-  r.header.emplace(buf.subspan(pos + 4, header_len), pos + 4, pos, loc);
+  if constexpr (Source::kMaxHeader != 0) {
+    if (header_len > Source::kMaxHeader) {
+      loc.fail(pos, "record header of " + std::to_string(header_len) + " bytes exceeds the " +
+                        std::to_string(Source::kMaxHeader) + " bytes this reader accepts");
+    }
+  }
+  r.header.emplace(src.bytes(pos + 4, header_len, loc), pos + 4, pos, loc);
   r.op = r.header->u8("op");
   r.data_pos = pos + 4 + header_len;
   if (size - r.data_pos < 4) {
-    loc.fail(r.data_pos,
-             "record data length needs 4 bytes, the chunk ends at byte " + std::to_string(size));
+    loc.fail(r.data_pos, "record data length needs 4 bytes," + end_of + " ends at byte " + std::to_string(size));
   }
-  r.data_len = load_u32(buf.data() + r.data_pos);
+  r.data_len = src.u32(r.data_pos, loc);
   r.data_pos += 4;
   if (r.data_len > size - r.data_pos) {
-    loc.fail(r.data_pos - 4, "record data of " + std::to_string(r.data_len) +
-                                 " bytes runs past the end of the chunk (" + std::to_string(size) +
-                                 " bytes)");
+    loc.fail(r.data_pos - 4, "record data of " + std::to_string(r.data_len) + " bytes runs past the end of" + end_of +
+                                 " (" + std::to_string(size) + " bytes)");
   }
   r.end = r.data_pos + r.data_len;
   return r;
@@ -365,7 +353,7 @@ class Ros1BagReader final : public BagReader {
       out.log_time_ns = e.time_ns;
       out.serialization = Serialization::kRos1;
       if (e.chunk == kLooseMessage) {
-        const FileRecord r = read_file_record(file_, e.source_pos, loc_);
+        const Record r = read_record(FileBytes{file_}, e.source_pos, loc_);
         out.data = file_.read(r.data_pos, r.data_len, loc_);
       } else {
         LoadedChunk& chunk = loaded_chunk(e.chunk);
@@ -447,7 +435,7 @@ class Ros1BagReader final : public BagReader {
       }
       loc_.fail(0, "not a ROS 1 bag: expected the version line '#ROSBAG V2.0'");
     }
-    const FileRecord r = read_file_record(file_, kVersionLine.size(), loc_);
+    const Record r = read_record(FileBytes{file_}, kVersionLine.size(), loc_);
     if (r.op != kOpBagHeader) {
       loc_.fail(r.pos, "expected the bag header record (op 0x03), found op " + std::to_string(r.op));
     }
@@ -465,7 +453,7 @@ class Ros1BagReader final : public BagReader {
     uint64_t pos = records_pos_;
     while (pos < file_.size()) {
       if (pos == index_pos_) index_pos_is_record_ = true;
-      const FileRecord r = read_file_record(file_, pos, loc_);
+      const Record r = read_record(FileBytes{file_}, pos, loc_);
       switch (r.op) {
         case kOpChunk: add_chunk(r); break;
         case kOpIndexData: add_index_data(r); break;
@@ -489,7 +477,7 @@ class Ros1BagReader final : public BagReader {
     if (pos == index_pos_) index_pos_is_record_ = true;
   }
 
-  void add_chunk(const FileRecord& r) {
+  void add_chunk(const Record& r) {
     Chunk c;
     c.pos = r.pos;
     c.data_pos = r.data_pos;
@@ -502,18 +490,32 @@ class Ros1BagReader final : public BagReader {
     chunks_.push_back(std::move(c));
   }
 
-  void add_index_data(const FileRecord& r) {
-    if (chunks_.empty()) loc_.fail(r.pos, "index data record before any chunk");
+  // Checks the record's format version (header field "ver") against the one this reader knows.
+  void check_version(const Record& r, uint32_t expected, const char* record) const {
     const uint32_t version = r.header->u32("ver");
-    if (version != kIndexDataVersion) {
-      loc_.fail(r.pos, "index data version " + std::to_string(version) + ", expected 1");
+    if (version != expected) {
+      loc_.fail(r.pos, std::string(record) + " version " + std::to_string(version) + ", expected " +
+                           std::to_string(expected));
     }
-    const uint32_t conn = r.header->u32("conn");
+  }
+
+  // The record's entry count (header field "count"), checked against its data length at
+  // entry_bytes an entry.
+  uint32_t entry_count(const Record& r, uint64_t entry_bytes, const char* data, const char* entries) const {
     const uint32_t count = r.header->u32("count");
-    if (r.data_len != uint64_t{count} * kIndexEntryBytes) {
-      loc_.fail(r.pos, "index data of " + std::to_string(r.data_len) + " bytes for " + std::to_string(count) +
-                           " entries, expected " + std::to_string(uint64_t{count} * kIndexEntryBytes));
+    if (r.data_len != uint64_t{count} * entry_bytes) {
+      loc_.fail(r.pos, std::string(data) + " of " + std::to_string(r.data_len) + " bytes for " +
+                           std::to_string(count) + " " + entries + ", expected " +
+                           std::to_string(uint64_t{count} * entry_bytes));
     }
+    return count;
+  }
+
+  void add_index_data(const Record& r) {
+    if (chunks_.empty()) loc_.fail(r.pos, "index data record before any chunk");
+    check_version(r, kIndexDataVersion, "index data");
+    const uint32_t conn = r.header->u32("conn");
+    const uint32_t count = entry_count(r, kIndexEntryBytes, "index data", "entries");
     const std::vector<uint8_t> data = file_.read(r.data_pos, r.data_len, loc_);
     Chunk& chunk = chunks_.back();
     for (uint64_t i = 0; i < count; ++i) {
@@ -523,25 +525,17 @@ class Ros1BagReader final : public BagReader {
     chunk.indexed = true;
   }
 
-  void add_chunk_info(const FileRecord& r) {
-    const uint32_t version = r.header->u32("ver");
-    if (version != kChunkInfoVersion) {
-      loc_.fail(r.pos, "chunk info version " + std::to_string(version) + ", expected 1");
-    }
+  void add_chunk_info(const Record& r) {
+    check_version(r, kChunkInfoVersion, "chunk info");
     const uint64_t chunk_pos = r.header->u64("chunk_pos");
-    const uint32_t count = r.header->u32("count");
-    if (r.data_len != uint64_t{count} * kChunkInfoEntryBytes) {
-      loc_.fail(r.pos, "chunk info data of " + std::to_string(r.data_len) + " bytes for " +
-                           std::to_string(count) + " connections, expected " +
-                           std::to_string(uint64_t{count} * kChunkInfoEntryBytes));
-    }
+    const uint32_t count = entry_count(r, kChunkInfoEntryBytes, "chunk info data", "connections");
     const std::vector<uint8_t> data = file_.read(r.data_pos, r.data_len, loc_);
     uint64_t messages = 0;
     for (uint64_t i = 0; i < count; ++i) messages += load_u32(data.data() + i * kChunkInfoEntryBytes + 4);
     chunk_infos_.push_back({r.pos, chunk_pos, messages});
   }
 
-  void add_loose_message(const FileRecord& r) {
+  void add_loose_message(const Record& r) {
     entries_.push_back({r.header->time_ns("time"), r.pos, 0, r.header->u32("conn"), kLooseMessage});
   }
 
@@ -698,7 +692,7 @@ class Ros1BagReader final : public BagReader {
     const std::span<const uint8_t> buf(out.data);
     uint64_t pos = 0;
     while (pos < buf.size()) {
-      const ChunkRecord r = read_chunk_record(buf, pos, loc);
+      const Record r = read_record(ChunkBytes{buf}, pos, loc);
       if (r.op == kOpConnection) {
         add_connection(*r.header, buf.subspan(r.data_pos, r.data_len), pos, r.data_pos, loc);
       } else if (r.op == kOpMessageData) {

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
+#include <initializer_list>
 #include <limits>
 #include <optional>
 #include <string_view>
@@ -105,11 +106,16 @@ class CdrReader {
     pos_ += n;
   }
 
+  // A builtin_interfaces/Time (int32 sec, uint32 nanosec) in nanoseconds.
+  int64_t time_ns(const std::string& field) {
+    const int32_t sec = num<int32_t>(field + ".sec");
+    const uint32_t nanosec = num<uint32_t>(field + ".nanosec");
+    return int64_t{sec} * 1'000'000'000 + int64_t{nanosec};
+  }
+
   RosHeader header() {
     RosHeader h;
-    const int32_t sec = num<int32_t>("header.stamp.sec");
-    const uint32_t nanosec = num<uint32_t>("header.stamp.nanosec");
-    h.stamp_ns = int64_t{sec} * 1'000'000'000 + int64_t{nanosec};
+    h.stamp_ns = time_ns("header.stamp");
     h.frame_id = str("header.frame_id");
     return h;
   }
@@ -215,10 +221,8 @@ UsedField use_field(const PointCloud2Msg& c, const PointFieldMsg& f) {
 // How a time field's values turn into seconds after the header stamp.
 enum class TimeKind { kRelativeSeconds, kRelativeNanoseconds, kAbsoluteSeconds, kAbsoluteNanoseconds };
 
-}  // namespace
-
-DecodedCloud cloud_points(const PointCloud2Msg& c) {
-  // Every field of a known type must lie inside a point.
+// Every field of a known type lies inside a point, and the rows inside the data.
+void check_extents(const PointCloud2Msg& c) {
   for (const auto& f : c.fields) {
     const size_t size = datatype_size(f.datatype);
     if (size == 0) continue;
@@ -230,118 +234,180 @@ DecodedCloud cloud_points(const PointCloud2Msg& c) {
     }
   }
   const uint64_t count = uint64_t{c.width} * c.height;
-  if (count > 0) {
-    if (c.point_step == 0) cloud_error(c, "point_step is 0 for " + std::to_string(count) + " points");
-    if (uint64_t{c.width} * c.point_step > c.row_step) {
-      cloud_error(c, "row_step " + std::to_string(c.row_step) + " is shorter than width " + std::to_string(c.width) +
-                         " x point_step " + std::to_string(c.point_step));
-    }
-    if (uint64_t{c.height} * c.row_step > c.data.size()) {
-      cloud_error(c, "data holds " + std::to_string(c.data.size()) + " bytes, height " + std::to_string(c.height) +
-                         " x row_step " + std::to_string(c.row_step) + " needs " +
-                         std::to_string(uint64_t{c.height} * c.row_step));
+  if (count == 0) return;
+  if (c.point_step == 0) cloud_error(c, "point_step is 0 for " + std::to_string(count) + " points");
+  if (uint64_t{c.width} * c.point_step > c.row_step) {
+    cloud_error(c, "row_step " + std::to_string(c.row_step) + " is shorter than width " + std::to_string(c.width) +
+                       " x point_step " + std::to_string(c.point_step));
+  }
+  if (uint64_t{c.height} * c.row_step > c.data.size()) {
+    cloud_error(c, "data holds " + std::to_string(c.data.size()) + " bytes, height " + std::to_string(c.height) +
+                       " x row_step " + std::to_string(c.row_step) + " needs " +
+                       std::to_string(uint64_t{c.height} * c.row_step));
+  }
+}
+
+// The fields a point is read from, and how its time field reads.
+struct PointLayout {
+  UsedField axis[3];
+  std::optional<UsedField> intensity, ring, time;
+  TimeKind time_kind = TimeKind::kRelativeSeconds;
+};
+
+// The first of `names` the cloud has, recorded in `found` (the name) and returned as a used field.
+std::optional<UsedField> first_field(const PointCloud2Msg& c, std::initializer_list<const char*> names,
+                                     std::string& found) {
+  for (const char* name : names) {
+    if (const PointFieldMsg* f = find_field(c, name)) {
+      found = name;
+      return use_field(c, *f);
     }
   }
-  UsedField axis[3];
+  return std::nullopt;
+}
+
+// x, y and z, each a floating-point field; the optional fields under the names drivers use
+// (recorded in `out`). An absolute time's unit is decided later, from the first point.
+PointLayout point_layout(const PointCloud2Msg& c, DecodedCloud& out) {
+  PointLayout l;
   const char* axis_names[3] = {"x", "y", "z"};
   for (int i = 0; i < 3; ++i) {
     const PointFieldMsg* f = find_field(c, axis_names[i]);
     if (f == nullptr) cloud_error(c, std::string("no field '") + axis_names[i] + "'");
-    axis[i] = use_field(c, *f);
-    if (!is_float(axis[i].datatype)) {
-      cloud_error(c, std::string("field '") + axis_names[i] + "' has datatype " + datatype_name(axis[i].datatype) +
+    l.axis[i] = use_field(c, *f);
+    if (!is_float(l.axis[i].datatype)) {
+      cloud_error(c, std::string("field '") + axis_names[i] + "' has datatype " + datatype_name(l.axis[i].datatype) +
                          ", expected FLOAT32 or FLOAT64");
     }
   }
+  std::string intensity_field;
+  l.intensity = first_field(c, {"intensity"}, intensity_field);
+  out.has_intensity = l.intensity.has_value();
+  l.ring = first_field(c, {"ring", "channel", "line"}, out.ring_field);
+  out.has_ring = l.ring.has_value();
+  l.time = first_field(c, {"time", "t", "offset_time", "time_stamp", "timestamp"}, out.time_field);
+  out.has_time = l.time.has_value();
+  if (l.time && out.time_field != "timestamp") {
+    l.time_kind = is_float(l.time->datatype) ? TimeKind::kRelativeSeconds : TimeKind::kRelativeNanoseconds;
+  }
+  return l;
+}
 
-  DecodedCloud out;
-  std::optional<UsedField> intensity, ring, time;
-  if (const PointFieldMsg* f = find_field(c, "intensity")) {
-    intensity = use_field(c, *f);
-    out.has_intensity = true;
-  }
-  for (const char* name : {"ring", "channel", "line"}) {
-    if (const PointFieldMsg* f = find_field(c, name)) {
-      ring = use_field(c, *f);
-      out.has_ring = true;
-      out.ring_field = name;
-      break;
-    }
-  }
-  TimeKind time_kind = TimeKind::kRelativeSeconds;
-  for (const char* name : {"time", "t", "offset_time", "time_stamp", "timestamp"}) {
-    if (const PointFieldMsg* f = find_field(c, name)) {
-      time = use_field(c, *f);
-      out.has_time = true;
-      out.time_field = name;
-      if (out.time_field != "timestamp") {
-        time_kind = is_float(time->datatype) ? TimeKind::kRelativeSeconds : TimeKind::kRelativeNanoseconds;
-      }
-      break;
-    }
+// The header stamp split into whole seconds and the nanoseconds after them, [0, 1e9).
+struct SplitStamp {
+  int64_t sec = 0;
+  int64_t rem_ns = 0;
+};
+
+SplitStamp split_stamp(int64_t stamp_ns) {
+  SplitStamp s;
+  s.sec = stamp_ns >= 0 ? stamp_ns / 1'000'000'000 : -((-stamp_ns + 999'999'999) / 1'000'000'000);
+  s.rem_ns = stamp_ns - s.sec * 1'000'000'000;
+  return s;
+}
+
+// Reads the points of a checked cloud through its layout.
+class PointReader {
+ public:
+  PointReader(const PointCloud2Msg& c, const PointLayout& layout)
+      : c_(c), l_(layout), big_(c.is_bigendian), stamp_(split_stamp(c.header.stamp_ns)) {}
+
+  uint64_t count() const { return uint64_t{c_.width} * c_.height; }
+
+  // Absolute time: seconds or nanoseconds, whichever lies within a day of the header stamp (read
+  // from the first point).
+  TimeKind absolute_time_kind() const {
+    const double v = value(at(0), *l_.time);
+    const double stamp_s = static_cast<double>(c_.header.stamp_ns) * 1e-9;
+    return std::abs(v - stamp_s) < 86400.0 || std::abs(v * 1e-9 - stamp_s) >= 86400.0
+               ? TimeKind::kAbsoluteSeconds
+               : TimeKind::kAbsoluteNanoseconds;
   }
 
-  const bool big = c.is_bigendian;
-  const int64_t stamp_sec = c.header.stamp_ns >= 0 ? c.header.stamp_ns / 1'000'000'000
-                                                   : -((-c.header.stamp_ns + 999'999'999) / 1'000'000'000);
-  const int64_t stamp_rem = c.header.stamp_ns - stamp_sec * 1'000'000'000;  // [0, 1e9)
-  const auto point_at = [&](uint64_t k) {
-    const uint64_t row = k / c.width, col = k % c.width;
-    return c.data.data() + row * c.row_step + col * c.point_step;
-  };
-  if (time && out.time_field == "timestamp" && count > 0) {
-    // Absolute time: seconds or nanoseconds, whichever lies within a day of the header stamp.
-    const double v = read_value(point_at(0) + time->offset, time->datatype, big);
-    const double stamp_s = static_cast<double>(c.header.stamp_ns) * 1e-9;
-    time_kind = std::abs(v - stamp_s) < 86400.0 || std::abs(v * 1e-9 - stamp_s) >= 86400.0
-                    ? TimeKind::kAbsoluteSeconds
-                    : TimeKind::kAbsoluteNanoseconds;
-  }
-
-  out.points.reserve(static_cast<size_t>(count));
-  for (uint64_t k = 0; k < count; ++k) {
-    const uint8_t* p = point_at(k);
+  // Point k; nothing when a coordinate is not finite.
+  std::optional<CloudPoint> point(uint64_t k, TimeKind time_kind) const {
+    const uint8_t* p = at(k);
+    const double x = value(p, l_.axis[0]);
+    const double y = value(p, l_.axis[1]);
+    const double z = value(p, l_.axis[2]);
+    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) return std::nullopt;
     CloudPoint q;
-    const double x = read_value(p + axis[0].offset, axis[0].datatype, big);
-    const double y = read_value(p + axis[1].offset, axis[1].datatype, big);
-    const double z = read_value(p + axis[2].offset, axis[2].datatype, big);
-    if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(z)) continue;
     q.x = static_cast<float>(x);
     q.y = static_cast<float>(y);
     q.z = static_cast<float>(z);
-    if (intensity) q.intensity = static_cast<float>(read_value(p + intensity->offset, intensity->datatype, big));
-    if (ring) {
-      const double r = read_value(p + ring->offset, ring->datatype, big);
+    if (l_.intensity) q.intensity = static_cast<float>(value(p, *l_.intensity));
+    if (l_.ring) {
+      const double r = value(p, *l_.ring);
       q.ring = static_cast<uint16_t>(std::isfinite(r) ? std::clamp(r, 0.0, 65535.0) : 0.0);
     }
-    if (time) {
-      const double v = read_value(p + time->offset, time->datatype, big);
-      double offset = 0;
-      switch (time_kind) {
-        case TimeKind::kRelativeSeconds: offset = v; break;
-        case TimeKind::kRelativeNanoseconds: offset = v * 1e-9; break;
-        case TimeKind::kAbsoluteSeconds:
-          offset = (v - static_cast<double>(stamp_sec)) - static_cast<double>(stamp_rem) * 1e-9;
-          break;
-        case TimeKind::kAbsoluteNanoseconds:
-          offset = (v - static_cast<double>(stamp_sec) * 1e9 - static_cast<double>(stamp_rem)) * 1e-9;
-          break;
-      }
-      q.time_offset = static_cast<float>(offset);
+    if (l_.time) q.time_offset = static_cast<float>(time_offset(value(p, *l_.time), time_kind));
+    return q;
+  }
+
+ private:
+  const uint8_t* at(uint64_t k) const {
+    const uint64_t row = k / c_.width, col = k % c_.width;
+    return c_.data.data() + row * c_.row_step + col * c_.point_step;
+  }
+
+  double value(const uint8_t* p, const UsedField& f) const { return read_value(p + f.offset, f.datatype, big_); }
+
+  // Seconds after the header stamp.
+  double time_offset(double v, TimeKind kind) const {
+    const double sec = static_cast<double>(stamp_.sec), rem = static_cast<double>(stamp_.rem_ns);
+    switch (kind) {
+      case TimeKind::kRelativeSeconds: return v;
+      case TimeKind::kRelativeNanoseconds: return v * 1e-9;
+      case TimeKind::kAbsoluteSeconds: return (v - sec) - rem * 1e-9;
+      case TimeKind::kAbsoluteNanoseconds: return (v - sec * 1e9 - rem) * 1e-9;
     }
-    out.points.push_back(q);
+    return 0;
+  }
+
+  const PointCloud2Msg& c_;
+  const PointLayout& l_;
+  bool big_;
+  SplitStamp stamp_;
+};
+
+}  // namespace
+
+DecodedCloud cloud_points(const PointCloud2Msg& c) {
+  check_extents(c);
+  DecodedCloud out;
+  const PointLayout layout = point_layout(c, out);
+  const PointReader reader(c, layout);
+  const uint64_t count = reader.count();
+  TimeKind time_kind = layout.time_kind;
+  if (layout.time && out.time_field == "timestamp" && count > 0) {
+    time_kind = reader.absolute_time_kind();
+  }
+  out.points.reserve(static_cast<size_t>(count));
+  for (uint64_t k = 0; k < count; ++k) {
+    if (const std::optional<CloudPoint> q = reader.point(k, time_kind)) out.points.push_back(*q);
   }
   return out;
 }
 
 // ------------------------------------------------------------------ message decoders
 
-PointCloud2Msg decode_point_cloud2(const BagMessage& m) {
-  check_type(m, kPointCloud2Type, "decode_point_cloud2");
-  if (m.serialization == Serialization::kRos1) return decode_point_cloud2_ros1(m);
-  CdrReader r(m, kPointCloud2Type);
-  PointCloud2Msg c;
-  c.header = r.header();
+namespace {
+
+// What every decoder does: the type checked, a ROS 1 message handed to its own decoder, else the
+// CDR header and then the message's own fields, read by `read_fields(reader, msg)`.
+template <class Msg, class ReadFields>
+Msg decode(const BagMessage& m, std::string_view type, const char* decoder, Msg (*decode_ros1)(const BagMessage&),
+           ReadFields read_fields) {
+  check_type(m, type, decoder);
+  if (m.serialization == Serialization::kRos1) return decode_ros1(m);
+  CdrReader r(m, type);
+  Msg msg;
+  msg.header = r.header();
+  read_fields(r, msg);
+  return msg;
+}
+
+void read_point_cloud2_fields(CdrReader& r, PointCloud2Msg& c) {
   c.height = r.num<uint32_t>("height");
   c.width = r.num<uint32_t>("width");
   // A PointField takes at least 13 bytes: name length, offset, datatype, count.
@@ -361,15 +427,9 @@ PointCloud2Msg decode_point_cloud2(const BagMessage& m) {
   const uint32_t n_data = r.seq("data", 1);
   r.bytes(c.data, n_data, "data");
   c.is_dense = r.boolean("is_dense");
-  return c;
 }
 
-ImuMsg decode_imu(const BagMessage& m) {
-  check_type(m, kImuType, "decode_imu");
-  if (m.serialization == Serialization::kRos1) return decode_imu_ros1(m);
-  CdrReader r(m, kImuType);
-  ImuMsg imu;
-  imu.header = r.header();
+void read_imu_fields(CdrReader& r, ImuMsg& imu) {
   const double qx = r.num<double>("orientation.x");
   const double qy = r.num<double>("orientation.y");
   const double qz = r.num<double>("orientation.z");
@@ -382,27 +442,30 @@ ImuMsg decode_imu(const BagMessage& m) {
   for (size_t i = 0; i < 9; ++i) {
     imu.linear_acceleration_covariance[i] = r.num<double>("linear_acceleration_covariance");
   }
-  return imu;
 }
 
-VelodyneScanMsg decode_velodyne_scan(const BagMessage& m) {
-  check_type(m, kVelodyneScanType, "decode_velodyne_scan");
-  if (m.serialization == Serialization::kRos1) return decode_velodyne_scan_ros1(m);
-  CdrReader r(m, kVelodyneScanType);
-  VelodyneScanMsg scan;
-  scan.header = r.header();
+void read_velodyne_scan_fields(CdrReader& r, VelodyneScanMsg& scan) {
   // A VelodynePacket takes at least 8 (stamp) + 1206 bytes.
   const uint32_t n = r.seq("packets", 8 + kVelodynePacketBytes);
   scan.packets.resize(n);
   for (uint32_t i = 0; i < n; ++i) {
     const std::string at = "packets[" + std::to_string(i) + "]";
     VelodynePacketMsg& p = scan.packets[i];
-    const int32_t sec = r.num<int32_t>(at + ".stamp.sec");
-    const uint32_t nanosec = r.num<uint32_t>(at + ".stamp.nanosec");
-    p.stamp_ns = int64_t{sec} * 1'000'000'000 + int64_t{nanosec};
+    p.stamp_ns = r.time_ns(at + ".stamp");
     r.bytes(p.data.data(), p.data.size(), at + ".data");
   }
-  return scan;
+}
+
+}  // namespace
+
+PointCloud2Msg decode_point_cloud2(const BagMessage& m) {
+  return decode(m, kPointCloud2Type, "decode_point_cloud2", decode_point_cloud2_ros1, read_point_cloud2_fields);
+}
+
+ImuMsg decode_imu(const BagMessage& m) { return decode(m, kImuType, "decode_imu", decode_imu_ros1, read_imu_fields); }
+
+VelodyneScanMsg decode_velodyne_scan(const BagMessage& m) {
+  return decode(m, kVelodyneScanType, "decode_velodyne_scan", decode_velodyne_scan_ros1, read_velodyne_scan_fields);
 }
 
 }  // namespace cdc::io

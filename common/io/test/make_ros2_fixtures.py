@@ -163,18 +163,10 @@ def make_imu(k):
     v = imu_values(k)
     c = Cdr()
     header(c, v["sec"], v["nsec"], "imu")
-    for x in v["q"]:
-        c.f64(x)
-    for x in v["cov"]:
-        c.f64(x)
-    for x in v["w"]:
-        c.f64(x)
-    for x in v["cov"]:
-        c.f64(x)
-    for x in v["a"]:
-        c.f64(x)
-    for x in v["cov"]:
-        c.f64(x)
+    # orientation, angular velocity and linear acceleration, each followed by its covariance
+    for field in ("q", "cov", "w", "cov", "a", "cov"):
+        for x in v[field]:
+            c.f64(x)
     return c.message()
 
 

@@ -124,18 +124,21 @@ FeatureCloud make_feature_cloud(const std::vector<Eigen::Vector3d>& points_senso
   return c;
 }
 
-GlobalRegistrationResult register_global(const FeatureCloud& src, const FeatureCloud& tgt, const GlobalRegistrationParams& p) {
-  GlobalRegistrationResult out;
+namespace {
+
+using Matches = std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>>;  // (source, target)
+
+// Mutual nearest neighbours in feature space, by blocks of a distance matrix (|a|^2 + |b|^2 - 2 a.b):
+// exact, and faster than a k-d tree in 33 dimensions.
+Matches mutual_matches(const FeatureCloud& src, const FeatureCloud& tgt) {
   const size_t ns = src.with_feature.size(), nt = tgt.with_feature.size();
-  if (ns < 3 || nt < 3) return out;
-  // Mutual nearest neighbours in feature space, by blocks of a distance matrix (|a|^2 + |b|^2 - 2 a.b):
-  // exact, and faster than a k-d tree in 33 dimensions.
   Eigen::MatrixXf A(33, static_cast<Eigen::Index>(ns)), B(33, static_cast<Eigen::Index>(nt));
   for (size_t i = 0; i < ns; ++i) A.col(static_cast<Eigen::Index>(i)) = src.features[src.with_feature[i]];
   for (size_t j = 0; j < nt; ++j) B.col(static_cast<Eigen::Index>(j)) = tgt.features[tgt.with_feature[j]];
   const Eigen::VectorXf a2 = A.colwise().squaredNorm().transpose(), b2 = B.colwise().squaredNorm().transpose();
   std::vector<Eigen::Index> best_t(ns, -1), best_s(nt, -1);
-  std::vector<float> dist_t(ns, std::numeric_limits<float>::infinity()), dist_s(nt, std::numeric_limits<float>::infinity());
+  std::vector<float> dist_t(ns, std::numeric_limits<float>::infinity());
+  std::vector<float> dist_s(nt, std::numeric_limits<float>::infinity());
   constexpr Eigen::Index kBlock = 256;
   for (Eigen::Index i0 = 0; i0 < static_cast<Eigen::Index>(ns); i0 += kBlock) {
     const Eigen::Index m = std::min(kBlock, static_cast<Eigen::Index>(ns) - i0);
@@ -155,30 +158,38 @@ GlobalRegistrationResult register_global(const FeatureCloud& src, const FeatureC
       }
     }
   }
-  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> matches;  // (source, target)
+  Matches matches;
   for (size_t i = 0; i < ns; ++i) {
     const Eigen::Index j = best_t[i];
     if (j < 0 || best_s[static_cast<size_t>(j)] != static_cast<Eigen::Index>(i)) continue;
     matches.emplace_back(src.points[src.with_feature[i]], tgt.points[tgt.with_feature[static_cast<size_t>(j)]]);
   }
-  out.matches = static_cast<int>(matches.size());
-  if (matches.size() < 3) return out;
-  // RANSAC: three matches whose edges agree in length give a candidate; the one most matches agree
-  // with wins.
+  return matches;
+}
+
+// A transform and the number of matches within the inlier distance under it.
+struct Consensus {
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  int inliers = 0;
+};
+
+int count_inliers(const Matches& matches, const Eigen::Isometry3d& T, double inlier_m) {
+  const double in2 = inlier_m * inlier_m;
+  int c = 0;
+  for (const auto& [s, t] : matches) c += (T * s - t).squaredNorm() < in2 ? 1 : 0;
+  return c;
+}
+
+// RANSAC: three matches whose edges agree in length give a candidate; the one most matches agree
+// with wins.
+Consensus ransac(const Matches& matches, const GlobalRegistrationParams& p) {
   std::mt19937 rng(p.seed);
   std::uniform_int_distribution<size_t> pick(0, matches.size() - 1);
-  const double in2 = p.inlier_m * p.inlier_m;
-  auto count = [&](const Eigen::Isometry3d& T) {
-    int c = 0;
-    for (const auto& [s, t] : matches) c += (T * s - t).squaredNorm() < in2 ? 1 : 0;
-    return c;
-  };
   auto edges_agree = [&](size_t a, size_t b) {
     const double ls = (matches[a].first - matches[b].first).norm(), lt = (matches[a].second - matches[b].second).norm();
     return std::min(ls, lt) >= p.edge_ratio * std::max(ls, lt) && ls > 2 * p.inlier_m;
   };
-  Eigen::Isometry3d best = Eigen::Isometry3d::Identity();
-  int best_count = 0;
+  Consensus best;
   Eigen::Matrix3Xd s3(3, 3), t3(3, 3);
   for (int it = 0; it < p.iterations; ++it) {
     const size_t a = pick(rng), b = pick(rng), c = pick(rng);
@@ -187,32 +198,46 @@ GlobalRegistrationResult register_global(const FeatureCloud& src, const FeatureC
     t3 << matches[a].second, matches[b].second, matches[c].second;
     const geometry::Alignment al = geometry::align_umeyama(s3, t3, false);
     if (!al.ok) continue;
-    const int n = count(al.T_dst_src);
-    if (n > best_count) {
-      best_count = n;
-      best = al.T_dst_src;
-    }
+    const int n = count_inliers(matches, al.T_dst_src, p.inlier_m);
+    if (n > best.inliers) best = {al.T_dst_src, n};
   }
-  if (best_count < 3) return out;
-  // Refit to all the inliers, twice (the refit can gather a few more).
+  return best;
+}
+
+// Refits to all the inliers, twice (the refit can gather a few more), while the count does not drop.
+void refit_to_inliers(const Matches& matches, double inlier_m, Consensus& best) {
+  const double in2 = inlier_m * inlier_m;
   for (int round = 0; round < 2; ++round) {
-    Eigen::Matrix3Xd s(3, best_count), t(3, best_count);
+    Eigen::Matrix3Xd s(3, best.inliers), t(3, best.inliers);
     Eigen::Index k = 0;
     for (const auto& [ps, pt] : matches) {
-      if ((best * ps - pt).squaredNorm() >= in2 || k >= best_count) continue;
+      if ((best.T * ps - pt).squaredNorm() >= in2 || k >= best.inliers) continue;
       s.col(k) = ps;
       t.col(k) = pt;
       ++k;
     }
     const geometry::Alignment al = geometry::align_umeyama(s.leftCols(k), t.leftCols(k), false);
     if (!al.ok) break;
-    const int n = count(al.T_dst_src);
-    if (n < best_count) break;
-    best = al.T_dst_src;
-    best_count = n;
+    const int n = count_inliers(matches, al.T_dst_src, inlier_m);
+    if (n < best.inliers) break;
+    best = {al.T_dst_src, n};
   }
-  out.T_target_source = best;
-  out.inliers = best_count;
+}
+
+}  // namespace
+
+GlobalRegistrationResult register_global(const FeatureCloud& src, const FeatureCloud& tgt,
+                                         const GlobalRegistrationParams& p) {
+  GlobalRegistrationResult out;
+  if (src.with_feature.size() < 3 || tgt.with_feature.size() < 3) return out;
+  const Matches matches = mutual_matches(src, tgt);
+  out.matches = static_cast<int>(matches.size());
+  if (matches.size() < 3) return out;
+  Consensus best = ransac(matches, p);
+  if (best.inliers < 3) return out;
+  refit_to_inliers(matches, p.inlier_m, best);
+  out.T_target_source = best.T;
+  out.inliers = best.inliers;
   out.ok = true;
   return out;
 }

@@ -7,8 +7,7 @@
 #include "cdc/odometry/registration.hpp"
 #include "cdc/odometry/voxel_index.hpp"
 #include "cdc/odometry/voxel_map.hpp"
-#include "cdc/sim/lidar.hpp"
-#include "cdc/sim/world.hpp"
+#include "sim_scene.hpp"
 
 #include <gtest/gtest.h>
 
@@ -98,22 +97,9 @@ TEST(VoxelMap, NearestIsTheBruteForceNearestBeforeAndAfterSliding) {
   EXPECT_GT(found, 500);
 }
 
-struct Scene {
-  sim::World world;
-  std::mt19937_64 rng{4};
-  Scene() {
-    std::vector<Eigen::Vector3d> path;
-    for (int i = 0; i < 40; ++i) path.emplace_back(1.0 * i - 20, 0.2 * i, 1.73);
-    sim::WorldOptions wo;
-    wo.seed = 9;
-    wo.spacing_m = 6;
-    world = sim::World::generate({path}, wo);
-  }
-  std::vector<Eigen::Vector3d> scan(const Eigen::Isometry3d& T) {
-    std::vector<Eigen::Vector3d> out;
-    for (const auto& p : sim::sweep(world, sim::LidarModel::hdl64(), [&](double) { return T; }, rng)) out.emplace_back(p.x, p.y, p.z);
-    return out;
-  }
+// 40 m of path and an HDL-64 (the sweeps global registration gets in the front-end are dense).
+struct Scene : test::SimScene {
+  Scene() : test::SimScene(test::SceneOptions{}) {}
 };
 
 Eigen::Isometry3d pose(double x, double y, double yaw_deg) {

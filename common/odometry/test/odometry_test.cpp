@@ -10,6 +10,7 @@
 #include "cdc/sim/lidar.hpp"
 #include "cdc/sim/trajectory.hpp"
 #include "cdc/sim/world.hpp"
+#include "sim_scene.hpp"
 
 #include <gtest/gtest.h>
 
@@ -23,25 +24,15 @@
 namespace cdc::odometry {
 namespace {
 
-struct Scene {
-  sim::World world;
-  std::mt19937_64 rng{4};
-  Scene() {
-    std::vector<Eigen::Vector3d> path;
-    for (int i = 0; i < 100; ++i) path.emplace_back(2.0 * i - 100, 0.3 * i, 1.73);
-    sim::WorldOptions wo;
-    wo.seed = 8;
-    wo.spacing_m = 8;
-    world = sim::World::generate({path}, wo);
-  }
-  std::vector<Eigen::Vector3d> scan(const Eigen::Isometry3d& T, std::vector<uint16_t>* rings = nullptr) {
-    std::vector<Eigen::Vector3d> out;
-    for (const auto& p : sim::sweep(world, sim::LidarModel::vlp16(), [&](double) { return T; }, rng)) {
-      out.emplace_back(p.x, p.y, p.z);
-      if (rings != nullptr) rings->push_back(p.ring);
-    }
-    return out;
-  }
+// 200 m of path and a VLP-16.
+struct Scene : test::SimScene {
+  Scene()
+      : test::SimScene(test::SceneOptions{.path_points = 100,
+                                          .step_m = 2.0,
+                                          .slant_m = 0.3,
+                                          .world_seed = 8,
+                                          .spacing_m = 8,
+                                          .lidar = sim::LidarModel::vlp16()}) {}
 };
 
 Eigen::Isometry3d pose(double x, double y, double yaw) {

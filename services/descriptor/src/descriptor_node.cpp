@@ -1,7 +1,7 @@
 #include "descriptor_node.hpp"
 
 #include "cdc/dds/convert.hpp"
-#include "cdc/dds/descriptor_convert.hpp"
+#include "cdc/dds_lidar/descriptor_convert.hpp"
 #include "cdc/dds/qos.hpp"
 #include "cdc/dds/topics.hpp"
 #include "cdc/runtime/stats.hpp"
@@ -103,7 +103,7 @@ const cdc_msg_Descriptor& DescriptorNode::to_msg(const DescriptorRecord& r) {
   msg_.incarnation = r.incarnation;
   msg_.stamp_ns = r.stamp_ns;
   msg_.pose_hint = dds::to_msg_f(r.pose_hint);
-  dds::descriptor_to_msg(r.descriptor, static_cast<float>(o_.sc.max_range_m), msg_, cells_);
+  dds_lidar::descriptor_to_msg(r.descriptor, static_cast<float>(o_.sc.max_range_m), msg_, cells_);
   return msg_;
 }
 

@@ -1,7 +1,7 @@
 #include "loop_messages.hpp"
 
 #include "cdc/dds/convert.hpp"
-#include "cdc/dds/descriptor_convert.hpp"
+#include "cdc/dds_lidar/descriptor_convert.hpp"
 
 #include <cmath>
 #include <string>
@@ -23,7 +23,7 @@ KeyframeIn keyframe_in(const cdc_msg_Keyframe& m) {
 }
 
 DescriptorIn descriptor_in(const cdc_msg_Descriptor& m) {
-  return DescriptorIn{m.robot_id, m.keyframe_id, dds::descriptor_from_msg(m), dds::to_eigen(m.pose_hint)};
+  return DescriptorIn{m.robot_id, m.keyframe_id, dds_lidar::descriptor_from_msg(m), dds::to_eigen(m.pose_hint)};
 }
 
 dds::Validation check_descriptor_shape(const cdc_msg_Descriptor& m, const lidar::ScanContextParams& sc) {
