@@ -77,12 +77,6 @@ std::string exit_note(const Process& p) {
   return "(exit " + std::to_string(p.exit_status().value_or(-1)) + "): see " + p.spec().log_path;
 }
 
-std::string id_list(const std::vector<uint32_t>& ids) {
-  std::string s;
-  for (uint32_t id : ids) s += ' ' + std::to_string(id);
-  return s;
-}
-
 Clock::duration to_duration(double s) {
   return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
 }

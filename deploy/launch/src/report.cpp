@@ -117,6 +117,12 @@ std::string fixed(double v, int decimals) {
   return s.str();
 }
 
+std::string id_list(const std::vector<uint32_t>& ids) {
+  std::string s;
+  for (uint32_t id : ids) s += ' ' + std::to_string(id);
+  return s;
+}
+
 json write_report(const RunInfo& info) {
   const fs::path run(info.run_dir);
   const eval::EvalOptions options;

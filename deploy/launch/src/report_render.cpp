@@ -8,12 +8,6 @@ using nlohmann::json;
 
 namespace {
 
-std::string robot_list(const std::vector<uint32_t>& robots) {
-  std::string s;
-  for (uint32_t r : robots) s += ' ' + std::to_string(r);
-  return s;
-}
-
 std::string fixed_or_dash(const std::optional<double>& v, int decimals) { return v ? fixed(*v, decimals) : "-"; }
 
 void write_rendezvous(std::ostream& md, const RunInfo& info) {
@@ -22,14 +16,14 @@ void write_rendezvous(std::ostream& md, const RunInfo& info) {
     md << "every robot CENTRALIZED, the central holding all its keyframes, " << fixed(*info.rendezvous_s, 1)
        << " s after the last sweep";
   } else {
-    md << "**robot" << robot_list(info.not_rejoined) << " not CENTRALIZED, or some of its keyframes not with the central, after "
+    md << "**robot" << id_list(info.not_rejoined) << " not CENTRALIZED, or some of its keyframes not with the central, after "
        << fixed(*info.rendezvous_s, 1) << " s**";
   }
   if (info.caught_up_s) {
     md << "; every loop closure caught up (peers' descriptors searched, their clouds received) " << fixed(*info.caught_up_s, 1)
        << " s after the last sweep\n";
   } else {
-    md << "; **loop closure of robot" << robot_list(info.loop_closure_busy) << " not caught up at the end**\n";
+    md << "; **loop closure of robot" << id_list(info.loop_closure_busy) << " not caught up at the end**\n";
   }
 }
 
