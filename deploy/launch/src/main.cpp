@@ -3,6 +3,7 @@
 // everything cleanly (also on Ctrl-C) and writes the run's results and report.
 #include "network.hpp"
 #include "process.hpp"
+#include "rendezvous.hpp"
 #include "report.hpp"
 #include "swarm.hpp"
 
@@ -21,6 +22,7 @@
 #include <iomanip>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <thread>
 
@@ -70,6 +72,15 @@ bool loop_closure_caught_up(const fs::path& p) {
   return static_cast<bool>(in >> waiting >> pending >> parked) && waiting == 0 && pending == 0 && parked == 0;
 }
 
+// "(exit N): see LOG" of an ended process.
+std::string exit_note(const Process& p) {
+  return "(exit " + std::to_string(p.exit_status().value_or(-1)) + "): see " + p.spec().log_path;
+}
+
+Clock::duration to_duration(double s) {
+  return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
+}
+
 struct Options {
   std::string swarm, out, bin_dir = "build/release", root = ".", network, dataset;
   int max_scans = -1;
@@ -82,6 +93,7 @@ class Launcher {
  public:
   Launcher(const Options& o, SwarmConfig c) : o_(o), c_(std::move(c)) {}
 
+  // The whole run: exit status 0 (report written), 1 (a process failed) or 130 (interrupted).
   int run();
 
  private:
@@ -90,19 +102,42 @@ class Launcher {
     if (!fs::exists(p)) throw std::runtime_error(p.string() + ": missing; build first (./cdc build --preset release)");
     return fs::absolute(p).string();
   }
+  // The steps of a run, in order.
+  void prepare_run_folder();
   void ensure_dataset();
+  void read_dataset();
+  void describe_run();
+  void choose_network();
+  void check_local_domains() const;
+  void set_up_network();
   void start_services();
+  void wait_for_services();
+  void start_player();
+  std::string supervise();  // until the end of the run; what failed, if anything
+  int finish(const std::string& failure);
+
+  // What supervise() does on each pass.
+  void read_sim_clock();
+  std::string service_failure();
+  std::string on_player_ended();
+  void watch_rendezvous();
+
   Process& spawn(const std::string& name, uint32_t node, std::vector<std::string> argv, std::vector<std::string> env = {});
   std::string loopback_config() const {
     return "file://" + fs::absolute(fs::path(o_.root) / "deploy/cyclonedds/loopback.xml").string();
   }
   std::string dds_config(uint32_t node) const { return net_ ? net_->dds_config(node) : loopback_config(); }
+  fs::path robot_dir(uint32_t robot) const { return run_ / ("robot_" + std::to_string(robot)); }
   // Robot r's own domain: on lo in its namespace (netns) or on lo with everyone (loopback), where
   // the domain id keeps robots apart.
   uint32_t local_domain(uint32_t robot) const { return c_.local_domain_base + robot; }
+  double wall_s() const { return std::chrono::duration<double>(Clock::now() - t0_).count(); }
   void apply_radio(double t_s);
   void apply_loopback_radio(double t_s);
   void sample_traffic(double t_s);
+  std::map<uint32_t, std::string> charge_keyframes();  // robot -> the mode its bytes are charged to
+  void charge_bytes(const std::map<std::pair<uint32_t, uint32_t>, LinkBytes>& counters,
+                    const std::map<uint32_t, std::string>& charged, double t_s);
   void progress(double t_s, bool final_line);
   void stop_all();
   bool interrupted() const { return stop_signal() != 0; }
@@ -114,6 +149,7 @@ class Launcher {
   Options o_;
   SwarmConfig c_;
   bool netns_ = false;
+  std::string netns_unavailable_;  // why the netns mode cannot run here (auto: loopback instead)
   fs::path run_;
   std::vector<uint32_t> robots_;
   std::vector<RadioPeriod> periods_;
@@ -128,9 +164,12 @@ class Launcher {
   std::map<uint32_t, uint64_t> last_keyframes_;
   std::map<uint32_t, std::string> interval_start_mode_;  // each robot's mode at the previous traffic sample
   double sim_total_s_ = 0;
+  double t_s_ = 0;  // sim time now (the player's clock file)
   bool startup_ = false;  // traffic counted now belongs to start-up (discovery), not to a mode
   bool rendezvous_ = false;  // the mission is over: every link is up
   bool radio_armed_ = false;  // loopback: services are up (their signal handlers installed)
+  std::optional<Rendezvous> rendezvous_watch_;
+  std::optional<Clock::time_point> settle_until_;  // the run ends then
 };
 
 void Launcher::ensure_dataset() {
@@ -180,7 +219,7 @@ void Launcher::start_services() {
   }
   for (uint32_t r : robots_) {
     const std::string id = std::to_string(r);
-    const fs::path rd = run_ / ("robot_" + id);
+    const fs::path rd = robot_dir(r);
     fs::create_directories(rd);
     // The robot's services talk among themselves on its own domain (on lo); descriptor, loop closure
     // and peer optimiser also join the SLAM domain, the one the radio carries.
@@ -258,20 +297,25 @@ void Launcher::apply_loopback_radio(double t_s) {
 
 void Launcher::sample_traffic(double t_s) {
   // The counters first, then each robot's mode: the bytes counted since the previous sample are
-  // charged to the mode the robot was in over that interval. An interval in which it switched is
-  // charged to CENTRALIZED: around a switch the link carries the centralized side's traffic
-  // (keyframes until the link is cut; the backlog re-sent right after a rejoin), while the
-  // distributed side of it has the link down, or up for the dwell before the rejoin. Once the last
-  // sweep is played and the rendezvous has brought every link up, the catch-up (backlogs, loops that
-  // could not be closed out of range and the clouds they need) is charged to RENDEZVOUS, whatever the
-  // robot's mode: no keyframes are made then, and it is not the traffic of either mode at work.
+  // charged to the mode the robot was in over that interval.
   std::map<std::pair<uint32_t, uint32_t>, LinkBytes> counters;
   if (net_) counters = net_->counters();
+  charge_bytes(counters, charge_keyframes(), t_s);
+}
+
+// Each robot's mode over the interval since the previous sample, and the keyframes made in it. An
+// interval in which the robot switched is charged to CENTRALIZED: around a switch the link carries the
+// centralized side's traffic (keyframes until the link is cut; the backlog re-sent right after a
+// rejoin), while the distributed side of it has the link down, or up for the dwell before the rejoin.
+// Once the last sweep is played and the rendezvous has brought every link up, the catch-up (backlogs,
+// loops that could not be closed out of range and the clouds they need) is charged to RENDEZVOUS,
+// whatever the robot's mode: no keyframes are made then, and it is not the traffic of either mode at work.
+std::map<uint32_t, std::string> Launcher::charge_keyframes() {
   const std::string fallback = info_.central ? "CENTRALIZED" : "DISTRIBUTED";
   std::map<uint32_t, std::string> charged, kf_charged;
   std::map<uint32_t, uint64_t> made;  // keyframes each robot made over the interval
   for (uint32_t r : robots_) {
-    const RobotNow now = read_now(run_ / ("robot_" + std::to_string(r)) / "modes.csv.now");
+    const RobotNow now = read_now(robot_dir(r) / "modes.csv.now");
     const std::string own = now.mode == "-" ? fallback : now.mode;
     const std::string mode = startup_ ? "STARTUP" : rendezvous_ ? "RENDEZVOUS" : own;
     auto it = interval_start_mode_.find(r);
@@ -279,12 +323,10 @@ void Launcher::sample_traffic(double t_s) {
                           mode != "RENDEZVOUS";
     charged[r] = switched ? "CENTRALIZED" : mode;
     interval_start_mode_[r] = mode;
-    ModeTraffic& t = info_.traffic[r];
     // Keyframes still coming out of the last sweeps in the rendezvous belong to the mode they were made in.
-    const std::string kf_mode = mode == "RENDEZVOUS" ? own : charged[r];
-    kf_charged[r] = kf_mode;
+    kf_charged[r] = mode == "RENDEZVOUS" ? own : charged[r];
     made[r] = now.keyframes - std::min(now.keyframes, last_keyframes_[r]);
-    t.keyframes[kf_mode] += made[r];
+    info_.traffic[r].keyframes[kf_charged[r]] += made[r];
     last_keyframes_[r] = std::max(now.keyframes, last_keyframes_[r]);
   }
   for (uint32_t r : robots_) {
@@ -292,9 +334,15 @@ void Launcher::sample_traffic(double t_s) {
       if (p != r) info_.traffic[r].peer_keyframes[kf_charged[r]][p] += made[p];
     }
   }
+  return charged;
+}
+
+// The bytes counted on each link since the previous sample, to the mode its robot is charged with.
+void Launcher::charge_bytes(const std::map<std::pair<uint32_t, uint32_t>, LinkBytes>& counters,
+                            const std::map<uint32_t, std::string>& charged, double t_s) {
   for (const auto& [key, b] : counters) {
     const auto [r, peer] = key;
-    const std::string& mode = charged[r];
+    const std::string& mode = charged.at(r);
     LinkBytes& last = last_counters_[key];
     const LinkBytes delta{b.sent - std::min(b.sent, last.sent), b.received - std::min(b.received, last.received),
                           b.meta_sent - std::min(b.meta_sent, last.meta_sent),
@@ -305,10 +353,10 @@ void Launcher::sample_traffic(double t_s) {
     acc.meta_sent += delta.meta_sent;
     acc.meta_received += delta.meta_received;
     if (traffic_log_.is_open() && (delta.sent || delta.received || delta.meta_sent || delta.meta_received)) {
-      traffic_log_ << std::fixed << std::setprecision(3) << std::chrono::duration<double>(Clock::now() - t0_).count() << ','
-                   << t_s << ',' << node_name(r) << ',' << node_name(peer) << ',' << mode << ',' << delta.sent << ','
-                   << delta.received << ',' << delta.meta_sent << ',' << delta.meta_received << ','
-                   << (net_->link_up(r, peer) ? "up" : "down") << '\n';
+      traffic_log_ << std::fixed << std::setprecision(3) << wall_s() << ',' << t_s << ',' << node_name(r) << ','
+                   << node_name(peer) << ',' << mode << ',' << delta.sent << ',' << delta.received << ','
+                   << delta.meta_sent << ',' << delta.meta_received << ',' << (net_->link_up(r, peer) ? "up" : "down")
+                   << '\n';
     }
     last = b;
   }
@@ -323,7 +371,7 @@ void Launcher::progress(double t_s, bool final_line) {
   s.precision(1);
   s << t_s << '/' << sim_total_s_ << " s, wall " << std::chrono::duration<double>(Clock::now() - t0_).count() << " s";
   for (uint32_t r : robots_) {
-    const RobotNow n = read_now(run_ / ("robot_" + std::to_string(r)) / "modes.csv.now");
+    const RobotNow n = read_now(robot_dir(r) / "modes.csv.now");
     s << " | r" << r << ' ' << (n.mode == "-" ? "-" : n.mode.substr(0, 4)) << ' ' << n.keyframes << " kf";
   }
   if (isatty(STDOUT_FILENO)) {
@@ -361,23 +409,26 @@ void Launcher::stop_all() {
   }
 }
 
-int Launcher::run() {
-  install_stop_signals();
+void Launcher::prepare_run_folder() {
   run_ = o_.out.empty() ? fs::path(o_.root) / "results" / (c_.name + "-" + timestamp()) : fs::path(o_.out);
   run_ = fs::absolute(run_).lexically_normal();
   fs::create_directories(run_ / "logs");
   fs::create_directories(run_ / "dds");
   fs::copy_file(c_.path, run_ / "swarm.yaml", fs::copy_options::overwrite_existing);
-  ensure_dataset();
+}
+
+// The robots (robot_K folders), the radio timeline and the sim time span: the latest sweep of any
+// robot (within max_scans).
+void Launcher::read_dataset() {
+  const fs::path dataset(c_.dataset);
   for (int r = 0; r < 255; ++r) {
-    if (fs::is_directory(fs::path(c_.dataset) / ("robot_" + std::to_string(r)))) robots_.push_back(static_cast<uint32_t>(r));
+    if (fs::is_directory(dataset / ("robot_" + std::to_string(r)))) robots_.push_back(static_cast<uint32_t>(r));
   }
   if (robots_.empty()) throw std::runtime_error(c_.dataset + ": no robot_K folders");
-  const fs::path periods_path = fs::path(c_.dataset) / "radio_periods.csv";
+  const fs::path periods_path = dataset / "radio_periods.csv";
   if (fs::exists(periods_path)) periods_ = read_radio_periods(periods_path.string());
-  // Sim time span: the latest sweep of any robot (within max_scans).
   for (uint32_t r : robots_) {
-    std::ifstream in(fs::path(c_.dataset) / ("robot_" + std::to_string(r)) / "times.txt");
+    std::ifstream in(dataset / ("robot_" + std::to_string(r)) / "times.txt");
     double t = 0, last = 0;
     size_t n = 0;
     while (in >> t && (c_.max_scans == 0 || n < c_.max_scans)) {
@@ -386,6 +437,9 @@ int Launcher::run() {
     }
     sim_total_s_ = std::max(sim_total_s_, last);
   }
+}
+
+void Launcher::describe_run() {
   info_.name = c_.name;
   info_.variant = to_string(c_.variant);
   if (c_.variant == Variant::kSwitching && !c_.frontend_correction) info_.variant = "switching-without-correction";
@@ -396,18 +450,23 @@ int Launcher::run() {
   info_.central = c_.variant == Variant::kSwitching;
   info_.slam_domain = c_.slam_domain;
   info_.sim_domain = c_.sim_domain;
+}
 
-  std::string why;
+void Launcher::choose_network() {
   netns_ = c_.network == NetworkMode::kNetns ||
-           (c_.network == NetworkMode::kAuto && NetnsNetwork::available(&why));
-  if (c_.network == NetworkMode::kNetns && !NetnsNetwork::available(&why)) {
-    throw std::runtime_error("network: netns requested but not possible here (" + why + ")");
+           (c_.network == NetworkMode::kAuto && NetnsNetwork::available(&netns_unavailable_));
+  if (c_.network == NetworkMode::kNetns && !NetnsNetwork::available(&netns_unavailable_)) {
+    throw std::runtime_error("network: netns requested but not possible here (" + netns_unavailable_ + ")");
   }
   if (!netns_ && c_.variant != Variant::kSwitching) {
     throw std::runtime_error("variant " + std::string(to_string(c_.variant)) +
                              " needs the netns network mode (loopback cannot cut links between robots)");
   }
   info_.network = netns_ ? "netns" : "loopback";
+  info_.traffic_measured = netns_;
+}
+
+void Launcher::check_local_domains() const {
   const uint32_t last_local = local_domain(robots_.back());
   if (last_local > 232) {
     throw std::runtime_error("local_domain_base " + std::to_string(c_.local_domain_base) + " + robot id " +
@@ -420,6 +479,9 @@ int Launcher::run() {
                                std::to_string(d) + " (slam_domain or sim_domain)");
     }
   }
+}
+
+void Launcher::set_up_network() {
   if (netns_) {
     std::vector<uint32_t> nodes = robots_;
     if (info_.central) nodes.push_back(kCentralNode);
@@ -433,161 +495,155 @@ int Launcher::run() {
     traffic_log_ << "wall_s,sim_s,robot,peer,mode,data_sent,data_received,discovery_sent,discovery_received,link\n";
     std::cout << "cdc-launch: network netns: " << nodes.size() << " namespaces on a private bridge (198.18.0.0/24); "
               << "the radio timeline cuts SLAM-domain traffic per pair with iptables" << std::endl;
-  } else {
-    const std::string how =
-        "the radio timeline is applied per robot with DDS deaf/mute: a robot out of the central's range has its SLAM "
-        "domain made deaf and mute, which cuts it from every node (robot-to-robot periods cannot be applied alone: "
-        "loopback cannot cut single pairs; use netns, as root, for that); its own services keep talking on its local "
-        "domain; bytes on the wire are not measured";
-    info_.notes.push_back("loopback network: every process on lo; " + how);
-    std::cout << "cdc-launch: network loopback (" << (why.empty() ? "requested" : why) << "): all processes on lo; "
-              << how << std::endl;
+    return;
   }
-  info_.traffic_measured = netns_;
+  const std::string how =
+      "the radio timeline is applied per robot with DDS deaf/mute: a robot out of the central's range has its SLAM "
+      "domain made deaf and mute, which cuts it from every node (robot-to-robot periods cannot be applied alone: "
+      "loopback cannot cut single pairs; use netns, as root, for that); its own services keep talking on its local "
+      "domain; bytes on the wire are not measured";
+  info_.notes.push_back("loopback network: every process on lo; " + how);
+  std::cout << "cdc-launch: network loopback (" << (netns_unavailable_.empty() ? "requested" : netns_unavailable_)
+            << "): all processes on lo; " << how << std::endl;
+}
 
-  std::cout << "cdc-launch: " << c_.name << ": " << robots_.size() << " robots, variant " << info_.variant << ", "
-            << sim_total_s_ << " s of sim time, results in " << run_.string() << std::endl;
-  apply_radio(0.0);  // the links as they are when the run starts (all cut for single robots)
-  start_services();
-  // Wait until every peer optimiser runs (and sees the central, when there is one).
-  const auto ready_deadline = Clock::now() + std::chrono::seconds(30);
+// Until every peer optimiser runs and, with a central, sees it: the run starts with every robot in
+// range, so each must have switched to CENTRALIZED (after its dwell) before the radio may cut a link,
+// so that every later switch comes from the radio.
+void Launcher::wait_for_services() {
+  const auto deadline = Clock::now() + std::chrono::seconds(30);
   while (true) {
     bool ready = true;
     for (uint32_t r : robots_) {
-      const fs::path now = run_ / ("robot_" + std::to_string(r)) / "modes.csv.now";
+      const fs::path now = robot_dir(r) / "modes.csv.now";
       if (!fs::exists(now)) {
         ready = false;
         continue;
       }
-      // With a central, the run starts with every robot in range: wait until each has seen it and
-      // switched to CENTRALIZED (after its dwell), so that every later switch comes from the radio.
       const RobotNow n = read_now(now);
       if (info_.central && (!n.central_alive || n.mode != "CENTRALIZED")) ready = false;
     }
     for (auto& p : services_) {
-      if (!p->running()) throw std::runtime_error(p->name() + " ended at start-up (exit " + std::to_string(p->exit_status().value_or(-1)) +
-                                                  "): see " + p->spec().log_path);
+      if (!p->running()) throw std::runtime_error(p->name() + " ended at start-up " + exit_note(*p));
     }
     if (ready) {
       radio_armed_ = true;
-      break;
+      return;
     }
-    if (interrupted()) break;
-    if (Clock::now() > ready_deadline) {
+    if (interrupted()) return;
+    if (Clock::now() > deadline) {
       throw std::runtime_error("the robots' peer optimisers did not come up (or did not reach CENTRALIZED with the central) "
                                "within 30 s; see " + (run_ / "logs").string());
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
-  const fs::path clock_file = run_ / "sim_clock";
-  // Discovery and start-up traffic is reported apart from the modes.
-  startup_ = true;
-  sample_traffic(0);
-  startup_ = false;
-  if (!interrupted()) {
-    std::vector<std::string> play = {bin("sim/tools/cdc-sim"), "play", c_.dataset, "--domain", std::to_string(c_.sim_domain),
-                                     "--wait-readers", std::to_string(robots_.size()), "--clock-file", clock_file.string()};
-    if (c_.lockstep) {
-      play.insert(play.end(), {"--lockstep", "--lockstep-timeout", "120"});
-    } else {
-      play.insert(play.end(), {"--rate", std::to_string(c_.rate)});
-    }
-    if (c_.max_scans > 0) play.insert(play.end(), {"--max-scans", std::to_string(c_.max_scans)});
-    player_ = std::make_unique<Process>(ProcessSpec{"sim/player", play, {"CYCLONEDDS_URI=" + dds_config(kSimNode)},
-                                                    net_ ? net_->netns(kSimNode) : "", (run_ / "logs" / "sim_player.log").string()});
-    record_pid(*player_);
+}
+
+void Launcher::start_player() {
+  std::vector<std::string> play = {bin("sim/tools/cdc-sim"), "play", c_.dataset, "--domain", std::to_string(c_.sim_domain),
+                                   "--wait-readers", std::to_string(robots_.size()), "--clock-file",
+                                   (run_ / "sim_clock").string()};
+  if (c_.lockstep) {
+    play.insert(play.end(), {"--lockstep", "--lockstep-timeout", "120"});
+  } else {
+    play.insert(play.end(), {"--rate", std::to_string(c_.rate)});
   }
-  double t_s = 0;
-  auto last_sample = Clock::now(), last_progress = Clock::now() - std::chrono::seconds(10);
-  std::optional<Clock::time_point> settle_until, rendezvous_start;
-  bool all_central = false;  // in the rendezvous: every robot CENTRALIZED since all_central_at
-  Clock::time_point all_central_at{};
-  bool caught_up = false;  // ... and every loop closure caught up since caught_up_at
-  Clock::time_point caught_up_at{};
-  const auto seconds = [](double s) { return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s)); };
+  if (c_.max_scans > 0) play.insert(play.end(), {"--max-scans", std::to_string(c_.max_scans)});
+  player_ = std::make_unique<Process>(ProcessSpec{"sim/player", play, {"CYCLONEDDS_URI=" + dds_config(kSimNode)},
+                                                  net_ ? net_->netns(kSimNode) : "", (run_ / "logs" / "sim_player.log").string()});
+  record_pid(*player_);
+}
+
+void Launcher::read_sim_clock() {
+  std::istringstream cl(read_file(run_ / "sim_clock"));
+  int64_t stamp = 0;
+  if (cl >> stamp) t_s_ = static_cast<double>(stamp) * 1e-9;
+}
+
+// The last service found ended, if any.
+std::string Launcher::service_failure() {
   std::string failure;
+  for (auto& p : services_) {
+    if (!p->running()) failure = p->name() + " ended unexpectedly " + exit_note(*p);
+  }
+  return failure;
+}
+
+// The last sweep is played: the final rendezvous begins, or the back-ends get settle_s to finish.
+std::string Launcher::on_player_ended() {
+  if (player_->exit_status().value_or(-1) != 0) return "the player failed " + exit_note(*player_);
+  if (c_.rendezvous_s > 0 && c_.variant != Variant::kSingle) {
+    rendezvous_ = true;  // applied by apply_radio on the next pass
+    rendezvous_watch_.emplace(Clock::now(), to_duration(c_.settle_s), to_duration(c_.rendezvous_s + c_.settle_s));
+    std::cout << "cdc-launch: last sweep played; rendezvous: every robot back in range, up to " << c_.rendezvous_s
+              << " s for all to rejoin the central, then " << c_.settle_s << " s" << std::endl;
+  } else {
+    settle_until_ = Clock::now() + to_duration(c_.settle_s);
+  }
+  return "";
+}
+
+void Launcher::watch_rendezvous() {
+  std::vector<uint32_t> out, busy;
+  for (uint32_t r : robots_) {
+    const RobotNow n = read_now(robot_dir(r) / "modes.csv.now");
+    if (n.mode != "CENTRALIZED" || n.acknowledged < n.keyframes) out.push_back(r);
+    if (!loop_closure_caught_up(robot_dir(r) / "loop_closure.now")) busy.push_back(r);
+  }
+  Rendezvous& w = *rendezvous_watch_;
+  if (!w.update(std::move(out), std::move(busy), Clock::now())) return;
+  info_.rendezvous_s = w.waited_s();
+  info_.not_rejoined = w.not_rejoined();
+  info_.loop_closure_busy = w.loop_closure_busy();
+  info_.caught_up_s = w.caught_up_s();
+  if (w.not_rejoined().empty()) {
+    std::cout << "cdc-launch: rendezvous: every robot CENTRALIZED and all keyframes with the central " << std::fixed
+              << std::setprecision(1) << *info_.rendezvous_s << " s after the last sweep" << std::endl;
+  } else {
+    std::cout << "cdc-launch: rendezvous: robot(s)" << id_list(w.not_rejoined())
+              << " not CENTRALIZED, or some keyframes not with the central, " << c_.rendezvous_s + c_.settle_s
+              << " s after the last sweep" << std::endl;
+  }
+  if (!w.loop_closure_busy().empty()) {
+    std::cout << "cdc-launch: rendezvous: the loop closure of robot(s)" << id_list(w.loop_closure_busy())
+              << " had not caught up" << std::endl;
+  }
+  settle_until_ = Clock::now();
+}
+
+std::string Launcher::supervise() {
+  auto last_sample = Clock::now(), last_progress = Clock::now() - std::chrono::seconds(10);
+  const auto progress_period = isatty(STDOUT_FILENO) ? std::chrono::milliseconds(500) : std::chrono::milliseconds(10000);
   while (!interrupted()) {
-    std::istringstream cl(read_file(clock_file));
-    int64_t stamp = 0;
-    if (cl >> stamp) t_s = static_cast<double>(stamp) * 1e-9;
-    apply_radio(t_s);
+    read_sim_clock();
+    apply_radio(t_s_);
     if (Clock::now() - last_sample > std::chrono::milliseconds(500)) {
-      sample_traffic(t_s);
+      sample_traffic(t_s_);
       last_sample = Clock::now();
     }
-    const auto period = isatty(STDOUT_FILENO) ? std::chrono::milliseconds(500) : std::chrono::milliseconds(10000);
-    if (!o_.no_progress && Clock::now() - last_progress > period) {
-      progress(t_s, false);
+    if (!o_.no_progress && Clock::now() - last_progress > progress_period) {
+      progress(t_s_, false);
       last_progress = Clock::now();
     }
-    for (auto& p : services_) {
-      if (!p->running()) failure = p->name() + " ended unexpectedly (exit " + std::to_string(p->exit_status().value_or(-1)) + "): see " + p->spec().log_path;
+    if (std::string failure = service_failure(); !failure.empty()) return failure;
+    if (!settle_until_ && !rendezvous_watch_ && player_ && !player_->running()) {
+      if (std::string failure = on_player_ended(); !failure.empty()) return failure;
     }
-    if (!failure.empty()) break;
-    if (!settle_until && !rendezvous_start && player_ && !player_->running()) {
-      if (player_->exit_status().value_or(-1) != 0) {
-        failure = "the player failed (exit " + std::to_string(player_->exit_status().value_or(-1)) + "): see " + player_->spec().log_path;
-        break;
-      }
-      if (c_.rendezvous_s > 0 && c_.variant != Variant::kSingle) {
-        rendezvous_ = true;  // applied by apply_radio on the next pass
-        rendezvous_start = Clock::now();
-        std::cout << "cdc-launch: last sweep played; rendezvous: every robot back in range, up to " << c_.rendezvous_s
-                  << " s for all to rejoin the central, then " << c_.settle_s << " s" << std::endl;
-      } else {
-        settle_until = Clock::now() + seconds(c_.settle_s);
-      }
-    }
-    if (rendezvous_start && !settle_until) {
-      // The rendezvous ends once every robot has been CENTRALIZED, with all its keyframes held by
-      // the central, and every loop-closure service has caught up (the descriptors of peers' keyframes
-      // made out of range searched, the clouds their candidates need received), for settle_s (a robot
-      // cut just before the last sweep still reads CENTRALIZED until the central's lease lapses), or
-      // after rendezvous_s + settle_s.
-      std::vector<uint32_t> out, busy;
-      for (uint32_t r : robots_) {
-        const fs::path rd = run_ / ("robot_" + std::to_string(r));
-        const RobotNow n = read_now(rd / "modes.csv.now");
-        if (n.mode != "CENTRALIZED" || n.acknowledged < n.keyframes) out.push_back(r);
-        if (!loop_closure_caught_up(rd / "loop_closure.now")) busy.push_back(r);
-      }
-      if (out.empty() && !all_central) all_central_at = Clock::now();
-      all_central = out.empty();
-      if (busy.empty() && !caught_up) caught_up_at = Clock::now();
-      caught_up = busy.empty();
-      const bool settled = all_central && caught_up &&
-                           Clock::now() - std::max(all_central_at, caught_up_at) >= seconds(c_.settle_s);
-      if (settled || Clock::now() >= *rendezvous_start + seconds(c_.rendezvous_s + c_.settle_s)) {
-        info_.rendezvous_s = std::chrono::duration<double>((all_central ? all_central_at : Clock::now()) - *rendezvous_start).count();
-        info_.not_rejoined = out;
-        info_.loop_closure_busy = busy;
-        if (caught_up) info_.caught_up_s = std::chrono::duration<double>(caught_up_at - *rendezvous_start).count();
-        if (out.empty()) {
-          std::cout << "cdc-launch: rendezvous: every robot CENTRALIZED and all keyframes with the central "
-                    << std::fixed << std::setprecision(1) << *info_.rendezvous_s << " s after the last sweep" << std::endl;
-        } else {
-          std::cout << "cdc-launch: rendezvous: robot(s)";
-          for (uint32_t r : out) std::cout << ' ' << r;
-          std::cout << " not CENTRALIZED, or some keyframes not with the central, " << c_.rendezvous_s + c_.settle_s
-                    << " s after the last sweep" << std::endl;
-        }
-        if (!busy.empty()) {
-          std::cout << "cdc-launch: rendezvous: the loop closure of robot(s)";
-          for (uint32_t r : busy) std::cout << ' ' << r;
-          std::cout << " had not caught up" << std::endl;
-        }
-        settle_until = Clock::now();
-      }
-    }
-    if (settle_until && Clock::now() >= *settle_until) break;
-    if (o_.stop_after_s > 0 && t_s >= o_.stop_after_s) {
+    if (rendezvous_watch_ && !settle_until_) watch_rendezvous();
+    if (settle_until_ && Clock::now() >= *settle_until_) break;
+    if (o_.stop_after_s > 0 && t_s_ >= o_.stop_after_s) {
       request_stop(SIGINT);  // as if Ctrl-C had been pressed now
       break;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
-  sample_traffic(t_s);
-  if (!o_.no_progress) progress(t_s, true);
+  return "";
+}
+
+// Stops the swarm and removes the network; then the report, unless the run failed or was interrupted.
+int Launcher::finish(const std::string& failure) {
+  sample_traffic(t_s_);
+  if (!o_.no_progress) progress(t_s_, true);
   if (interrupted()) std::cout << "cdc-launch: interrupted (signal " << stop_signal() << "): stopping every process" << std::endl;
   else std::cout << "cdc-launch: stopping the swarm" << std::endl;
   stop_all();
@@ -595,8 +651,8 @@ int Launcher::run() {
     net_->teardown();
     net_.reset();
   }
-  info_.wall_s = std::chrono::duration<double>(Clock::now() - t0_).count();
-  info_.sim_end_s = t_s;
+  info_.wall_s = wall_s();
+  info_.sim_end_s = t_s_;
   info_.interrupted = interrupted();
   if (!failure.empty()) {
     std::cerr << "cdc-launch: " << failure << '\n';
@@ -606,10 +662,32 @@ int Launcher::run() {
     std::cout << "cdc-launch: stopped cleanly; partial results in " << run_.string() << std::endl;
     return 130;
   }
-  const nlohmann::json j = write_report(info_);
+  write_report(info_);
   std::cout << read_file(run_ / "report.md") << std::endl;
   std::cout << "cdc-launch: results in " << run_.string() << std::endl;
   return 0;
+}
+
+int Launcher::run() {
+  install_stop_signals();
+  prepare_run_folder();
+  ensure_dataset();
+  read_dataset();
+  describe_run();
+  choose_network();
+  check_local_domains();
+  set_up_network();
+  std::cout << "cdc-launch: " << c_.name << ": " << robots_.size() << " robots, variant " << info_.variant << ", "
+            << sim_total_s_ << " s of sim time, results in " << run_.string() << std::endl;
+  apply_radio(0.0);  // the links as they are when the run starts (all cut for single robots)
+  start_services();
+  wait_for_services();
+  // Discovery and start-up traffic is reported apart from the modes.
+  startup_ = true;
+  sample_traffic(0);
+  startup_ = false;
+  if (!interrupted()) start_player();
+  return finish(supervise());
 }
 
 }  // namespace

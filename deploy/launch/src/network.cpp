@@ -56,69 +56,81 @@ NetnsNetwork::NetnsNetwork(const std::string& tag, const std::vector<uint32_t>& 
   const uint32_t base = 7400 + 250 * slam_domain;
   port_range_ = std::to_string(base) + ":" + std::to_string(base + 249);
   try {
-    run_checked({"ip", "netns", "add", hub_});
-    run_checked({"ip", "-n", hub_, "link", "add", "br0", "type", "bridge"});
-    run_checked({"ip", "-n", hub_, "link", "set", "br0", "up"});
+    create_namespaces();
+    for (uint32_t node : nodes_) write_dds_config(node, config_dir);
     for (uint32_t node : nodes_) {
-      const std::string ns = "cdc" + tag + "-" + short_name(node);
-      run_checked({"ip", "netns", "add", ns});
-      netns_[node] = ns;
-      std::string hub_end = "h";
-      hub_end += short_name(node);
-      run_checked({"ip", "-n", hub_, "link", "add", hub_end, "type", "veth", "peer", "name", "eth0", "netns", ns});
-      run_checked({"ip", "-n", hub_, "link", "set", hub_end, "master", "br0", "up"});
-      run_checked({"ip", "-n", ns, "addr", "add", address(node) + "/24", "dev", "eth0"});
-      run_checked({"ip", "-n", ns, "link", "set", "eth0", "up"});
-      run_checked({"ip", "-n", ns, "link", "set", "lo", "up"});
-    }
-    // DDS: each node's veth, unicast discovery of every node, no multicast.
-    std::string peers;
-    for (uint32_t node : nodes_) peers += "        <Peer Address=\"" + address(node) + "\"/>\n";
-    for (uint32_t node : nodes_) {
-      const std::string path = config_dir + "/" + short_name(node) + ".xml";
-      std::ofstream out(path);
-      if (!out) throw std::runtime_error(path + ": cannot write");
-      out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-             "<!-- written by cdc-launch: node " << short_name(node) << " in namespace " << netns_[node] << " -->\n"
-             "<CycloneDDS xmlns=\"https://cdds.io/config\">\n  <Domain Id=\"any\">\n    <General>\n"
-             "      <Interfaces><NetworkInterface name=\"eth0\"/></Interfaces>\n"
-             "      <AllowMulticast>false</AllowMulticast>\n"
-             // Datagrams within a 1500-byte MTU: large samples go as DDSI fragments rather than IP
-             // fragments, as on a real radio, and every byte passes the per-port radio and accounting rules.
-             "      <MaxMessageSize>1456B</MaxMessageSize>\n      <FragmentSize>1344B</FragmentSize>\n"
-             "    </General>\n    <Discovery>\n"
-             // At most 4 participants per node and domain (a robot's four services in the SLAM domain);
-             // unicast discovery probes every index up to this on every peer, so keep it small.
-             "      <ParticipantIndex>auto</ParticipantIndex>\n      <MaxAutoParticipantIndex>9</MaxAutoParticipantIndex>\n"
-             "      <SPDPInterval>1s</SPDPInterval>\n"
-             "      <Peers>\n" << peers << "      </Peers>\n    </Discovery>\n  </Domain>\n</CycloneDDS>\n";
-      configs_[node] = path;
-    }
-    // Per robot: radio chains (drops) before accounting chains (what really passed).
-    for (uint32_t node : nodes_) {
-      if (!is_robot(node)) continue;
-      for (const char* chain : {"CDC_RADIO_IN", "CDC_RADIO_OUT", "CDC_ACCT_IN", "CDC_ACCT_OUT"}) {
-        ns_cmd(node, {"iptables", "-w", "-N", chain});
-      }
-      ns_cmd(node, {"iptables", "-w", "-A", "INPUT", "-j", "CDC_RADIO_IN"});
-      ns_cmd(node, {"iptables", "-w", "-A", "INPUT", "-j", "CDC_ACCT_IN"});
-      ns_cmd(node, {"iptables", "-w", "-A", "OUTPUT", "-j", "CDC_RADIO_OUT"});
-      ns_cmd(node, {"iptables", "-w", "-A", "OUTPUT", "-j", "CDC_ACCT_OUT"});
-      for (uint32_t peer : nodes_) {
-        if (peer == node || peer == kSimNode) continue;
-        for (const char* kind : {"data", "meta"}) {
-          // Lowest bit of the UDP destination port: 1 for user data, 0 for discovery.
-          const std::string parity = std::string("0>>22&0x3C@0&0x1=") + (std::string(kind) == "data" ? "1" : "0");
-          ns_cmd(node, {"iptables", "-w", "-A", "CDC_ACCT_IN", "-s", address(peer), "-p", "udp", "--dport", port_range_, "-m",
-                        "u32", "--u32", parity, "-m", "comment", "--comment", kind, "-j", "RETURN"});
-          ns_cmd(node, {"iptables", "-w", "-A", "CDC_ACCT_OUT", "-d", address(peer), "-p", "udp", "--dport", port_range_,
-                        "-m", "u32", "--u32", parity, "-m", "comment", "--comment", kind, "-j", "RETURN"});
-        }
-      }
+      if (is_robot(node)) add_robot_rules(node);
     }
   } catch (...) {
     teardown();
     throw;
+  }
+}
+
+// The hub's bridge, and per node a namespace joined to it by a veth pair (eth0 inside, with the
+// node's address).
+void NetnsNetwork::create_namespaces() {
+  run_checked({"ip", "netns", "add", hub_});
+  run_checked({"ip", "-n", hub_, "link", "add", "br0", "type", "bridge"});
+  run_checked({"ip", "-n", hub_, "link", "set", "br0", "up"});
+  for (uint32_t node : nodes_) {
+    const std::string ns = "cdc" + tag_ + "-" + short_name(node);
+    run_checked({"ip", "netns", "add", ns});
+    netns_[node] = ns;
+    std::string hub_end = "h";
+    hub_end += short_name(node);
+    run_checked({"ip", "-n", hub_, "link", "add", hub_end, "type", "veth", "peer", "name", "eth0", "netns", ns});
+    run_checked({"ip", "-n", hub_, "link", "set", hub_end, "master", "br0", "up"});
+    run_checked({"ip", "-n", ns, "addr", "add", address(node) + "/24", "dev", "eth0"});
+    run_checked({"ip", "-n", ns, "link", "set", "eth0", "up"});
+    run_checked({"ip", "-n", ns, "link", "set", "lo", "up"});
+  }
+}
+
+// DDS of one node: its veth, unicast discovery of every node, no multicast.
+void NetnsNetwork::write_dds_config(uint32_t node, const std::string& config_dir) {
+  std::string peers;
+  for (uint32_t n : nodes_) peers += "        <Peer Address=\"" + address(n) + "\"/>\n";
+  const std::string path = config_dir + "/" + short_name(node) + ".xml";
+  std::ofstream out(path);
+  if (!out) throw std::runtime_error(path + ": cannot write");
+  out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+         "<!-- written by cdc-launch: node " << short_name(node) << " in namespace " << netns_[node] << " -->\n"
+         "<CycloneDDS xmlns=\"https://cdds.io/config\">\n  <Domain Id=\"any\">\n    <General>\n"
+         "      <Interfaces><NetworkInterface name=\"eth0\"/></Interfaces>\n"
+         "      <AllowMulticast>false</AllowMulticast>\n"
+         // Datagrams within a 1500-byte MTU: large samples go as DDSI fragments rather than IP
+         // fragments, as on a real radio, and every byte passes the per-port radio and accounting rules.
+         "      <MaxMessageSize>1456B</MaxMessageSize>\n      <FragmentSize>1344B</FragmentSize>\n"
+         "    </General>\n    <Discovery>\n"
+         // At most 4 participants per node and domain (a robot's four services in the SLAM domain);
+         // unicast discovery probes every index up to this on every peer, so keep it small.
+         "      <ParticipantIndex>auto</ParticipantIndex>\n      <MaxAutoParticipantIndex>9</MaxAutoParticipantIndex>\n"
+         "      <SPDPInterval>1s</SPDPInterval>\n"
+         "      <Peers>\n" << peers << "      </Peers>\n    </Discovery>\n  </Domain>\n</CycloneDDS>\n";
+  configs_[node] = path;
+}
+
+// A robot's chains: the radio's (drops, filled by set_link) before the accounting's (what really
+// passed), with one counting rule per peer, direction and kind of traffic.
+void NetnsNetwork::add_robot_rules(uint32_t node) {
+  for (const char* chain : {"CDC_RADIO_IN", "CDC_RADIO_OUT", "CDC_ACCT_IN", "CDC_ACCT_OUT"}) {
+    ns_cmd(node, {"iptables", "-w", "-N", chain});
+  }
+  ns_cmd(node, {"iptables", "-w", "-A", "INPUT", "-j", "CDC_RADIO_IN"});
+  ns_cmd(node, {"iptables", "-w", "-A", "INPUT", "-j", "CDC_ACCT_IN"});
+  ns_cmd(node, {"iptables", "-w", "-A", "OUTPUT", "-j", "CDC_RADIO_OUT"});
+  ns_cmd(node, {"iptables", "-w", "-A", "OUTPUT", "-j", "CDC_ACCT_OUT"});
+  for (uint32_t peer : nodes_) {
+    if (peer == node || peer == kSimNode) continue;
+    for (const char* kind : {"data", "meta"}) {
+      // Lowest bit of the UDP destination port: 1 for user data, 0 for discovery.
+      const std::string parity = std::string("0>>22&0x3C@0&0x1=") + (std::string(kind) == "data" ? "1" : "0");
+      ns_cmd(node, {"iptables", "-w", "-A", "CDC_ACCT_IN", "-s", address(peer), "-p", "udp", "--dport", port_range_, "-m",
+                    "u32", "--u32", parity, "-m", "comment", "--comment", kind, "-j", "RETURN"});
+      ns_cmd(node, {"iptables", "-w", "-A", "CDC_ACCT_OUT", "-d", address(peer), "-p", "udp", "--dport", port_range_,
+                    "-m", "u32", "--u32", parity, "-m", "comment", "--comment", kind, "-j", "RETURN"});
+    }
   }
 }
 

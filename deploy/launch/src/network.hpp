@@ -54,6 +54,9 @@ class NetnsNetwork {
 
  private:
   void ns_cmd(uint32_t node, std::vector<std::string> argv) const;
+  void create_namespaces();
+  void write_dds_config(uint32_t node, const std::string& config_dir);
+  void add_robot_rules(uint32_t node);
   std::string tag_;
   std::vector<uint32_t> nodes_;
   std::string hub_;

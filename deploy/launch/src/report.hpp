@@ -53,6 +53,9 @@ std::string node_name(uint32_t node);
 // A number with a fixed count of decimals (tables of the reports).
 std::string fixed(double v, int decimals);
 
+// " 0 2": each id after a space (robots named in messages and reports).
+std::string id_list(const std::vector<uint32_t>& ids);
+
 // How far trajectory b lies from trajectory a, both in the same frame (two runs of one robot):
 // RMS and largest distance between positions at matching stamps (within 5 ms); nullopt when a file
 // is missing or no stamps match.

@@ -25,11 +25,10 @@ const char* to_string(Variant v) {
   return "?";
 }
 
-SwarmConfig load_swarm(const std::string& path, const std::string& root) {
-  SwarmConfig c;
-  c.path = path;
-  if (!fs::is_regular_file(path)) throw config::ConfigError(path + ": no such swarm file");
-  config::Reader r(path);
+namespace {
+
+// What runs, on which dataset and network.
+void read_run(config::Reader& r, SwarmConfig& c) {
   r.get<std::string>("name", c.name, [](const std::string& s) {
     return !s.empty() && s.find_first_of("/ \t") == std::string::npos;
   }, "a name without spaces or slashes");
@@ -38,23 +37,19 @@ SwarmConfig load_swarm(const std::string& path, const std::string& root) {
   int max_scans = 0;
   r.get<int>("max_scans", max_scans, [](const int& v) { return v >= 0; }, ">= 0");
   c.max_scans = static_cast<size_t>(max_scans);
-  std::string network = "auto", variant = "switching";
+  std::string network = "auto";
   r.get<std::string>("network", network, [](const std::string& s) {
     return s == "auto" || s == "netns" || s == "loopback";
   }, "auto, netns or loopback");
   c.network = network == "netns" ? NetworkMode::kNetns : network == "loopback" ? NetworkMode::kLoopback : NetworkMode::kAuto;
-  int slam = static_cast<int>(c.slam_domain), sim = static_cast<int>(c.sim_domain);
-  auto domain = [](const int& v) { return v >= 0 && v <= 232; };
-  r.get<int>("slam_domain", slam, domain, "0..232");
-  r.get<int>("sim_domain", sim, domain, "0..232");
-  int local_base = static_cast<int>(c.local_domain_base);
-  r.get<int>("local_domain_base", local_base, domain, "0..232");
-  c.local_domain_base = static_cast<uint32_t>(local_base);
-  c.slam_domain = static_cast<uint32_t>(slam);
-  c.sim_domain = static_cast<uint32_t>(sim);
+}
+
+// How it runs: playback, the system variant, the end of the mission.
+void read_behaviour(config::Reader& r, SwarmConfig& c) {
   r.get<bool>("lockstep", c.lockstep);
   r.get<double>("rate", c.rate, [](const double& v) { return v > 0; }, "> 0");
   r.get<bool>("lidar_only", c.lidar_only);
+  std::string variant = "switching";
   r.get<std::string>("variant", variant, [](const std::string& s) {
     return s == "single" || s == "distributed" || s == "switching";
   }, "single, distributed or switching");
@@ -63,14 +58,22 @@ SwarmConfig load_swarm(const std::string& path, const std::string& root) {
   r.get<double>("settle_s", c.settle_s, [](const double& v) { return v >= 0; }, ">= 0");
   r.get<bool>("map", c.map);
   r.get<double>("rendezvous_s", c.rendezvous_s, [](const double& v) { return v >= 0; }, ">= 0");
-  r.get<std::string>("configs.frontend", c.frontend_config);
-  r.get<std::string>("configs.descriptor", c.descriptor_config);
-  r.get<std::string>("configs.loop_closure", c.loop_closure_config);
-  r.get<std::string>("configs.peer_optimiser", c.peer_config);
-  r.get<std::string>("configs.central_optimiser", c.central_config);
-  r.get<std::string>("configs.map", c.map_config);
-  if (c.dataset.empty()) r.error("dataset: required (the folder is generated from 'scenario' when missing)");
-  if (slam == sim) r.error("slam_domain and sim_domain must differ (sensors never cross the emulated radio)");
+}
+
+void read_domains(config::Reader& r, SwarmConfig& c) {
+  int slam = static_cast<int>(c.slam_domain), sim = static_cast<int>(c.sim_domain);
+  int local_base = static_cast<int>(c.local_domain_base);
+  auto domain = [](const int& v) { return v >= 0 && v <= 232; };
+  r.get<int>("slam_domain", slam, domain, "0..232");
+  r.get<int>("sim_domain", sim, domain, "0..232");
+  r.get<int>("local_domain_base", local_base, domain, "0..232");
+  c.local_domain_base = static_cast<uint32_t>(local_base);
+  c.slam_domain = static_cast<uint32_t>(slam);
+  c.sim_domain = static_cast<uint32_t>(sim);
+}
+
+// Relative paths from the project root; every service configuration and the scenario must exist.
+void resolve_paths(config::Reader& r, SwarmConfig& c, const std::string& root) {
   auto resolve = [&](std::string& p) {
     if (!p.empty() && fs::path(p).is_relative()) p = (fs::path(root) / p).lexically_normal().string();
   };
@@ -83,6 +86,27 @@ SwarmConfig load_swarm(const std::string& path, const std::string& root) {
     if (!fs::is_regular_file(*p)) r.error("configs: " + *p + " does not exist");
   }
   if (!c.scenario.empty() && !fs::is_regular_file(c.scenario)) r.error("scenario: " + c.scenario + " does not exist");
+}
+
+}  // namespace
+
+SwarmConfig load_swarm(const std::string& path, const std::string& root) {
+  SwarmConfig c;
+  c.path = path;
+  if (!fs::is_regular_file(path)) throw config::ConfigError(path + ": no such swarm file");
+  config::Reader r(path);
+  read_run(r, c);
+  read_domains(r, c);
+  read_behaviour(r, c);
+  r.get<std::string>("configs.frontend", c.frontend_config);
+  r.get<std::string>("configs.descriptor", c.descriptor_config);
+  r.get<std::string>("configs.loop_closure", c.loop_closure_config);
+  r.get<std::string>("configs.peer_optimiser", c.peer_config);
+  r.get<std::string>("configs.central_optimiser", c.central_config);
+  r.get<std::string>("configs.map", c.map_config);
+  if (c.dataset.empty()) r.error("dataset: required (the folder is generated from 'scenario' when missing)");
+  if (c.slam_domain == c.sim_domain) r.error("slam_domain and sim_domain must differ (sensors never cross the emulated radio)");
+  resolve_paths(r, c, root);
   r.finish();
   return c;
 }

@@ -139,80 +139,112 @@ const char* plot_color(size_t k) {
   return kColors[k % kColors.size()];
 }
 
-std::string render_svg(const std::vector<Evaluation>& evaluations, const std::string& plane, const std::string& title,
-                       const std::vector<SvgMarker>& markers, const std::string& marker_legend) {
-  const auto axes = choose_axes(evaluations, plane);
-  const char* names = "xyz";
-  double xmin = std::numeric_limits<double>::max(), ymin = xmin, xmax = -xmin, ymax = -xmin;
-  auto extend = [&](const geometry::Poses& ps) {
-    for (const auto& p : ps) {
-      xmin = std::min(xmin, p.translation()[axes[0]]);
-      xmax = std::max(xmax, p.translation()[axes[0]]);
-      ymin = std::min(ymin, p.translation()[axes[1]]);
-      ymax = std::max(ymax, p.translation()[axes[1]]);
+namespace {
+
+constexpr double kPlotSize = 800, kPlotMargin = 60;  // [px]
+
+// Where the plot puts a point: the two axes drawn, and metres to pixels so that every path fits (y up).
+class PlotFrame {
+ public:
+  PlotFrame(const std::vector<Evaluation>& evaluations, const std::string& plane) : axes_(choose_axes(evaluations, plane)) {
+    for (const auto& e : evaluations) {
+      extend(e.gt_matched);
+      extend(e.est_aligned);
     }
-  };
-  for (const auto& e : evaluations) {
-    extend(e.gt_matched);
-    extend(e.est_aligned);
+    span_ = std::max({xmax_ - xmin_, ymax_ - ymin_, 1e-6});
+    scale_ = (kPlotSize - 2 * kPlotMargin) / span_;
   }
-  const double w = 800, h = 800, margin = 60;
-  const double span = std::max({xmax - xmin, ymax - ymin, 1e-6});
-  const double scale = (w - 2 * margin) / span;
-  auto px = [&](double x) { return margin + (x - xmin) * scale; };
-  auto py = [&](double y) { return h - margin - (y - ymin) * scale; };  // y up
-  auto polyline = [&](const geometry::Poses& ps, const char* color, const char* dash) {
+
+  double span() const { return span_; }
+  double scale() const { return scale_; }
+  char axis_name(int k) const { return "xyz"[axes_[static_cast<size_t>(k)]]; }
+  double px(const Eigen::Vector3d& p) const { return kPlotMargin + (p[axes_[0]] - xmin_) * scale_; }
+  double py(const Eigen::Vector3d& p) const { return kPlotSize - kPlotMargin - (p[axes_[1]] - ymin_) * scale_; }
+
+  std::string polyline(const geometry::Poses& ps, const char* color, const char* dash) const {
     std::ostringstream s;
     s << "<polyline fill=\"none\" stroke=\"" << color << "\" stroke-width=\"1.5\"" << dash << " points=\"";
-    for (const auto& p : ps) {
-      s << fmt(px(p.translation()[axes[0]]), 1) << ',' << fmt(py(p.translation()[axes[1]]), 1) << ' ';
-    }
+    for (const auto& p : ps) s << fmt(px(p.translation()), 1) << ',' << fmt(py(p.translation()), 1) << ' ';
     s << "\"/>\n";
     return s.str();
-  };
-  std::ostringstream svg;
-  svg << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << h + 40
-      << "\" font-family=\"sans-serif\" font-size=\"13\">\n"
-      << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
-      << "<text x=\"" << margin << "\" y=\"30\" font-size=\"16\">" << xml_escape(title) << "</text>\n";
-  // Scale bar: a round length near a fifth of the span.
-  const double bar = std::pow(10.0, std::floor(std::log10(span / 5.0)));
-  svg << "<line x1=\"" << margin << "\" y1=\"" << h - 20 << "\" x2=\"" << margin + bar * scale << "\" y2=\"" << h - 20
-      << "\" stroke=\"black\" stroke-width=\"2\"/>\n"
-      << "<text x=\"" << margin << "\" y=\"" << h - 5 << "\">" << fmt(bar, bar < 1 ? 2 : 0) << " m ("
-      << names[axes[0]] << " right, " << names[axes[1]] << " up)</text>\n";
-  double legend_y = h + 15;
+  }
+
+ private:
+  void extend(const geometry::Poses& ps) {
+    for (const auto& p : ps) {
+      xmin_ = std::min(xmin_, p.translation()[axes_[0]]);
+      xmax_ = std::max(xmax_, p.translation()[axes_[0]]);
+      ymin_ = std::min(ymin_, p.translation()[axes_[1]]);
+      ymax_ = std::max(ymax_, p.translation()[axes_[1]]);
+    }
+  }
+
+  std::array<int, 2> axes_;
+  double xmin_ = std::numeric_limits<double>::max(), ymin_ = xmin_, xmax_ = -xmin_, ymax_ = -xmin_;
+  double span_ = 0, scale_ = 0;
+};
+
+// A round length near a fifth of the span, drawn at the bottom left with the axes' directions.
+void draw_scale_bar(std::ostream& svg, const PlotFrame& f) {
+  const double h = kPlotSize, bar = std::pow(10.0, std::floor(std::log10(f.span() / 5.0)));
+  svg << "<line x1=\"" << kPlotMargin << "\" y1=\"" << h - 20 << "\" x2=\"" << kPlotMargin + bar * f.scale() << "\" y2=\""
+      << h - 20 << "\" stroke=\"black\" stroke-width=\"2\"/>\n"
+      << "<text x=\"" << kPlotMargin << "\" y=\"" << h - 5 << "\">" << fmt(bar, bar < 1 ? 2 : 0) << " m (" << f.axis_name(0)
+      << " right, " << f.axis_name(1) << " up)</text>\n";
+}
+
+// Every estimate over its ground truth, each with a legend entry (three per row) below the plot.
+void draw_estimates(std::ostream& svg, const PlotFrame& f, const std::vector<Evaluation>& evaluations, double legend_y) {
   size_t k = 0;
   for (const auto& e : evaluations) {
     const char* color = plot_color(k);
-    svg << polyline(e.gt_matched, "#555555", " stroke-dasharray=\"4 3\"");
-    svg << polyline(e.est_aligned, color, "");
-    svg << "<rect x=\"" << margin + 260 * static_cast<double>(k % 3) << "\" y=\"" << legend_y - 10
-        << "\" width=\"14\" height=\"4\" fill=\"" << color << "\"/>"
-        << "<text x=\"" << margin + 20 + 260 * static_cast<double>(k % 3) << "\" y=\"" << legend_y << "\">" << xml_escape(e.name)
-        << " (ATE " << fmt(e.ate.translation.rmse, 3) << " m)</text>\n";
+    const double column = 260 * static_cast<double>(k % 3);
+    svg << f.polyline(e.gt_matched, "#555555", " stroke-dasharray=\"4 3\"");
+    svg << f.polyline(e.est_aligned, color, "");
+    svg << "<rect x=\"" << kPlotMargin + column << "\" y=\"" << legend_y - 10 << "\" width=\"14\" height=\"4\" fill=\"" << color
+        << "\"/>"
+        << "<text x=\"" << kPlotMargin + 20 + column << "\" y=\"" << legend_y << "\">" << xml_escape(e.name) << " (ATE "
+        << fmt(e.ate.translation.rmse, 3) << " m)</text>\n";
     ++k;
   }
-  for (const SvgMarker& m : markers) {
-    const double x = px(m.position[axes[0]]), y = py(m.position[axes[1]]);
-    if (m.triangle) {
-      svg << "<polygon points=\"" << fmt(x, 1) << ',' << fmt(y - 7, 1) << ' ' << fmt(x - 6, 1) << ',' << fmt(y + 5, 1) << ' '
-          << fmt(x + 6, 1) << ',' << fmt(y + 5, 1) << "\" fill=\"" << m.color << "\" stroke=\"black\" stroke-width=\"0.8\"/>";
-    } else {
-      svg << "<circle cx=\"" << fmt(x, 1) << "\" cy=\"" << fmt(y, 1) << "\" r=\"5\" fill=\"white\" stroke=\"" << m.color
-          << "\" stroke-width=\"2\"/>";
-    }
-    if (!m.label.empty()) {
-      svg << "<text x=\"" << fmt(x + 8, 1) << "\" y=\"" << fmt(y - 6, 1) << "\" font-size=\"10\">" << xml_escape(m.label)
-          << "</text>";
-    }
-    svg << "\n";
+}
+
+void draw_marker(std::ostream& svg, const PlotFrame& f, const SvgMarker& m) {
+  const double x = f.px(m.position), y = f.py(m.position);
+  if (m.triangle) {
+    svg << "<polygon points=\"" << fmt(x, 1) << ',' << fmt(y - 7, 1) << ' ' << fmt(x - 6, 1) << ',' << fmt(y + 5, 1) << ' '
+        << fmt(x + 6, 1) << ',' << fmt(y + 5, 1) << "\" fill=\"" << m.color << "\" stroke=\"black\" stroke-width=\"0.8\"/>";
+  } else {
+    svg << "<circle cx=\"" << fmt(x, 1) << "\" cy=\"" << fmt(y, 1) << "\" r=\"5\" fill=\"white\" stroke=\"" << m.color
+        << "\" stroke-width=\"2\"/>";
   }
+  if (!m.label.empty()) {
+    svg << "<text x=\"" << fmt(x + 8, 1) << "\" y=\"" << fmt(y - 6, 1) << "\" font-size=\"10\">" << xml_escape(m.label)
+        << "</text>";
+  }
+  svg << "\n";
+}
+
+}  // namespace
+
+std::string render_svg(const std::vector<Evaluation>& evaluations, const std::string& plane, const std::string& title,
+                       const std::vector<SvgMarker>& markers, const std::string& marker_legend) {
+  const PlotFrame frame(evaluations, plane);
+  std::ostringstream svg;
+  svg << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << kPlotSize << "\" height=\"" << kPlotSize + 40
+      << "\" font-family=\"sans-serif\" font-size=\"13\">\n"
+      << "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
+      << "<text x=\"" << kPlotMargin << "\" y=\"30\" font-size=\"16\">" << xml_escape(title) << "</text>\n";
+  draw_scale_bar(svg, frame);
+  double legend_y = kPlotSize + 15;
+  draw_estimates(svg, frame, evaluations, legend_y);
+  for (const SvgMarker& m : markers) draw_marker(svg, frame, m);
   if (!marker_legend.empty()) {
-    svg << "<text x=\"" << margin << "\" y=\"50\" font-size=\"12\" fill=\"#333333\">" << xml_escape(marker_legend) << "</text>\n";
+    svg << "<text x=\"" << kPlotMargin << "\" y=\"50\" font-size=\"12\" fill=\"#333333\">" << xml_escape(marker_legend)
+        << "</text>\n";
   }
-  if (k > 3) legend_y += 18;  // a second row of estimates
-  svg << "<text x=\"" << margin << "\" y=\"" << legend_y + 18 << "\" fill=\"#555555\">- - ground truth</text>\n";
+  if (evaluations.size() > 3) legend_y += 18;  // a second row of estimates
+  svg << "<text x=\"" << kPlotMargin << "\" y=\"" << legend_y + 18 << "\" fill=\"#555555\">- - ground truth</text>\n";
   svg << "</svg>\n";
   return svg.str();
 }
