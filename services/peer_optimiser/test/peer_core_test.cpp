@@ -180,10 +180,10 @@ TEST(PeerCore, LivelinessLossSwitchesToDistributedAndKeepsCorrectingFromTheCentr
 
 // Back from DISTRIBUTED, the central's results are relayed only once the central holds every
 // keyframe made before the rejoin: its last result from before the cut, or one from a graph still
-// taking in the re-sent backlog, would pull the front-end back to where the robot was then (in a
-// demo run, 0.4 m of height for 2 s). A placement from the robot's own hint (the central has not
-// put it in its graph yet) holds every keyframe but no correction: it is not relayed either, nor
-// lets the partial backlog after it through; the distributed estimate stays the one source.
+// taking in the re-sent backlog, would pull the front-end back to where the robot was then. A
+// placement from the robot's own hint (the central has not put it in its graph yet) holds every
+// keyframe but no correction: it is not relayed either, nor lets the partial backlog after it
+// through; the distributed estimate stays the one source.
 TEST(PeerCore, AfterARejoinTheCentralIsRelayedOnlyOnceItHoldsTheNewKeyframes) {
   const auto s = test::make_swarm_stream({});
   PeerCore core(config(1));
