@@ -1,0 +1,118 @@
+// The peer optimiser's configuration and the records its core takes in and gives out (the node
+// converts them from and to DDS messages; cdc-peer-replay builds them from a g2o graph).
+#pragma once
+
+#include "cdc/geometry/fusion.hpp"
+#include "cdc/graph/pose_graph.hpp"
+#include "cdc/peer_optimiser/rtdos.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <utility>
+#include <vector>
+
+namespace cdc::peer {
+
+using graph::Key;
+using graph::Matrix6d;
+
+// Own keyframes by id with a pose each (T_world_keyframe unless said otherwise).
+using KeyframePoses = std::vector<std::pair<uint32_t, Eigen::Isometry3d>>;
+
+struct PeerConfig {
+  uint32_t robot = 0;
+  uint32_t robot_count = 3;
+  RtdosParams rtdos;
+  geometry::FusionThresholds fusion;
+  double peer_range_m = 1e9;                            // separators go only to peers closer than this
+  Nanos round_period{std::chrono::milliseconds(200)};   // distributed optimisation rounds
+  Nanos resend_grace{std::chrono::milliseconds(1500)};  // unacknowledged this long: re-send
+  Nanos resend_period{std::chrono::milliseconds(500)};
+  int distributed_iterations = 5;
+  // Each round moves the own keyframes this fraction of the way to the block's solution (in each
+  // pose's tangent space). Every robot solves at once with its peers' last separators held fixed
+  // (block Jacobi); taken whole (1.0), two coupled robots each jump onto the other's old poses and
+  // the pair oscillates about the optimum instead of settling. Damped, the rounds reach it.
+  double relaxation = 0.7;
+  // A separator pose goes to a peer again only once it has moved this far since it was last sent
+  // there (the rounds settle, and most poses stop moving). The topic is reliable, so a peer misses
+  // one only when it was out of reach long enough to be unmatched (or restarted): the node then
+  // calls resend_separators_to() when the peer's reader matches again. Every `separator_refresh`
+  // the peer gets all of them anyway, a safety net.
+  double separator_min_change_m = 0.001;
+  double separator_min_change_rad = 0.01 * M_PI / 180.0;
+  Nanos separator_refresh{std::chrono::seconds(30)};
+  // Loops through one keyframe share its cloud's errors: each loop's information is divided by the
+  // most loops either of its keyframes takes part in (graph::share_loop_information).
+  bool share_loop_information = true;
+  // Keyframes (and loops) re-sent per step at most, so that a rejoin's backlog (hundreds of
+  // keyframes of ~110 KB) goes out over several steps instead of blocking the node's loop under
+  // flow control.
+  size_t max_resend_per_step = 50;
+};
+
+struct OwnKeyframe {
+  uint32_t id = 0;
+  uint32_t incarnation = 0;
+  Eigen::Isometry3d T_odom = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d T_prev = Eigen::Isometry3d::Identity();
+  Matrix6d information = Matrix6d::Identity();
+};
+
+struct LoopRecord {
+  uint32_t sender = 0, sender_incarnation = 0, seq = 0;
+  uint32_t robot_a = 0, keyframe_a = 0, robot_b = 0, keyframe_b = 0;
+  bool withdrawn = false;
+  Eigen::Isometry3d T_a_b = Eigen::Isometry3d::Identity();
+  Matrix6d information = Matrix6d::Identity();
+};
+
+struct CentralResult {
+  uint32_t central_incarnation = 0;
+  uint64_t version = 0;
+  Eigen::Isometry3d T_world_robot = Eigen::Isometry3d::Identity();
+  KeyframePoses poses;  // own keyframes, T_world_keyframe
+  // The central has not placed the robot in its graph yet and returns the robot's own hint (its
+  // T_world_robot times the odometry): W is known, but there is no correction in it to relay.
+  bool from_hint = false;
+};
+
+struct AckIn {
+  uint32_t central_incarnation = 0;
+  uint32_t robot_incarnation = 0;
+  int64_t keyframe = -1;
+  int64_t loop_seq = -1;
+};
+
+struct Correction {
+  Eigen::Isometry3d T_world_robot;  // limited by the fusion thresholds
+  double lambda = 1.0;              // the fusion factor applied
+  bool from_central = true;
+  // Current estimate of own keyframes, in the frame of T_world_robot above (the solution moved with it).
+  KeyframePoses poses;
+};
+
+struct SeparatorOut {
+  uint32_t target = 0;
+  KeyframePoses poses;  // own keyframes the target's loops touch
+};
+
+struct StepOutput {
+  std::optional<Transition> transition;
+  std::optional<Correction> correction;
+  std::vector<SeparatorOut> separators;
+  std::optional<Eigen::Isometry3d> world_transform;  // own estimate for the central (on rejoin)
+  std::vector<uint32_t> resend_keyframes;
+  std::vector<uint32_t> resend_loops;  // own loop seqs
+  // Set on the switch to DISTRIBUTED: own keyframes forwarded to the central but not yet delivered
+  // (the link was cut before the central's lease lapsed) are to be dropped from the writer, so that
+  // they reach the central with the backlog re-sent on rejoining, not as soon as the link returns
+  // while the robot still waits out its dwell.
+  bool drop_undelivered_keyframes = false;
+};
+
+}  // namespace cdc::peer

@@ -1,0 +1,164 @@
+#include "cdc/peer_optimiser/distributed_estimate.hpp"
+
+#include "cdc/geometry/se3.hpp"
+#include "cdc/graph/solver.hpp"
+
+namespace cdc::peer {
+namespace {
+
+constexpr double kAnchorInformation = 1e6;
+
+}  // namespace
+
+void DistributedEstimate::extend(const OwnKeyframe& kf) {
+  auto prev = estimate_.find(kf.id - 1u);
+  if (kf.id > 0 && prev != estimate_.end()) {
+    estimate_[kf.id] = prev->second * kf.T_prev;
+  }
+}
+
+void DistributedEstimate::seed(const LocalGraph& known, const KeyframePoses& central,
+                               const std::optional<Eigen::Isometry3d>& T_world_robot) {
+  const std::map<uint32_t, Eigen::Isometry3d> central_poses(central.begin(), central.end());
+  for (const auto& [id, kf] : known.keyframes()) {
+    if (estimate_.count(id) != 0) {
+      continue;
+    }
+    if (auto c = central_poses.find(id); c != central_poses.end()) {
+      estimate_[id] = c->second;
+    } else if (auto prev = estimate_.find(id - 1); id > 0 && prev != estimate_.end()) {
+      estimate_[id] = prev->second * kf.T_prev;
+    } else {
+      estimate_[id] = T_world_robot.value_or(Eigen::Isometry3d::Identity()) * kf.T_odom;
+    }
+  }
+}
+
+std::optional<Eigen::Isometry3d> DistributedEstimate::round(const LocalGraph& known, const KeyframePoses& central,
+                                                            const std::optional<Eigen::Isometry3d>& T_world_robot) {
+  if (known.keyframes().empty()) {
+    return std::nullopt;
+  }
+  seed(known, central, T_world_robot);
+  if (central.empty() && !placed_by_peers_) {
+    placed_by_peers_ = place_through_peers(known);
+  }
+  Problem p = problem(known);
+  anchor(p, known, central);
+  if (p.graph.factors.empty()) {
+    return std::nullopt;
+  }
+  solve(p);
+  relax_towards(p.graph);
+  ++rounds_;
+  return known.world_transform_of(KeyframePoses(estimate_.begin(), estimate_.end()));
+}
+
+// Without a central estimate, a robot that is not the lowest of its group starts in its own
+// odometry frame: it is placed rigidly through its most informative loop to a lower robot's
+// separator pose before solving (robust losses would otherwise discount exactly those loops).
+bool DistributedEstimate::place_through_peers(const LocalGraph& known) {
+  const uint32_t me = known.robot();
+  const auto& separators = known.separators();
+  const LoopRecord* best = nullptr;
+  for (const LoopRecord& l : known.loops()) {
+    const bool a_mine = l.robot_a == me, b_mine = l.robot_b == me;
+    if (l.withdrawn || a_mine == b_mine) {
+      continue;
+    }
+    const uint32_t other = a_mine ? l.robot_b : l.robot_a;
+    const uint32_t other_kf = a_mine ? l.keyframe_b : l.keyframe_a;
+    const uint32_t my_kf = a_mine ? l.keyframe_a : l.keyframe_b;
+    if (other < me && separators.count(graph::make_key(other, other_kf)) != 0 && estimate_.count(my_kf) != 0 &&
+        (best == nullptr || l.information.trace() > best->information.trace())) {
+      best = &l;
+    }
+  }
+  if (best == nullptr) {
+    return false;
+  }
+  const bool a_mine = best->robot_a == me;
+  const Eigen::Isometry3d T_other = separators.at(
+      graph::make_key(a_mine ? best->robot_b : best->robot_a, a_mine ? best->keyframe_b : best->keyframe_a));
+  const Eigen::Isometry3d T_other_mine = a_mine ? best->T_a_b.inverse() : best->T_a_b;
+  const Eigen::Isometry3d T_mine = estimate_.at(a_mine ? best->keyframe_a : best->keyframe_b);
+  const Eigen::Isometry3d correction = T_other * T_other_mine * T_mine.inverse();
+  for (auto& [id, T] : estimate_) {
+    T = correction * T;
+  }
+  return true;
+}
+
+// The own keyframes at the current estimate, their odometry, and every loop whose ends are both
+// there: own keyframes, or peers' keyframes with a separator pose (held fixed).
+DistributedEstimate::Problem DistributedEstimate::problem(const LocalGraph& known) const {
+  const uint32_t me = known.robot();
+  Problem p;
+  for (const auto& [id, T] : estimate_) {
+    p.graph.poses[graph::make_key(me, id)] = T;
+  }
+  known.add_odometry_factors(p.graph);
+  for (const LoopRecord& l : known.loops()) {
+    if (l.withdrawn) {
+      continue;
+    }
+    const Key a = graph::make_key(l.robot_a, l.keyframe_a), b = graph::make_key(l.robot_b, l.keyframe_b);
+    bool usable = true;
+    for (Key k : {a, b}) {
+      if (graph::robot_of(k) == me) {
+        usable = usable && p.graph.poses.count(k) != 0;
+      } else if (auto s = known.separators().find(k); s != known.separators().end()) {
+        p.graph.poses[k] = s->second;
+        p.fixed.insert(k);
+        p.lowest = p.lowest && graph::robot_of(k) > me;
+      } else {
+        usable = false;
+      }
+    }
+    if (usable) {
+      p.graph.add_between(a, b, l.T_a_b, l.information);
+    }
+  }
+  return p;
+}
+
+// The gauge: the central's last estimate when there is one; else, for the lowest robot of the
+// group, its own odometry frame; otherwise the peers' separator poses hold it.
+void DistributedEstimate::anchor(Problem& p, const LocalGraph& known, const KeyframePoses& central) const {
+  const uint32_t me = known.robot();
+  for (auto it = central.rbegin(); it != central.rend(); ++it) {
+    if (known.keyframes().count(it->first) != 0) {
+      p.graph.add_prior(graph::make_key(me, it->first), it->second, Matrix6d::Identity() * kAnchorInformation);
+      return;
+    }
+  }
+  if (p.lowest || p.fixed.empty()) {
+    // The group's frame is this robot's odometry frame: the first keyframe is pinned to its odometry
+    // pose (a constant; re-pinning it where the last round left it would let the gauge drift).
+    const auto& [id, first] = *known.keyframes().begin();
+    p.graph.add_prior(graph::make_key(me, id), first.T_odom, Matrix6d::Identity() * kAnchorInformation);
+  }
+}
+
+void DistributedEstimate::solve(Problem& p) const {
+  if (config_.share_loop_information) {
+    graph::share_loop_information(p.graph);
+  }
+  graph::SolverOptions o;
+  o.max_iterations = config_.distributed_iterations;
+  o.function_tolerance = 1e-8;
+  // No robust loss: loops reaching the back-end passed geometric verification and PCM, and in
+  // rounds that start misaligned a robust kernel discounts exactly the loops that align the robots,
+  // and the rounds converge many times more slowly.
+  o.robust_loss_scale = 0.0;
+  graph::solve(p.graph, o, p.fixed);
+}
+
+void DistributedEstimate::relax_towards(const graph::PoseGraph& solution) {
+  for (auto& [id, T] : estimate_) {
+    const Eigen::Isometry3d& S = solution.poses.at(graph::make_key(config_.robot, id));
+    T = config_.relaxation == 1.0 ? S : T * geometry::se3_exp(config_.relaxation * geometry::se3_log(T.inverse() * S));
+  }
+}
+
+}  // namespace cdc::peer

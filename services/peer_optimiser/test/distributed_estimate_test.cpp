@@ -1,0 +1,114 @@
+#include "cdc/peer_optimiser/distributed_estimate.hpp"
+#include "peer_test_support.hpp"
+
+#include <gtest/gtest.h>
+
+namespace cdc::peer {
+namespace {
+
+// Keyframes 0..count-1 of `robot`, one metre apart along x in its odometry frame.
+LocalGraph straight_line(uint32_t robot, uint32_t count) {
+  LocalGraph g(robot);
+  for (uint32_t id = 0; id < count; ++id) {
+    OwnKeyframe kf;
+    kf.id = id;
+    kf.T_odom = pose_at(id);
+    kf.T_prev = pose_at(id > 0 ? 1.0 : 0.0);
+    g.add_keyframe(kf);
+  }
+  return g;
+}
+
+double x_of(const DistributedEstimate& e, uint32_t id) { return e.poses().at(id).translation().x(); }
+
+TEST(DistributedEstimate, SeedsFromTheCentralThenItsPredecessorThenTheWorldTransform) {
+  const LocalGraph g = straight_line(1, 4);
+  DistributedEstimate e(config(1));
+  e.seed(g, {{1, pose_at(10)}}, pose_at(100));
+  ASSERT_EQ(e.poses().size(), 4u);
+  EXPECT_EQ(x_of(e, 0), 100.0) << "no central pose, no predecessor: T_world_robot times its odometry";
+  EXPECT_EQ(x_of(e, 1), 10.0) << "the central's pose";
+  EXPECT_EQ(x_of(e, 2), 11.0) << "its predecessor's estimate times its odometry";
+  EXPECT_EQ(x_of(e, 3), 12.0);
+  e.seed(g, {{2, pose_at(-5)}}, std::nullopt);
+  EXPECT_EQ(x_of(e, 2), 11.0) << "a keyframe with an estimate keeps it";
+}
+
+TEST(DistributedEstimate, ANewKeyframeFollowsItsPredecessor) {
+  LocalGraph g = straight_line(1, 4);
+  DistributedEstimate e(config(1));
+  e.seed(g, {}, pose_at(20));
+  OwnKeyframe next = g.keyframes().at(3);
+  next.id = 4;
+  next.T_odom = pose_at(4);
+  e.extend(next);
+  EXPECT_EQ(x_of(e, 4), 24.0);
+  next.id = 9;  // no predecessor with an estimate
+  e.extend(next);
+  EXPECT_EQ(e.poses().count(9), 0u);
+  e.clear();
+  EXPECT_TRUE(e.poses().empty());
+}
+
+TEST(DistributedEstimate, TheLowestRobotKeepsItsOdometryFrame) {
+  const LocalGraph g = straight_line(0, 5);
+  DistributedEstimate e(config(0));
+  const auto T_world_robot = e.round(g, {}, std::nullopt);
+  ASSERT_TRUE(T_world_robot);
+  EXPECT_LT((T_world_robot->matrix() - Eigen::Matrix4d::Identity()).norm(), 1e-6);
+  for (uint32_t id = 0; id < 5; ++id) EXPECT_NEAR(x_of(e, id), id, 1e-6);
+  EXPECT_FALSE(e.placed_by_peers());
+  EXPECT_EQ(e.rounds(), 1u);
+}
+
+TEST(DistributedEstimate, PlacesTheRobotThroughALowerPeersSeparatorPose) {
+  // Robot 1's keyframe 1 sees robot 0's keyframe 5 two metres ahead and turned by 0.5 rad.
+  LocalGraph g = straight_line(1, 3);
+  LoopRecord l;
+  l.robot_a = 1;
+  l.keyframe_a = 1;
+  l.robot_b = 0;
+  l.keyframe_b = 5;
+  l.T_a_b = pose_at(2, 0, 0.5);
+  g.add_loop(l);
+  const Eigen::Isometry3d T_world_0_5 = pose_at(40, 30, 1.0);
+  g.on_separator(0, {{5, T_world_0_5}});
+  DistributedEstimate e(config(1));
+  ASSERT_TRUE(e.round(g, {}, std::nullopt));
+  EXPECT_TRUE(e.placed_by_peers());
+  const Eigen::Isometry3d want = T_world_0_5 * l.T_a_b.inverse();
+  EXPECT_LT((e.poses().at(1).matrix() - want.matrix()).norm(), 1e-6);
+
+  // A separator pose of a higher robot does not place it: that robot is placed through this one.
+  LocalGraph alone = straight_line(1, 3);
+  l.robot_b = 2;
+  alone.add_loop(l);
+  alone.on_separator(2, {{5, T_world_0_5}});
+  DistributedEstimate e2(config(1));
+  e2.round(alone, {}, std::nullopt);
+  EXPECT_FALSE(e2.placed_by_peers());
+}
+
+TEST(DistributedEstimate, EachRoundMovesRelaxationOfTheWayToItsSolution) {
+  // Keyframe 1 anchored by the central at x = 3, keyframe 0 starting at 0: the solution puts
+  // keyframe 0 one metre behind it, at 2, and a round with relaxation 0.5 takes it half way.
+  const LocalGraph g = straight_line(0, 2);
+  PeerConfig c = config(0);
+  c.relaxation = 0.5;
+  DistributedEstimate e(c);
+  e.round(g, {{1, pose_at(3)}}, std::nullopt);
+  EXPECT_NEAR(x_of(e, 0), 1.0, 1e-4);
+  EXPECT_NEAR(x_of(e, 1), 3.0, 1e-4);
+  e.round(g, {{1, pose_at(3)}}, std::nullopt);
+  EXPECT_NEAR(x_of(e, 0), 1.5, 1e-4);
+  EXPECT_EQ(e.rounds(), 2u);
+}
+
+TEST(DistributedEstimate, ARoundWithoutKeyframesGivesNothing) {
+  DistributedEstimate e(config(1));
+  EXPECT_FALSE(e.round(LocalGraph(1), {}, std::nullopt));
+  EXPECT_EQ(e.rounds(), 0u);
+}
+
+}  // namespace
+}  // namespace cdc::peer
