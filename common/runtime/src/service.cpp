@@ -44,6 +44,10 @@ void Service::watch(dds_entity_t reader) {
   waitset_.attach(conditions_.back()->handle(), static_cast<intptr_t>(conditions_.size()));
 }
 
+void Service::watch(const dds::GuardCondition& guard) {
+  waitset_.attach(guard.handle(), -1);  // wait() reads no tags
+}
+
 bool Service::wait(std::chrono::nanoseconds timeout) {
   if (!running()) return false;
   waitset_.wait(timeout);

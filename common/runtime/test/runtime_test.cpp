@@ -85,6 +85,16 @@ TEST(Input, ConvertsBeforeHandingOn) {
   EXPECT_EQ(seen, std::vector<double>{2.5});
 }
 
+TEST(Service, WakesOnAWatchedGuard) {
+  Service service(Domains::kSingle, test_domain(), std::nullopt, three_robots());
+  dds::GuardCondition guard;
+  service.watch(guard);
+  guard.trigger();
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_TRUE(service.wait(std::chrono::seconds(10)));
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(5)) << "the guard did not wake the wait";
+}
+
 struct OwnCounters {
   uint64_t scans = 0;
   double level_deg = 0;

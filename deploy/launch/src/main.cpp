@@ -53,7 +53,7 @@ struct RobotNow {
   uint64_t acknowledged = 0;  // keyframes the central holds (all up to this id - 1)
 };
 
-// A peer optimiser's MODE_OUT.now (services/peer_optimiser/src/peer_node.cpp).
+// A peer optimiser's MODE_OUT.now (services/peer_optimiser/src/mode_files.hpp).
 RobotNow read_now(const fs::path& p) {
   RobotNow r;
   std::istringstream in(read_file(p));

@@ -64,6 +64,8 @@ class Service {
 
   // wait() returns when this reader holds samples.
   void watch(dds_entity_t reader);
+  // wait() returns when this guard is triggered (the node resets it), e.g. by a liveliness change.
+  void watch(const dds::GuardCondition& guard);
   // Sleeps until a watched reader holds samples, shutdown is asked for, or timeout passes.
   // Returns false once shutdown is asked for.
   bool wait(std::chrono::nanoseconds timeout);
