@@ -142,7 +142,7 @@ void PeerNode::on_keyframe(const cdc_msg_Keyframe& m) {
   // them: a DISTRIBUTED one exchanges descriptors and separators only, and its keyframes reach the
   // central as the backlog it re-sends on rejoining (all the central has not acknowledged).
   if (!service_.split()) return;
-  if (core_.mode() == Mode::kCentralized) {
+  if (core_.forwards_keyframes()) {
     w_kf_.write(m);
     ++counters_.forwarded_keyframes;
   } else {
@@ -189,7 +189,7 @@ void PeerNode::step() {
   const bool alive = central_.state() == dds::Liveliness::kAlive;
   const StepOutput out = core_.step(now_, alive);
   if (out.transition) {
-    on_transition(*out.transition, alive);
+    on_transition(*out.transition, alive, out.drop_undelivered_keyframes);
   } else if (mode_period_.due(Clock::now())) {
     publish_mode(core_.rtdos().last_reason(), core_.distance_to_central());
     mode_period_.done(Clock::now());
@@ -203,14 +203,14 @@ void PeerNode::step() {
   publish_status(alive);
 }
 
-void PeerNode::on_transition(const Transition& t, bool central_alive) {
+void PeerNode::on_transition(const Transition& t, bool central_alive, bool drop_undelivered_keyframes) {
   spdlog::info("mode {} -> {} ({}), distance to central {}", to_string(t.from), to_string(t.to), to_string(t.reason),
                t.distance_m ? std::to_string(*t.distance_m) + " m" : "unknown");
   publish_mode(t.reason, t.distance_m);
   mode_period_.done(Clock::now());
   radio_status_period_.expire();  // peers learn the new mode at once (separators follow it)
   write_now(central_alive);
-  if (t.to == Mode::kDistributed && service_.split()) {
+  if (drop_undelivered_keyframes && service_.split()) {
     // Keyframes forwarded since the link to the central was cut (until its lease lapsed) are
     // unacknowledged: dropped here, they reach the central as the backlog re-sent on rejoining,
     // not by DDS as soon as the link returns while this robot is still DISTRIBUTED.

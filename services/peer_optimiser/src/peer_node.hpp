@@ -70,7 +70,8 @@ class PeerNode {
   void take_inputs();
   void notice_rematched_peers();
   void step();
-  void on_transition(const Transition& t, bool central_alive);
+  // drop_undelivered_keyframes: the core's word that keyframes forwarded but not delivered go with the backlog.
+  void on_transition(const Transition& t, bool central_alive, bool drop_undelivered_keyframes);
   void publish_mode(SwitchReason reason, std::optional<double> distance);
   void resend(const StepOutput& out);
   void publish_separators(const std::vector<SeparatorOut>& separators);
