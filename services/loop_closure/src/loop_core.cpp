@@ -109,6 +109,13 @@ LoopEvents LoopCore::on_cloud(uint32_t robot, uint32_t id, std::vector<Eigen::Ve
   return out;
 }
 
+ReplyUse LoopCore::reply_use(uint32_t robot, uint32_t id, bool found) const {
+  if (!is_wanted(robot, id)) {
+    return cloud(robot, id) != nullptr ? ReplyUse::kDuplicate : ReplyUse::kUnrequested;
+  }
+  return found ? ReplyUse::kCloud : ReplyUse::kNotHeld;
+}
+
 LoopEvents LoopCore::tick(Nanos now) {
   LoopEvents out;
   out.requests = requests_.tick(now);

@@ -43,6 +43,14 @@ struct RoutingStats {
 // Every part's counters in one.
 struct LoopStats : RetrievalStats, RequestStats, CloudStoreStats, VerificationStats, PcmStats, RoutingStats {};
 
+// What a cloud reply is to the core (LoopCore::reply_use).
+enum class ReplyUse {
+  kCloud,        // a cloud it waits for: hand it to on_cloud
+  kNotHeld,      // its owner does not hold the keyframe yet: on_cloud_missing (asked again later)
+  kDuplicate,    // the cloud is held already: the other answer to a request asked twice (drop it)
+  kUnrequested,  // answers no open request of this robot (reject it)
+};
+
 // The parts composed: Retrieval finds candidates, each is verified at once when its cloud is held
 // (CloudStore), re-aimed at a neighbour's cloud or requested otherwise (CloudRequests), verified
 // (Verifier), and its loop judged against the others (PairwiseConsistency).
@@ -79,6 +87,9 @@ class LoopCore {
   size_t parked_requests() const noexcept { return requests_.parked(); }  // waiting to be asked (again)
   // Requested and not yet answered with a cloud: pending, or parked to be asked again.
   bool is_wanted(uint32_t robot, uint32_t id) const { return requests_.wanted({robot, id}); }
+  // How to take a reply from `robot` about its keyframe `id`; `found`: it carries the cloud. A late
+  // answer to an earlier attempt of a request asked again is as good as the awaited one.
+  ReplyUse reply_use(uint32_t robot, uint32_t id, bool found) const;
   LoopStats stats() const;
   size_t keyframes() const noexcept { return retrieval_.size(); }
   const lidar::ScanContextDatabase& database() const noexcept { return retrieval_.database(); }
