@@ -191,22 +191,23 @@ void LoopNode::on_descriptor(const cdc_msg_Descriptor& m) {
 
 void LoopNode::on_cloud_reply(const cdc_msg_CloudReply& m) {
   traffic_.received(m.owner_robot_id, dds::serialized_size(m));
-  // Answered is what the core still waits for (pending, or parked to be asked again: a late answer
-  // to an earlier attempt is as good as the awaited one); the request id itself is informational.
-  if (!core_.is_wanted(m.owner_robot_id, m.keyframe_id)) {
-    if (core_.cloud(m.owner_robot_id, m.keyframe_id) != nullptr) {
+  // What the reply is to the core: answered is what it still waits for (pending, or parked to be asked
+  // again: a late answer to an earlier attempt is as good as the awaited one); the request id is informational.
+  switch (core_.reply_use(m.owner_robot_id, m.keyframe_id, m.found)) {
+    case ReplyUse::kCloud:
+      handle(core_.on_cloud(m.owner_robot_id, m.keyframe_id, reply_cloud(m), now_));
+      break;
+    case ReplyUse::kNotHeld:
+      core_.on_cloud_missing(m.owner_robot_id, m.keyframe_id, clock());
+      break;
+    case ReplyUse::kDuplicate:
       ++counters_.cloud_replies_duplicate;
-    } else {
+      break;
+    case ReplyUse::kUnrequested:
       service_.boundary().refuse(topics::kCloudReply,
                                  dds::Validation::fail("keyframe_id: answers no open request of this robot"));
-    }
-    return;
+      break;
   }
-  if (!m.found) {
-    core_.on_cloud_missing(m.owner_robot_id, m.keyframe_id, clock());
-    return;
-  }
-  handle(core_.on_cloud(m.owner_robot_id, m.keyframe_id, reply_cloud(m), now_));
 }
 
 // Descriptors enter the sequencer as they arrive, so that a gap being filled shows at once: an answer
