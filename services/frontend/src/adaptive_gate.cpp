@@ -14,18 +14,13 @@ odometry::RegistrationParams with_gate(odometry::RegistrationParams base, double
   return base;
 }
 
-AdaptiveGate::AdaptiveGate(const FrontendParams& p)
-    : base_(p.registration),
-      initial_gate_m_(p.initial_gate_m),
-      min_gate_m_(p.min_gate_m),
-      max_gate_m_(p.max_gate_m),
-      kernel_divisor_(p.kernel_divisor) {}
+AdaptiveGate::AdaptiveGate(const FrontendParams& params) : p_(params) {}
 
 odometry::RegistrationParams AdaptiveGate::params() const {
-  if (errors_.size() < kMinHistory) return with_gate(base_, initial_gate_m_, kernel_divisor_);
+  if (errors_.size() < kMinHistory) return with_gate(p_.registration, p_.initial_gate_m, p_.kernel_divisor);
   const double ms = std::accumulate(errors_.begin(), errors_.end(), 0.0, [](double a, double e) { return a + e * e; }) /
                     static_cast<double>(errors_.size());
-  return with_gate(base_, std::clamp(kSigmas * std::sqrt(ms), min_gate_m_, max_gate_m_), kernel_divisor_);
+  return with_gate(p_.registration, std::clamp(kSigmas * std::sqrt(ms), p_.min_gate_m, p_.max_gate_m), p_.kernel_divisor);
 }
 
 void AdaptiveGate::record(const Eigen::Isometry3d& prediction, const Eigen::Isometry3d& registered) {

@@ -4,14 +4,14 @@
 
 namespace cdc::frontend {
 
-CorrectionFusion::CorrectionFusion(const FrontendParams& p) : thresholds_(p.fusion), holds_tilt_(p.correction_holds_tilt) {}
+CorrectionFusion::CorrectionFusion(const FrontendParams& params) : p_(params) {}
 
 bool CorrectionFusion::set_correction(const Eigen::Isometry3d& T_odom_keyframe, const Eigen::Isometry3d& T_world_keyframe,
                                       const Eigen::Isometry3d& T_world_robot, bool levelled) {
   // The keyframe's corrected pose in the odometry frame, and the map from raw to corrected odometry.
   const Eigen::Isometry3d corrected = T_world_robot.inverse() * T_world_keyframe;
   Eigen::Isometry3d C = corrected * T_odom_keyframe.inverse();
-  const bool hold = holds_tilt_ && levelled;
+  const bool hold = p_.correction_holds_tilt && levelled;
   if (hold) {
     // Levelled: keep the correction's turn about the vertical, and move the keyframe to its
     // corrected position with it.
@@ -27,7 +27,7 @@ bool CorrectionFusion::set_correction(const Eigen::Isometry3d& T_odom_keyframe, 
 CorrectionFusion::Fused CorrectionFusion::fuse(const Eigen::Isometry3d& increment, const Eigen::Isometry3d& T_odom) {
   Fused out;
   if (correction_) {
-    const geometry::FusionResult f = geometry::fuse_pose(published_ * increment, *correction_ * T_odom, thresholds_);
+    const geometry::FusionResult f = geometry::fuse_pose(published_ * increment, *correction_ * T_odom, p_.fusion);
     published_ = f.fused;
     out.lambda = f.lambda;
   } else {

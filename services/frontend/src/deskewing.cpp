@@ -14,14 +14,7 @@ float latest_point_time(const std::vector<ScanPoint>& points) {
   return t_max;
 }
 
-Deskewer::Deskewer(const FrontendParams& p)
-    : min_range_m_(p.min_range_m),
-      max_range_m_(p.max_range_m),
-      deskew_(p.deskew),
-      voxel_m_(p.voxel_m),
-      normal_voxel_m_(p.normal_voxel_m),
-      image_columns_(p.image_columns),
-      T_lidar_imu_(p.T_lidar_imu) {}
+Deskewer::Deskewer(const FrontendParams& params) : p_(params) {}
 
 Eigen::Isometry3d Deskewer::motion_over(const Eigen::Isometry3d& D, float t_max, double dt) {
   return geometry::se3_exp(geometry::se3_log(D) * (static_cast<double>(t_max) / dt));
@@ -29,7 +22,7 @@ Eigen::Isometry3d Deskewer::motion_over(const Eigen::Isometry3d& D, float t_max,
 
 bool Deskewer::in_range(const Eigen::Vector3d& p) const {
   const double r2 = p.squaredNorm();
-  return r2 >= min_range_m_ * min_range_m_ && r2 <= max_range_m_ * max_range_m_;
+  return r2 >= p_.min_range_m * p_.min_range_m && r2 <= p_.max_range_m * p_.max_range_m;
 }
 
 Deskewer::Slots Deskewer::motion_slots(int64_t stamp_ns, double span, const Eigen::Isometry3d& sweep_motion,
@@ -47,7 +40,7 @@ Deskewer::Slots Deskewer::motion_slots(int64_t stamp_ns, double span, const Eige
   const auto inc = imu.imu->increments(stamp_ns, instants, imu.gyro_bias, imu.accel_bias);  // one pass for all slots
   for (size_t k = 0; k < inc.size(); ++k) {
     if (!inc[k]) continue;
-    const Eigen::Isometry3d m = lidar_motion(*inc[k], T_lidar_imu_, imu.start);
+    const Eigen::Isometry3d m = lidar_motion(*inc[k], p_.T_lidar_imu, imu.start);
     if (imu.start != nullptr) {
       slot[k] = m;
     } else {
@@ -61,7 +54,7 @@ std::vector<Eigen::Vector3d> Deskewer::deskew(int64_t stamp_ns, const std::vecto
                                               const Eigen::Isometry3d& sweep_motion, const DeskewImu& imu,
                                               std::vector<uint16_t>& rings) const {
   const float t_max = latest_point_time(points);
-  const bool deskew = deskew_ && t_max > 0;  // a sweep without per-point times (all zero) is taken as it is
+  const bool deskew = p_.deskew && t_max > 0;  // a sweep without per-point times (all zero) is taken as it is
   const double span = std::max(1e-3, static_cast<double>(t_max));
   Slots slot;
   if (deskew) slot = motion_slots(stamp_ns, span, sweep_motion, imu);
@@ -95,8 +88,8 @@ Sweep Deskewer::prepare(int64_t stamp_ns, const std::vector<ScanPoint>& points, 
 Sweep Deskewer::select_on_rings(std::vector<Eigen::Vector3d> cloud, const std::vector<uint16_t>& rings) const {
   Sweep sw;
   sw.cloud = std::move(cloud);
-  const std::vector<size_t> keep = odometry::voxel_filter_indices(sw.cloud, voxel_m_);
-  const std::vector<Eigen::Vector3d> all_normals = odometry::range_image_normals(sw.cloud, rings, image_columns_);
+  const std::vector<size_t> keep = odometry::voxel_filter_indices(sw.cloud, p_.voxel_m);
+  const std::vector<Eigen::Vector3d> all_normals = odometry::range_image_normals(sw.cloud, rings, p_.image_columns);
   for (size_t i : keep) {
     if (all_normals[i].squaredNorm() < 0.5) continue;
     sw.points.push_back(sw.cloud[i]);
@@ -111,8 +104,8 @@ Sweep Deskewer::select_on_rings(std::vector<Eigen::Vector3d> cloud, const std::v
 // neighbours spread over several rings instead of lying on its own.
 Sweep Deskewer::select_by_neighbours(std::vector<Eigen::Vector3d> cloud) const {
   Sweep sw;
-  sw.cloud = normal_voxel_m_ > 0 ? odometry::voxel_filter(cloud, normal_voxel_m_) : std::move(cloud);
-  const std::vector<Eigen::Vector3d> sel = odometry::voxel_filter(sw.cloud, voxel_m_);
+  sw.cloud = p_.normal_voxel_m > 0 ? odometry::voxel_filter(cloud, p_.normal_voxel_m) : std::move(cloud);
+  const std::vector<Eigen::Vector3d> sel = odometry::voxel_filter(sw.cloud, p_.voxel_m);
   const std::vector<Eigen::Vector3d> n = odometry::knn_normals(sel, sw.cloud, 10, 1.5);
   for (size_t i = 0; i < sel.size(); ++i) {
     if (n[i].squaredNorm() < 0.5) continue;

@@ -5,15 +5,11 @@
 
 namespace cdc::frontend {
 
-GravityLeveller::GravityLeveller(const FrontendParams& p)
-    : enabled_(p.level_with_gravity),
-      reference_sweeps_(p.level_reference_sweeps),
-      gain_(p.level_gain),
-      trend_gain_(p.level_trend_gain) {}
+GravityLeveller::GravityLeveller(const FrontendParams& params) : p_(params) {}
 
 Eigen::Isometry3d GravityLeveller::level(const Eigen::Isometry3d& T, const Eigen::Isometry3d& T_last,
                                          const Eigen::Isometry3d& T_out_last, const std::optional<Eigen::Vector3d>& gravity) {
-  if (!enabled_) return T;
+  if (!p_.level_with_gravity) return T;
   if (gravity) observe(*gravity);
   // The registered increment, turned into the levelled frame; the orientation turned likewise.
   Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
@@ -29,10 +25,10 @@ void GravityLeveller::observe(const Eigen::Vector3d& gravity) {
     trend_.setZero();
   }
   const Eigen::Vector3d predicted = *smoothed_ + trend_;
-  smoothed_ = (predicted + gain_ * (g - predicted)).normalized();
-  trend_ += trend_gain_ * (g - predicted);
+  smoothed_ = (predicted + p_.level_gain * (g - predicted)).normalized();
+  trend_ += p_.level_trend_gain * (g - predicted);
   if (!reference_) {
-    if (++sweeps_ >= reference_sweeps_) reference_ = *smoothed_;
+    if (++sweeps_ >= p_.level_reference_sweeps) reference_ = *smoothed_;
     return;
   }
   level_ = Eigen::Quaterniond::FromTwoVectors(*smoothed_, *reference_);

@@ -7,15 +7,11 @@
 
 namespace cdc::frontend {
 
-KeyframeSelector::KeyframeSelector(const FrontendParams& p)
-    : distance_m_(p.keyframe_distance_m),
-      angle_rad_(p.keyframe_angle_rad),
-      voxel_m_(p.keyframe_voxel_m),
-      information_scale_(p.keyframe_information_scale) {}
+KeyframeSelector::KeyframeSelector(const FrontendParams& params) : p_(params) {}
 
 void KeyframeSelector::add_registration(const odometry::RegistrationOutput& reg) {
   if (reg.correspondences <= 0) return;
-  const Matrix6d info_step = reg.hessian * information_scale_;
+  const Matrix6d info_step = reg.hessian * p_.keyframe_information_scale;
   const Eigen::LDLT<Matrix6d> ldlt(info_step);
   if (ldlt.info() == Eigen::Success) cov_since_keyframe_ += ldlt.solve(Matrix6d::Identity());
 }
@@ -28,8 +24,8 @@ std::optional<KeyframeOut> KeyframeSelector::select(int64_t stamp_ns, const Eige
     held_.reset();
     return k;
   }
-  const bool far = !have_keyframe_ || since.translation().norm() >= distance_m_ ||
-                   geometry::rotation_angle(since.rotation()) >= angle_rad_;
+  const bool far = !have_keyframe_ || since.translation().norm() >= p_.keyframe_distance_m ||
+                   geometry::rotation_angle(since.rotation()) >= p_.keyframe_angle_rad;
   if (!far) return std::nullopt;
   KeyframeOut k = cut(stamp_ns, T_odom, since, deskewed);
   if (hold) {
@@ -70,7 +66,7 @@ std::optional<Eigen::Isometry3d> KeyframeSelector::pose_of(uint32_t id) const {
 
 std::vector<Eigen::Vector3f> KeyframeSelector::cloud(const std::vector<Eigen::Vector3d>& deskewed) const {
   std::vector<Eigen::Vector3f> out;
-  for (const auto& p : odometry::voxel_filter(deskewed, voxel_m_)) out.push_back(p.cast<float>());
+  for (const auto& p : odometry::voxel_filter(deskewed, p_.keyframe_voxel_m)) out.push_back(p.cast<float>());
   return out;
 }
 

@@ -4,14 +4,7 @@
 
 namespace cdc::frontend {
 
-MotionPredictor::MotionPredictor(const FrontendParams& p)
-    : imu_window_(p.imu_window),
-      imu_deskew_(p.imu_deskew),
-      window_params_(p.window),
-      T_lidar_imu_(p.T_lidar_imu),
-      information_scale_(p.information_scale),
-      max_gap_m_(p.max_imu_prediction_gap_m),
-      max_gap_rad_(p.max_imu_prediction_gap_rad) {}
+MotionPredictor::MotionPredictor(const FrontendParams& params) : p_(params) {}
 
 Prediction MotionPredictor::predict(int64_t last_ns, int64_t stamp_ns, double dt, const ImuBuffer& imu, FrontendStats& stats) const {
   Prediction out;
@@ -19,7 +12,7 @@ Prediction MotionPredictor::predict(int64_t last_ns, int64_t stamp_ns, double dt
   // The IMU since the previous sweep, at the window's biases: for the prediction and the window.
   if (window_) {
     const ImuState st = window_->ready() ? window_->latest() : ImuState{};
-    out.pre = imu.preintegrate(last_ns, stamp_ns, st.bg, st.ba, window_params_.noise);
+    out.pre = imu.preintegrate(last_ns, stamp_ns, st.bg, st.ba, p_.window.noise);
   }
   if (window_ && window_->ready() && out.pre) {
     if (const auto d = window_prediction(*out.pre, delta, out, stats)) {
@@ -27,7 +20,7 @@ Prediction MotionPredictor::predict(int64_t last_ns, int64_t stamp_ns, double dt
       return out;
     }
   }
-  if (const auto R = imu.lidar_rotation(last_ns, stamp_ns, gyro_bias_, T_lidar_imu_)) delta.linear() = *R;
+  if (const auto R = imu.lidar_rotation(last_ns, stamp_ns, gyro_bias_, p_.T_lidar_imu)) delta.linear() = *R;
   out.delta = delta;
   return out;
 }
@@ -38,14 +31,14 @@ std::optional<Eigen::Isometry3d> MotionPredictor::window_prediction(const odomet
   // The motion the IMU predicts from the window's latest pose, applied to the registered one.
   const Eigen::Isometry3d d = window_->latest_lidar().inverse() * window_->predict_lidar(pre);
   const Eigen::Isometry3d gap = delta.inverse() * d;
-  const bool plausible = d.matrix().allFinite() && gap.translation().norm() <= max_gap_m_ &&
-                         geometry::rotation_angle(gap.rotation()) <= max_gap_rad_;
+  const bool plausible = d.matrix().allFinite() && gap.translation().norm() <= p_.max_imu_prediction_gap_m &&
+                         geometry::rotation_angle(gap.rotation()) <= p_.max_imu_prediction_gap_rad;
   if (!plausible) {
     ++stats.imu_predictions_rejected;
     return std::nullopt;
   }
   ++stats.imu_predictions;
-  if (imu_deskew_) {
+  if (p_.imu_deskew) {
     const ImuState next = window_->predict(pre);
     const Eigen::Matrix3d Rt = next.q.toRotationMatrix().transpose();
     out.imu_start = ImuStart{Rt * next.v, Rt * window_->gravity()};
@@ -60,9 +53,9 @@ void MotionPredictor::record_motion(const Eigen::Isometry3d& delta, double dt) {
 
 void MotionPredictor::update_window(int64_t stamp_ns, const Eigen::Isometry3d& T, const odometry::RegistrationOutput& reg,
                                     std::unique_ptr<odometry::ImuPreintegration> pre, const ImuBuffer& imu, FrontendStats& stats) {
-  if (!imu_window_ || imu.empty()) return;
-  if (!window_) window_ = std::make_unique<ImuWindow>(window_params_, T_lidar_imu_);
-  const Matrix6d info = reg.converged && reg.correspondences > 0 ? Matrix6d(reg.hessian * information_scale_)
+  if (!p_.imu_window || imu.empty()) return;
+  if (!window_) window_ = std::make_unique<ImuWindow>(p_.window, p_.T_lidar_imu);
+  const Matrix6d info = reg.converged && reg.correspondences > 0 ? Matrix6d(reg.hessian * p_.information_scale)
                                                                  : Matrix6d(Matrix6d::Identity());
   const uint64_t restarts = window_->restarts();
   window_->add(stamp_ns, T, info, std::move(pre));

@@ -31,8 +31,7 @@ class AdaptiveGate {
   static constexpr double kMetresPerRadian = 10.0, kSigmas = 3.0;
 
  private:
-  odometry::RegistrationParams base_;
-  double initial_gate_m_, min_gate_m_, max_gate_m_, kernel_divisor_;
+  FrontendParams p_;
   std::deque<double> errors_;
 };
 

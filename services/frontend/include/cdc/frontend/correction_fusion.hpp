@@ -34,8 +34,7 @@ class CorrectionFusion {
   Fused fuse(const Eigen::Isometry3d& increment, const Eigen::Isometry3d& T_odom);
 
  private:
-  geometry::FusionThresholds thresholds_;
-  bool holds_tilt_;
+  FrontendParams p_;
   Eigen::Isometry3d published_ = Eigen::Isometry3d::Identity();
   std::optional<Eigen::Isometry3d> correction_;  // maps raw odometry to the corrected odometry frame
   std::optional<Eigen::Isometry3d> T_world_robot_;

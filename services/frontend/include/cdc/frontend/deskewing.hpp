@@ -66,11 +66,7 @@ class Deskewer {
   Sweep select_on_rings(std::vector<Eigen::Vector3d> cloud, const std::vector<uint16_t>& rings) const;
   Sweep select_by_neighbours(std::vector<Eigen::Vector3d> cloud) const;
 
-  double min_range_m_, max_range_m_;
-  bool deskew_;
-  double voxel_m_, normal_voxel_m_;
-  int image_columns_;
-  Eigen::Isometry3d T_lidar_imu_;
+  FrontendParams p_;
 };
 
 }  // namespace cdc::frontend

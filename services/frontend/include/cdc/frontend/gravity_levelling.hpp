@@ -33,9 +33,7 @@ class GravityLeveller {
  private:
   void observe(const Eigen::Vector3d& gravity);
 
-  bool enabled_;
-  size_t reference_sweeps_;
-  double gain_, trend_gain_;
+  FrontendParams p_;
   Eigen::Quaterniond level_ = Eigen::Quaterniond::Identity();  // map frame -> odometry frame (tilt)
   std::optional<Eigen::Vector3d> reference_, smoothed_;         // map frame, unit
   Eigen::Vector3d trend_ = Eigen::Vector3d::Zero();

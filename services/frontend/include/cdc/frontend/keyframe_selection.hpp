@@ -42,7 +42,7 @@ class KeyframeSelector {
   KeyframeOut cut(int64_t stamp_ns, const Eigen::Isometry3d& T_odom, const Eigen::Isometry3d& since,
                   const std::vector<Eigen::Vector3d>& deskewed);
 
-  double distance_m_, angle_rad_, voxel_m_, information_scale_;
+  FrontendParams p_;
   bool have_keyframe_ = false;
   uint32_t next_id_ = 0;
   Eigen::Isometry3d T_last_keyframe_ = Eigen::Isometry3d::Identity();

@@ -54,11 +54,7 @@ class MotionPredictor {
   std::optional<Eigen::Isometry3d> window_prediction(const odometry::ImuPreintegration& pre, const Eigen::Isometry3d& delta,
                                                      Prediction& out, FrontendStats& stats) const;
 
-  bool imu_window_, imu_deskew_;
-  ImuWindowParams window_params_;
-  Eigen::Isometry3d T_lidar_imu_;
-  double information_scale_;
-  double max_gap_m_, max_gap_rad_;
+  FrontendParams p_;
   std::unique_ptr<ImuWindow> window_;
   Eigen::Vector3d gyro_bias_ = Eigen::Vector3d::Zero();      // the window's latest estimate
   Eigen::Isometry3d delta_ = Eigen::Isometry3d::Identity();  // the last motion between sweeps
