@@ -46,8 +46,8 @@ double fraction_near(const std::vector<Eigen::Vector3f>& cloud, const std::vecto
 
 // A robot that starts its odometry at speed (a robot of a split KITTI drive): its first sweep's motion
 // is unknown when it is taken, so its keyframe goes out with the second sweep, deskewed by the motion
-// that sweep tells (sent at once, its cloud was smeared by the metre the robot drove during the sweep,
-// and loops verified against it were off by half a metre on simulated KITTI 09).
+// that sweep tells (sent at once, its cloud is smeared by the metre the robot drives during the sweep,
+// and loops verified against it are off by half a metre on simulated KITTI 09).
 TEST(Frontend, TheFirstKeyframeOfARobotStartingAtSpeedIsDeskewed) {
   Drive d(10.0, 0.3, 8.0);
   FrontendParams params;

@@ -73,26 +73,23 @@ struct FrontendParams {
   // the IMU's preintegration).
   double information_scale = 20.0;
   // Registration Hessian -> information of the keyframes' relative odometry (the back-end's odometry
-  // factors). Measured against the ground truth on the simulated KITTI 05 split with a miscalibrated
-  // LiDAR: the window's 20 gave per-keyframe sigmas of 16-37 mm and 0.02-0.19 deg, 4-8 times the
-  // actual errors (1.5-7.5 mm, 0.004-0.054 deg), so loops outweighed an odometry better than they
-  // are. 200 keeps them on the safe side (sigmas 1.5-3 times the errors).
+  // factors). 200 keeps the per-keyframe sigmas on the safe side of the errors measured against the
+  // ground truth (1.5-3 times them); the window's 20 makes them 4-8 times the errors, and loops then
+  // outweigh an odometry better than they are (tests/bench/README.md).
   double keyframe_information_scale = 200.0;
   geometry::FusionThresholds fusion{0.10, 1.0 * M_PI / 180.0};
   // With the odometry levelled with gravity, a back-end correction turns it only about its vertical
   // axis (the odometry frame's z); its roll and pitch stay the front-end's, which gravity observes
   // and a loop's registration only weakly. The corrected keyframe's position is taken whole. A
-  // correction's tilt, applied to every later scan, moved the height by the tilt times the distance
-  // driven since the keyframe (up to 16 cm within 20 s on the simulated KITTI 05 split).
+  // correction's tilt, applied to every later scan, moves the height by the tilt times the distance
+  // driven since the keyframe.
   bool correction_holds_tilt = true;
   Eigen::Isometry3d T_lidar_imu = Eigen::Isometry3d::Identity();  // extrinsic (IMU frame -> LiDAR frame)
   bool imu_window = true;                         // sliding-window IMU estimation when there is IMU
   // Deskew with the IMU's whole motion over the sweep (translation from the window's velocity, no
   // second deskew after registration) instead of its rotation with the translation of constant
   // velocity, deskewed again with the registered motion. Off: on the simulated KITTI 05 drive the
-  // IMU's motion is the truer one (0.2 mm against 9 mm at the sweep's end from the true start
-  // velocity), yet the odometry comes out slightly worse (ATE 0.29 against 0.27 m with VLP-16, 0.03
-  // against 0.02 m with HDL-64E; drift alike), and 40-50 % faster.
+  // IMU's motion is the truer one, yet the odometry comes out slightly worse (tests/bench/README.md).
   bool imu_deskew = false;
   // Levelling with gravity (LiDAR-inertial): registration, the map and the IMU window live in the
   // map's own frame, whose roll and pitch can drift (a LiDAR with miscalibrated beam elevations sees

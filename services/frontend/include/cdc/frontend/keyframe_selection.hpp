@@ -3,8 +3,9 @@
 // an information matrix (the inverse of the registrations' covariances in between, each the
 // inverse of its Hessian times keyframe_information_scale), and its deskewed cloud
 // (keyframe_voxel_m voxels). The first keyframe can be held back until the next sweep, when its
-// sweep's motion is known and its cloud deskewed. The poses of all keyframes are kept, for the
-// back-end's corrections.
+// sweep's motion is known and its cloud deskewed (sent at once, it carries the sweep's motion, half a
+// metre at 10 m/s, into every loop verified against it). The poses of all keyframes are kept, for
+// the back-end's corrections.
 #pragma once
 
 #include "cdc/frontend/frontend_types.hpp"
