@@ -248,11 +248,35 @@ bool ImuWindow::align_gravity() {
   return true;
 }
 
+// One solve of the window: the states and their LiDAR factors, the IMU factors between them,
+// gravity, the anchor; a solution that leaves physics behind restarts the window instead.
 void ImuWindow::optimise() {
   ceres::Problem::Options po;
   po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::Problem problem(po);
-  ceres::EigenQuaternionManifold qm;
+  ceres::EigenQuaternionManifold quaternion;
+  ceres::SphereManifold<3> sphere;
+  add_states(problem, &quaternion);
+  add_imu_factors(problem);
+  add_gravity(problem, &sphere);
+  add_anchor(problem);
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  so.max_num_iterations = p_.max_iterations;
+  so.num_threads = 1;
+  so.logging_type = ceres::SILENT;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  ++solves_;
+  if (!summary.IsSolutionUsable() || !plausible_solution()) {
+    restart();
+    return;
+  }
+  take_solution();
+}
+
+// Each state's parameter blocks (from its estimate) and its LiDAR odometry factor.
+void ImuWindow::add_states(ceres::Problem& problem, ceres::Manifold* quaternion) {
   const Eigen::Quaterniond q_il(T_imu_lidar_.rotation());
   const Eigen::Vector3d t_il = T_imu_lidar_.translation();
   for (Node& n : states_) {
@@ -261,7 +285,7 @@ void ImuWindow::optimise() {
     std::copy(n.state.v.data(), n.state.v.data() + 3, n.vbuf);
     std::copy(n.state.bg.data(), n.state.bg.data() + 3, n.bbuf);
     std::copy(n.state.ba.data(), n.state.ba.data() + 3, n.bbuf + 3);
-    problem.AddParameterBlock(n.qbuf, 4, &qm);
+    problem.AddParameterBlock(n.qbuf, 4, quaternion);
     problem.AddParameterBlock(n.pbuf, 3);
     problem.AddParameterBlock(n.vbuf, 3);
     problem.AddParameterBlock(n.bbuf, 6);
@@ -269,6 +293,9 @@ void ImuWindow::optimise() {
                                    n.sqrt_information, q_il, t_il};
     problem.AddResidualBlock(new ceres::AutoDiffCostFunction<LidarPoseFactor, 6, 4, 3>(lf), nullptr, n.qbuf, n.pbuf);
   }
+}
+
+void ImuWindow::add_imu_factors(ceres::Problem& problem) {
   for (size_t k = 1; k < states_.size(); ++k) {
     Node& a = states_[k - 1];
     Node& b = states_[k];
@@ -276,22 +303,26 @@ void ImuWindow::optimise() {
     problem.AddResidualBlock(new ceres::AutoDiffCostFunction<ImuFactor, 15, 4, 3, 3, 6, 4, 3, 3, 6, 3>(f), nullptr, a.qbuf, a.pbuf,
                              a.vbuf, a.bbuf, b.qbuf, b.pbuf, b.vbuf, b.bbuf, gbuf);
   }
-  // Gravity: its direction refined in every window (its norm held) and drawn to its last estimate,
-  // so the evidence of all windows accumulates; held outright when refinement is off.
+}
+
+// Gravity: its direction refined in every window (its norm held) and drawn to its last estimate,
+// so the evidence of all windows accumulates; held outright when refinement is off.
+void ImuWindow::add_gravity(ceres::Problem& problem, ceres::Manifold* sphere) {
   std::copy(g_.data(), g_.data() + 3, gbuf);
-  ceres::SphereManifold<3> sphere;
-  if (states_.size() > 1) {
-    if (p_.refine_gravity) {
-      problem.SetManifold(gbuf, &sphere);
-      problem.AddResidualBlock(
-          new ceres::AutoDiffCostFunction<VectorPrior<3>, 3, 3>(new VectorPrior<3>{g_, Eigen::Vector3d::Constant(1.0 / p_.gravity_prior_sigma)}),
-          nullptr, gbuf);
-    } else {
-      problem.SetParameterBlockConstant(gbuf);
-    }
+  if (states_.size() <= 1) return;
+  if (!p_.refine_gravity) {
+    problem.SetParameterBlockConstant(gbuf);
+    return;
   }
-  // The anchor: the oldest state's pose held, its velocity and biases at their last estimate, and
-  // the biases near zero at a MEMS IMU's scale.
+  problem.SetManifold(gbuf, sphere);
+  problem.AddResidualBlock(
+      new ceres::AutoDiffCostFunction<VectorPrior<3>, 3, 3>(new VectorPrior<3>{g_, Eigen::Vector3d::Constant(1.0 / p_.gravity_prior_sigma)}),
+      nullptr, gbuf);
+}
+
+// The anchor: the oldest state's pose held, its velocity and biases at their last estimate, and
+// the biases near zero at a MEMS IMU's scale.
+void ImuWindow::add_anchor(ceres::Problem& problem) {
   Node& first = states_.front();
   using P3 = VectorPrior<3>;
   using P6 = VectorPrior<6>;
@@ -309,33 +340,26 @@ void ImuWindow::optimise() {
   }
   problem.SetParameterBlockConstant(first.qbuf);
   problem.SetParameterBlockConstant(first.pbuf);
+}
 
-  ceres::Solver::Options so;
-  so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-  so.max_num_iterations = p_.max_iterations;
-  so.num_threads = 1;
-  so.logging_type = ceres::SILENT;
-  ceres::Solver::Summary summary;
-  ceres::Solve(so, &problem, &summary);
-  ++solves_;
-  // A solution that leaves physics behind (non-finite, implausible biases, a velocity far from the
-  // LiDAR's) is not taken: the window starts again from the latest sweep.
-  bool bad = !summary.IsSolutionUsable();
-  for (size_t k = 0; k < states_.size() && !bad; ++k) {
+// A solution within physics: finite, biases within their limits, each velocity near the LiDAR's.
+bool ImuWindow::plausible_solution() const {
+  for (size_t k = 0; k < states_.size(); ++k) {
     const Node& n = states_[k];
     const Eigen::Map<const Eigen::Vector3d> v(n.vbuf), bg(n.bbuf), ba(n.bbuf + 3);
-    bad = !Eigen::Map<const Eigen::Vector4d>(n.qbuf).allFinite() || !Eigen::Map<const Eigen::Vector3d>(n.pbuf).allFinite() ||
-          !v.allFinite() || !bg.allFinite() || !ba.allFinite() || bg.norm() > p_.max_gyro_bias || ba.norm() > p_.max_accel_bias;
-    if (!bad && k > 0) {
+    const bool finite = Eigen::Map<const Eigen::Vector4d>(n.qbuf).allFinite() && Eigen::Map<const Eigen::Vector3d>(n.pbuf).allFinite() &&
+                        v.allFinite() && bg.allFinite() && ba.allFinite();
+    if (!finite || bg.norm() > p_.max_gyro_bias || ba.norm() > p_.max_accel_bias) return false;
+    if (k > 0) {
       const Node& a = states_[k - 1];
       const Eigen::Vector3d v_lidar = (n.state.p - a.state.p) / std::max(n.preint->dt(), 1e-3);
-      bad = (v - v_lidar).norm() > 2.0 + 0.5 * v_lidar.norm();
+      if ((v - v_lidar).norm() > 2.0 + 0.5 * v_lidar.norm()) return false;
     }
   }
-  if (bad) {
-    restart();
-    return;
-  }
+  return true;
+}
+
+void ImuWindow::take_solution() {
   if (states_.size() > 1 && p_.refine_gravity) g_ = Eigen::Vector3d(gbuf[0], gbuf[1], gbuf[2]).normalized() * p_.gravity;
   for (Node& n : states_) {
     n.state.q = Eigen::Quaterniond(n.qbuf[3], n.qbuf[0], n.qbuf[1], n.qbuf[2]).normalized();

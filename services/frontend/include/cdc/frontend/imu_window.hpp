@@ -27,6 +27,11 @@
 #include <memory>
 #include <vector>
 
+namespace ceres {
+class Manifold;
+class Problem;
+}  // namespace ceres
+
 namespace cdc::frontend {
 
 struct ImuState {
@@ -97,6 +102,12 @@ class ImuWindow {
   };
   bool align_gravity();
   void optimise();
+  void add_states(ceres::Problem& problem, ceres::Manifold* quaternion);
+  void add_imu_factors(ceres::Problem& problem);
+  void add_gravity(ceres::Problem& problem, ceres::Manifold* sphere);
+  void add_anchor(ceres::Problem& problem);
+  bool plausible_solution() const;
+  void take_solution();
   void start_over();  // empties the window (gravity stays known), counted as a restart
   void restart();     // starts over from the latest sweep
 
