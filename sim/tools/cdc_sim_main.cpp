@@ -1,11 +1,11 @@
 // cdc-sim: the swarm simulator's command-line tool.
 #include "cdc/config/reader.hpp"
-#include "cdc/sim/lidar.hpp"
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/shutdown.hpp"
+#include "cdc/sim/lidar.hpp"
+#include "cdc/sim/world.hpp"
 #include "player.hpp"
 #include "scenario.hpp"
-#include "cdc/sim/world.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -58,7 +58,8 @@ int bench(int sweeps) {
     const auto t0 = std::chrono::steady_clock::now();
     for (int k = 0; k < sweeps; ++k) {
       const double s0 = 1.0 * k;  // 1 m per sweep (10 m/s at 10 Hz)
-      const auto pts = cdc::sim::sweep(world, model, [&](double t) { return pose_on(path, s0 + 10.0 * t); }, rng);
+      const auto pts = cdc::sim::sweep(
+          world, model, [&](double t) { return pose_on(path, s0 + 10.0 * t); }, rng);
       points += pts.size();
     }
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -134,7 +135,8 @@ int main(int argc, char** argv) {
     if (play->parsed()) {
       po.domain = domain >= 0 ? static_cast<uint32_t>(domain) : cdc::dds::domain_from_env(0);
       const auto sum = cdc::sim::play_dataset(dataset_dir, po);
-      std::printf("played %zu scans, %zu IMU samples, %zu radio states\n", sum.scans, sum.imu_samples, sum.radio_states);
+      std::printf("played %zu scans, %zu IMU samples, %zu radio states\n", sum.scans, sum.imu_samples,
+                  sum.radio_states);
       return 0;
     }
     const cdc::sim::Scenario sc = cdc::sim::load_scenario(scenario_path);
@@ -151,8 +153,8 @@ int main(int argc, char** argv) {
     }
     const auto t0 = std::chrono::steady_clock::now();
     const auto sum = cdc::sim::generate_dataset(sc, scenario_path, out_dir, go);
-    std::printf("%s: %zu robots, %zu scans, %zu points, %zu out-of-range periods, %.1f s\n", out_dir.c_str(), sum.robots,
-                sum.scans, sum.points, sum.out_of_range_periods,
+    std::printf("%s: %zu robots, %zu scans, %zu points, %zu out-of-range periods, %.1f s\n", out_dir.c_str(),
+                sum.robots, sum.scans, sum.points, sum.out_of_range_periods,
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     return 0;
   } catch (const cdc::config::ConfigError& e) {

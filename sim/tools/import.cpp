@@ -51,8 +51,8 @@ std::vector<OutOfRangePeriod> read_periods(const fs::path& p, const std::set<uin
       throw io::FormatError(p.string() + ":" + std::to_string(n) + ": expected a,b,start,end (node ids, seconds)");
     }
     if (nodes.count(o.a) == 0 || nodes.count(o.b) == 0 || o.a == o.b) {
-      throw io::FormatError(p.string() + ":" + std::to_string(n) + ": nodes " + std::to_string(o.a) + "," + std::to_string(o.b) +
-                            " are not two of this run's robots or its central");
+      throw io::FormatError(p.string() + ":" + std::to_string(n) + ": nodes " + std::to_string(o.a) + "," +
+                            std::to_string(o.b) + " are not two of this run's robots or its central");
     }
     if (!(o.end > o.start)) throw io::FormatError(p.string() + ":" + std::to_string(n) + ": end must be after start");
     if (o.a > o.b) std::swap(o.a, o.b);
@@ -148,7 +148,8 @@ Recording kitti_recording(const fs::path& dir, const io::KittiSequenceOptions& o
                        static_cast<double>(seq.stamps_ns.size() - 1);
   }
   r.notes.push_back(std::to_string(seq.sweeps.size()) + " sweeps, frames " + std::to_string(seq.frames.front()) + ".." +
-                    std::to_string(seq.frames.back()) + (seq.times_from_file ? ", times from the times file" : ", times from the period"));
+                    std::to_string(seq.frames.back()) +
+                    (seq.times_from_file ? ", times from the times file" : ", times from the period"));
   return r;
 }
 
@@ -158,13 +159,16 @@ void attach_poses(Recording& r, const fs::path& poses, const std::string& kind) 
   if (format == geometry::TrajectoryFormat::kKitti) {
     r.poses = geometry::read_kitti(poses.string(), &r.stamps_ns);
     if (r.poses.size() != r.size()) {
-      throw io::FormatError(poses.string() + ": " + std::to_string(r.poses.size()) + " poses for " + std::to_string(r.size()) + " sweeps");
+      throw io::FormatError(poses.string() + ": " + std::to_string(r.poses.size()) + " poses for " +
+                            std::to_string(r.size()) + " sweeps");
     }
   } else {
     const geometry::Trajectory tum = geometry::read_tum(poses.string());
     for (const int64_t t : r.stamps_ns) {
       const auto p = geometry::interpolate_at(tum, t);
-      if (!p) throw io::FormatError(poses.string() + ": no pose at the sweep time " + std::to_string(static_cast<double>(t) * 1e-9) + " s");
+      if (!p)
+        throw io::FormatError(poses.string() + ": no pose at the sweep time " +
+                              std::to_string(static_cast<double>(t) * 1e-9) + " s");
       r.poses.push_back({t, *p});
     }
   }
@@ -188,7 +192,8 @@ Recording sweep_folder_recording(const fs::path& dir, const SweepFolderOptions& 
   bool numbered = true;
   for (const auto& f : files) {
     const std::string stem = f.stem().string();
-    numbered = numbered && !stem.empty() && std::all_of(stem.begin(), stem.end(), [](char c) { return c >= '0' && c <= '9'; });
+    numbered =
+        numbered && !stem.empty() && std::all_of(stem.begin(), stem.end(), [](char c) { return c >= '0' && c <= '9'; });
   }
   if (numbered) {
     const auto first = std::stoull(files.front().stem().string());
@@ -208,23 +213,28 @@ Recording sweep_folder_recording(const fs::path& dir, const SweepFolderOptions& 
   if (!times.empty()) {
     const std::vector<int64_t> t = geometry::read_times(times.string());
     if (t.size() != files.size()) {
-      throw io::FormatError(times.string() + ": " + std::to_string(t.size()) + " times for " + std::to_string(files.size()) + " sweeps");
+      throw io::FormatError(times.string() + ": " + std::to_string(t.size()) + " times for " +
+                            std::to_string(files.size()) + " sweeps");
     }
     r.stamps_ns = t;
     for (size_t i = 1; i < t.size(); ++i) {
-      if (t[i] <= t[i - 1]) throw io::FormatError(times.string() + ":" + std::to_string(i + 1) + ": time does not increase");
+      if (t[i] <= t[i - 1])
+        throw io::FormatError(times.string() + ":" + std::to_string(i + 1) + ": time does not increase");
     }
-    if (t.size() > 1) r.sweep_period_s = static_cast<double>(t.back() - t.front()) * 1e-9 / static_cast<double>(t.size() - 1);
+    if (t.size() > 1)
+      r.sweep_period_s = static_cast<double>(t.back() - t.front()) * 1e-9 / static_cast<double>(t.size() - 1);
     r.notes.push_back("times from " + times.string());
   } else {
-    for (size_t i = 0; i < files.size(); ++i) r.stamps_ns.push_back(static_cast<int64_t>(std::llround(static_cast<double>(i) * o.period_s * 1e9)));
+    for (size_t i = 0; i < files.size(); ++i)
+      r.stamps_ns.push_back(static_cast<int64_t>(std::llround(static_cast<double>(i) * o.period_s * 1e9)));
     r.notes.push_back("times from the period (" + std::to_string(o.period_s) + " s)");
   }
   if (!o.poses.empty()) attach_poses(r, o.poses, o.poses_kind);
   // The first sweep tells which fields the folder's sweeps have.
   const io::Sweep first = io::read_cloud_file(files.front());
   r.point_times = first.has_time ? io::PointTimes::kSensor : io::PointTimes::kNone;
-  r.notes.push_back(first.has_time ? "sweeps carry per-point times" : "sweeps carry no per-point times: taken as motion-compensated");
+  r.notes.push_back(first.has_time ? "sweeps carry per-point times"
+                                   : "sweeps carry no per-point times: taken as motion-compensated");
   return r;
 }
 
@@ -233,7 +243,8 @@ Recording bag_recording(const fs::path& bag_path, const BagImportOptions& o, con
   const std::string name = bag_path.string();
   const std::vector<io::BagTopic> topics = bag->topics();
   const std::string kCloud(io::kPointCloud2Type), kScan(io::kVelodyneScanType), kImu(io::kImuType);
-  const std::string lidar = pick_topic(topics, o.lidar_topic, {kCloud, kScan}, "LiDAR (PointCloud2 or VelodyneScan)", name);
+  const std::string lidar =
+      pick_topic(topics, o.lidar_topic, {kCloud, kScan}, "LiDAR (PointCloud2 or VelodyneScan)", name);
   if (lidar.empty()) throw io::FormatError(name + ": no PointCloud2 or VelodyneScan topic");
   const std::string imu = o.imu_topic == "none" ? std::string() : pick_topic(topics, o.imu_topic, {kImu}, "Imu", name);
   std::string lidar_type;
@@ -282,7 +293,8 @@ Recording bag_recording(const fs::path& bag_path, const BagImportOptions& o, con
       calib = io::read_velodyne_calibration(o.velodyne_calibration, d.model);
     } else if (d.model) {
       calib = io::default_velodyne_calibration(*d.model);
-      r.notes.push_back("Velodyne: the built-in " + std::string(io::to_string(*d.model)) + " table (give the unit's --calibration)");
+      r.notes.push_back("Velodyne: the built-in " + std::string(io::to_string(*d.model)) +
+                        " table (give the unit's --calibration)");
     } else {
       throw std::invalid_argument(name + ": VelodyneScan packets need the sensor's --calibration or its --model");
     }
@@ -335,15 +347,17 @@ Recording bag_recording(const fs::path& bag_path, const BagImportOptions& o, con
   }
   if (assembler) {
     const io::VelodyneSweepStats& st = assembler->stats();
-    r.notes.push_back("Velodyne: " + std::to_string(st.packets) + " packets, " + std::to_string(st.sweeps) + " sweeps, " +
-                      std::to_string(st.truncated + st.malformed) + " bad and " + std::to_string(st.out_of_order) +
-                      " out-of-order packets skipped");
+    r.notes.push_back("Velodyne: " + std::to_string(st.packets) + " packets, " + std::to_string(st.sweeps) +
+                      " sweeps, " + std::to_string(st.truncated + st.malformed) + " bad and " +
+                      std::to_string(st.out_of_order) + " out-of-order packets skipped");
     r.skipped += st.truncated + st.malformed + st.out_of_order;
   }
   for (const auto& [why, n] : reasons) {
     const auto first = first_seen.find(why);
     r.notes.push_back("skipped " + std::to_string(n) + " x" +
-                      (first != first_seen.end() ? " (first: message " + std::to_string(first->second) + " of " + name + ")" : std::string()) +
+                      (first != first_seen.end()
+                           ? " (first: message " + std::to_string(first->second) + " of " + name + ")"
+                           : std::string()) +
                       ": " + why);
   }
   if (r.stamps_ns.empty()) throw io::FormatError(name + ": no sweep could be read from " + lidar);
@@ -352,9 +366,11 @@ Recording bag_recording(const fs::path& bag_path, const BagImportOptions& o, con
   }
   r.point_times = any_time ? io::PointTimes::kSensor : io::PointTimes::kNone;
   if (!any_time) r.meta_files.clear();
-  r.notes.push_back(std::to_string(r.size()) + " sweeps from " + lidar + (any_time ? " with per-point times" : ", no per-point times (taken as motion-compensated)"));
+  r.notes.push_back(std::to_string(r.size()) + " sweeps from " + lidar +
+                    (any_time ? " with per-point times" : ", no per-point times (taken as motion-compensated)"));
   if (r.size() > 1) {
-    r.sweep_period_s = static_cast<double>(r.stamps_ns.back() - r.stamps_ns.front()) * 1e-9 / static_cast<double>(r.size() - 1);
+    r.sweep_period_s =
+        static_cast<double>(r.stamps_ns.back() - r.stamps_ns.front()) * 1e-9 / static_cast<double>(r.size() - 1);
   }
   if (!r.imu.empty()) {
     r.notes.push_back(std::to_string(r.imu.size()) + " IMU samples from " + imu +
@@ -422,7 +438,8 @@ ImportSummary write_import(const Recording& rec, const ImportOptions& o) {
   info.poses = rec.poses_kind;
   info.central_id = o.radio.central_id;
   for (uint32_t r = 0; r < ranges.size(); ++r) {
-    if (r == o.radio.central_id) throw std::invalid_argument("the central id " + std::to_string(r) + " collides with a robot id");
+    if (r == o.radio.central_id)
+      throw std::invalid_argument("the central id " + std::to_string(r) + " collides with a robot id");
   }
   const RadioOptions& ro = o.radio.options;
   std::vector<LinkSample> timeline;
@@ -442,8 +459,9 @@ ImportSummary write_import(const Recording& rec, const ImportOptions& o) {
           l.t = t;
           l.a = *a;
           l.b = *b;
-          l.in_range = std::none_of(periods.begin(), periods.end(),
-                                    [&](const OutOfRangePeriod& p) { return p.a == *a && p.b == *b && t >= p.start && t < p.end; });
+          l.in_range = std::none_of(periods.begin(), periods.end(), [&](const OutOfRangePeriod& p) {
+            return p.a == *a && p.b == *b && t >= p.start && t < p.end;
+          });
           l.loss = l.in_range ? 0.0 : 1.0;
           timeline.push_back(l);
         }
@@ -454,8 +472,8 @@ ImportSummary write_import(const Recording& rec, const ImportOptions& o) {
     sum.notes.push_back("radio from the timeline " + o.radio.timeline.string());
   } else if (!rec.poses.empty() && with_central_range) {
     if (o.radio.central_robot >= static_cast<int>(ranges.size())) {
-      throw std::invalid_argument("the central rides on robot " + std::to_string(o.radio.central_robot) + ", but there are " +
-                                  std::to_string(ranges.size()) + " robots");
+      throw std::invalid_argument("the central rides on robot " + std::to_string(o.radio.central_robot) +
+                                  ", but there are " + std::to_string(ranges.size()) + " robots");
     }
     std::vector<RadioNode> nodes;
     const double robot_range = o.radio.robot_range_m > 0 ? o.radio.robot_range_m : o.radio.central_range_m;
@@ -473,14 +491,17 @@ ImportSummary write_import(const Recording& rec, const ImportOptions& o) {
     timeline = radio_timeline(nodes, t0, t1, ro);
     periods = out_of_range_periods(timeline);
     info.radio = "reference_poses";
-    sum.notes.push_back("radio from the " + rec.poses_kind + " poses: central range " + std::to_string(o.radio.central_range_m) + " m");
+    sum.notes.push_back("radio from the " + rec.poses_kind + " poses: central range " +
+                        std::to_string(o.radio.central_range_m) + " m");
   } else {
     if (ranges.size() > 1 && !rec.poses.empty()) {
-      throw std::invalid_argument("several robots with poses: give the central's range (--central-range) or a radio timeline");
+      throw std::invalid_argument(
+          "several robots with poses: give the central's range (--central-range) or a radio timeline");
     }
     // No radio information: every link in range for the whole run.
     std::vector<RadioNode> nodes;
-    for (size_t k = 0; k < ranges.size(); ++k) nodes.push_back({static_cast<uint32_t>(k), 1.0, [](double) { return Eigen::Vector3d::Zero(); }});
+    for (size_t k = 0; k < ranges.size(); ++k)
+      nodes.push_back({static_cast<uint32_t>(k), 1.0, [](double) { return Eigen::Vector3d::Zero(); }});
     nodes.push_back({o.radio.central_id, 1.0, [](double) { return Eigen::Vector3d::Zero(); }});
     timeline = radio_timeline(nodes, t0, t1, ro);
     info.radio = "none";

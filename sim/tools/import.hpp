@@ -21,42 +21,42 @@ namespace cdc::sim {
 // follow the true distances as in a simulated run; without, an out-of-range timeline file gives them;
 // with neither, every link stays in range.
 struct ImportRadio {
-  int central_robot = 0;                          // the central rides on this robot; -1: fixed position
+  int central_robot = 0;  // the central rides on this robot; -1: fixed position
   Eigen::Vector3d central_position = Eigen::Vector3d::Zero();
   uint32_t central_id = 200;
-  double central_range_m = 0;                     // CR_0; 0: not given (required with poses and several robots)
-  double robot_range_m = 0;                       // 0: the central's range
+  double central_range_m = 0;  // CR_0; 0: not given (required with poses and several robots)
+  double robot_range_m = 0;    // 0: the central's range
   RadioOptions options;
-  std::filesystem::path timeline;                 // CSV a,b,start,end [s] of out-of-range periods
+  std::filesystem::path timeline;  // CSV a,b,start,end [s] of out-of-range periods
 };
 
 struct ImportOptions {
   std::filesystem::path out;
   bool overwrite = false;
-  std::string name;                 // dataset name (default: the output folder's name)
-  int robots = 1;                   // split into this many simultaneously driving robots (the paper's protocol)
-  double overlap = 0.15;            // fraction of a piece shared with the next
-  double time_shift_s = 0;          // robot k starts k * time_shift_s after robot 0
-  size_t max_scans = 0;             // per robot; 0: all
+  std::string name;         // dataset name (default: the output folder's name)
+  int robots = 1;           // split into this many simultaneously driving robots (the paper's protocol)
+  double overlap = 0.15;    // fraction of a piece shared with the next
+  double time_shift_s = 0;  // robot k starts k * time_shift_s after robot 0
+  size_t max_scans = 0;     // per robot; 0: all
   ImportRadio radio;
 };
 
 struct ImportSummary {
   io::DatasetInfo info;
-  size_t skipped = 0;               // input items skipped (counted, each reported on stderr by the tool)
-  std::vector<std::string> notes;   // what the importer decided (point times, radio source, ...)
+  size_t skipped = 0;              // input items skipped (counted, each reported on stderr by the tool)
+  std::vector<std::string> notes;  // what the importer decided (point times, radio source, ...)
 };
 
 // One recording as a sequence of sweeps on one sensor, before splitting.
 struct Recording {
-  std::string source;                                    // kitti | sweeps | rosbag1 | rosbag2
-  std::vector<int64_t> stamps_ns;                        // per sweep
-  std::vector<std::filesystem::path> files;              // per sweep, when sweeps are files
-  std::vector<std::filesystem::path> meta_files;         // per sweep, beside files, when sweeps carry times
-  std::shared_ptr<void> scratch;                         // keeps a temporary folder of extracted sweeps alive
-  geometry::Trajectory poses;                            // per sweep (LiDAR in the world), or empty
-  std::string poses_kind = "none";                       // ground_truth | reference | none
-  std::vector<io::DatasetImu> imu;                       // the recording's IMU, or empty
+  std::string source;                             // kitti | sweeps | rosbag1 | rosbag2
+  std::vector<int64_t> stamps_ns;                 // per sweep
+  std::vector<std::filesystem::path> files;       // per sweep, when sweeps are files
+  std::vector<std::filesystem::path> meta_files;  // per sweep, beside files, when sweeps carry times
+  std::shared_ptr<void> scratch;                  // keeps a temporary folder of extracted sweeps alive
+  geometry::Trajectory poses;                     // per sweep (LiDAR in the world), or empty
+  std::string poses_kind = "none";                // ground_truth | reference | none
+  std::vector<io::DatasetImu> imu;                // the recording's IMU, or empty
   Eigen::Isometry3d T_lidar_imu = Eigen::Isometry3d::Identity();
   io::PointTimes point_times = io::PointTimes::kNone;
   double sweep_period_s = 0.1;
@@ -77,8 +77,8 @@ Recording kitti_recording(const std::filesystem::path& dir, const io::KittiSeque
 // the period) and optional poses (3x4 KITTI lines in the LiDAR frame, or TUM). Missing numbered sweeps are
 // an error.
 struct SweepFolderOptions {
-  std::filesystem::path times;   // default DIR/times.txt, else index * period
-  std::filesystem::path poses;   // KITTI 3x4 (LiDAR frame) or TUM, detected by its columns
+  std::filesystem::path times;  // default DIR/times.txt, else index * period
+  std::filesystem::path poses;  // KITTI 3x4 (LiDAR frame) or TUM, detected by its columns
   std::string poses_kind = "reference";
   double period_s = 0.1;
 };
@@ -94,10 +94,11 @@ void attach_poses(Recording& recording, const std::filesystem::path& poses, cons
 // output) and written from there. A message that does not decode is skipped and counted (the first few
 // reasons in the notes); a damaged bag, a topic of another type or no decodable sweep at all is an error.
 struct BagImportOptions {
-  std::string lidar_topic;          // default: the bag's only PointCloud2 or VelodyneScan topic
-  std::string imu_topic;            // default: the bag's only Imu topic; "none": ignore the IMU
+  std::string lidar_topic;                     // default: the bag's only PointCloud2 or VelodyneScan topic
+  std::string imu_topic;                       // default: the bag's only Imu topic; "none": ignore the IMU
   std::filesystem::path velodyne_calibration;  // VelodyneScan: the sensor's calibration (default: built-in table)
-  std::string velodyne_model;       // VelodyneScan: VLP16, VLP32C, HDL32E, HDL64E (S2), HDL64E_S3, VLS128 (default: from the packets)
+  std::string velodyne_model;  // VelodyneScan: VLP16, VLP32C, HDL32E, HDL64E (S2), HDL64E_S3, VLS128 (default: from the
+                               // packets)
   double velodyne_scan_phase_deg = 0;  // where a Velodyne sweep is cut
   double min_range_m = 0.4, max_range_m = 200;
   Eigen::Isometry3d T_lidar_imu = Eigen::Isometry3d::Identity();

@@ -140,7 +140,8 @@ class Publisher {
       start_ = std::chrono::steady_clock::now();
       first_stamp_ = stamp_ns;
     }
-    const auto due = *start_ + std::chrono::nanoseconds(static_cast<int64_t>(static_cast<double>(stamp_ns - first_stamp_) / o_.rate));
+    const auto due = *start_ + std::chrono::nanoseconds(
+                                   static_cast<int64_t>(static_cast<double>(stamp_ns - first_stamp_) / o_.rate));
     std::this_thread::sleep_until(due);
   }
 
@@ -155,6 +156,7 @@ class Publisher {
   dds::Writer<cdc_msg_ImuBatch> w_imu_;
   dds::Writer<cdc_msg_GroundTruth> w_gt_;
   dds::Reader<cdc_msg_ConsumerProgress> r_progress_;
+
  public:
   // Publishes the radio links of one timeline instant.
   void publish_radio(int64_t stamp_ns, std::vector<cdc_msg_RadioLink>& links) {
@@ -176,7 +178,8 @@ class Publisher {
 
 std::vector<cdc_msg_ImuSample> read_imu(const fs::path& p) {
   std::vector<cdc_msg_ImuSample> out;
-  for (const DatasetImu& m : io::read_dataset_imu(p)) out.push_back(cdc_msg_ImuSample{m.stamp_ns, dds::to_msg(m.accel), dds::to_msg(m.gyro)});
+  for (const DatasetImu& m : io::read_dataset_imu(p))
+    out.push_back(cdc_msg_ImuSample{m.stamp_ns, dds::to_msg(m.accel), dds::to_msg(m.gyro)});
   return out;
 }
 
@@ -202,7 +205,8 @@ std::vector<std::pair<int64_t, std::vector<cdc_msg_RadioLink>>> read_radio(const
     if (out.empty() || out.back().first != ns) {
       out.push_back({ns, {}});
     }
-    out.back().second.push_back(cdc_msg_RadioLink{a, b, in_range != 0, static_cast<float>(dist), static_cast<float>(loss)});
+    out.back().second.push_back(
+        cdc_msg_RadioLink{a, b, in_range != 0, static_cast<float>(dist), static_cast<float>(loss)});
   }
   return out;
 }
@@ -230,13 +234,15 @@ PlaySummary play_dataset(const std::string& dir, const PlayOptions& o) {
   options.sweep_duration_ns = static_cast<int64_t>(std::llround(info.sweep_period_s * 1e9));
   std::vector<ScanRef> scans = list_dataset_scans(dir, o.max_scans);
   if (o.only_robot >= 0) {
-    scans.erase(std::remove_if(scans.begin(), scans.end(), [&](const ScanRef& s) { return s.robot != static_cast<uint32_t>(o.only_robot); }),
+    scans.erase(std::remove_if(scans.begin(), scans.end(),
+                               [&](const ScanRef& s) { return s.robot != static_cast<uint32_t>(o.only_robot); }),
                 scans.end());
     if (scans.empty()) throw std::runtime_error(dir + ": no scans of robot " + std::to_string(o.only_robot));
   }
   std::map<uint32_t, std::vector<cdc_msg_ImuSample>> imu;
   for (const ScanRef& s : scans) {
-    if (imu.count(s.robot) == 0) imu[s.robot] = read_imu(fs::path(dir) / ("robot_" + std::to_string(s.robot)) / "imu.csv");
+    if (imu.count(s.robot) == 0)
+      imu[s.robot] = read_imu(fs::path(dir) / ("robot_" + std::to_string(s.robot)) / "imu.csv");
   }
   auto radio = read_radio(fs::path(dir) / "radio.csv");
   size_t radio_next = 0;

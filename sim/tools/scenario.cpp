@@ -7,8 +7,8 @@
 #include "cdc/sim/trajectory.hpp"
 
 #include <cmath>
-#include <cstring>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -54,50 +54,65 @@ Scenario load_scenario(const std::string& path) {
   auto pos = [](const double& v) { return v > 0; };
   r.get<std::string>("name", s.name);
   r.get<uint64_t>("seed", s.seed);
-  r.get<std::string>("trajectories.source", s.source,
-                     [](const std::string& v) { return v == "kitti" || v == "procedural"; }, "kitti or procedural");
+  r.get<std::string>(
+      "trajectories.source", s.source, [](const std::string& v) { return v == "kitti" || v == "procedural"; },
+      "kitti or procedural");
   r.get<std::string>("trajectories.sequence", s.kitti_sequence);
   r.get<std::string>("trajectories.calib_key", s.calib_key);
-  r.get<int>("trajectories.robots", s.robots, [](const int& v) { return v >= 1 && v <= 64; }, "1..64");
-  r.get<double>("trajectories.overlap", s.overlap, [](const double& v) { return v >= 0 && v < 1; }, "[0, 1)");
-  r.get<double>("trajectories.time_shift_s", s.time_shift_s, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get<int>(
+      "trajectories.robots", s.robots, [](const int& v) { return v >= 1 && v <= 64; }, "1..64");
+  r.get<double>(
+      "trajectories.overlap", s.overlap, [](const double& v) { return v >= 0 && v < 1; }, "[0, 1)");
+  r.get<double>(
+      "trajectories.time_shift_s", s.time_shift_s, [](const double& v) { return v >= 0; }, ">= 0");
   std::string pattern = "rays";
-  r.get<std::string>("trajectories.pattern", pattern, [](const std::string& v) { return parse_pattern(v).has_value(); },
-                     "rays, loops or crossing");
+  r.get<std::string>(
+      "trajectories.pattern", pattern, [](const std::string& v) { return parse_pattern(v).has_value(); },
+      "rays, loops or crossing");
   s.mission.pattern = parse_pattern(pattern).value_or(MissionPattern::kRays);
   r.get<double>("trajectories.speed_mps", s.mission.speed_mps, pos, "> 0");
   r.get<double>("trajectories.size_m", s.mission.size_m, pos, "> 0");
   r.get<double>("trajectories.duration_s", s.mission.duration_s, pos, "> 0");
   s.mission.robots = s.robots;
-  r.get<std::string>("lidar", s.lidar, [](const std::string& v) { return v == "vlp16" || v == "hdl64"; }, "vlp16 or hdl64");
-  r.get<double>("lidar_elevation_error_deg", s.lidar_elevation_error_deg,
-                [](const double& v) { return v >= 0 && v <= 2; }, "0..2 (degrees, sigma)");
-  r.get<double>("lidar_elevation_bias_deg", s.lidar_elevation_bias_deg,
-                [](const double& v) { return v >= -1 && v <= 1; }, "-1..1 (degrees)");
-  r.get<double>("lidar_azimuth_error_deg", s.lidar_azimuth_error_deg,
-                [](const double& v) { return v >= 0 && v <= 2; }, "0..2 (degrees, sigma)");
-  r.get<double>("lidar_range_offset_m", s.lidar_range_offset_m,
-                [](const double& v) { return v >= 0 && v <= 0.2; }, "0..0.2 (metres, sigma)");
+  r.get<std::string>(
+      "lidar", s.lidar, [](const std::string& v) { return v == "vlp16" || v == "hdl64"; }, "vlp16 or hdl64");
+  r.get<double>(
+      "lidar_elevation_error_deg", s.lidar_elevation_error_deg, [](const double& v) { return v >= 0 && v <= 2; },
+      "0..2 (degrees, sigma)");
+  r.get<double>(
+      "lidar_elevation_bias_deg", s.lidar_elevation_bias_deg, [](const double& v) { return v >= -1 && v <= 1; },
+      "-1..1 (degrees)");
+  r.get<double>(
+      "lidar_azimuth_error_deg", s.lidar_azimuth_error_deg, [](const double& v) { return v >= 0 && v <= 2; },
+      "0..2 (degrees, sigma)");
+  r.get<double>(
+      "lidar_range_offset_m", s.lidar_range_offset_m, [](const double& v) { return v >= 0 && v <= 0.2; },
+      "0..0.2 (metres, sigma)");
   r.get<bool>("lidar_per_robot", s.lidar_per_robot);
-  r.get<double>("imu_rate_hz", s.imu_rate_hz, [](const double& v) { return v >= 100 && v <= 400; }, "100..400");
-  r.get<double>("duration_s", s.duration_s, [](const double& v) { return v >= 0; }, ">= 0");
-  r.get<int>("radio.central_robot", s.central_robot, [](const int& v) { return v >= -1; }, "-1 or a robot id");
+  r.get<double>(
+      "imu_rate_hz", s.imu_rate_hz, [](const double& v) { return v >= 100 && v <= 400; }, "100..400");
+  r.get<double>(
+      "duration_s", s.duration_s, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get<int>(
+      "radio.central_robot", s.central_robot, [](const int& v) { return v >= -1; }, "-1 or a robot id");
   std::vector<double> cp{0, 0, 0};
-  r.get<std::vector<double>>("radio.central_position", cp, [](const std::vector<double>& v) { return v.size() == 3; },
-                             "[x, y, z]");
+  r.get<std::vector<double>>(
+      "radio.central_position", cp, [](const std::vector<double>& v) { return v.size() == 3; }, "[x, y, z]");
   s.central_position = Eigen::Vector3d(cp[0], cp[1], cp[2]);
   r.get<uint32_t>("radio.central_id", s.central_id);
   r.get<double>("radio.central_range_m", s.central_range_m, pos, "> 0");
   r.get<double>("radio.robot_range_m", s.robot_range_m, pos, "> 0");
-  r.get<double>("radio.loss_start_fraction", s.radio.loss_start_fraction, [](const double& v) { return v > 0 && v <= 1; },
-                "(0, 1]");
-  r.get<double>("radio.max_loss", s.radio.max_loss, [](const double& v) { return v >= 0 && v <= 1; }, "[0, 1]");
+  r.get<double>(
+      "radio.loss_start_fraction", s.radio.loss_start_fraction, [](const double& v) { return v > 0 && v <= 1; },
+      "(0, 1]");
+  r.get<double>(
+      "radio.max_loss", s.radio.max_loss, [](const double& v) { return v >= 0 && v <= 1; }, "[0, 1]");
   r.get<double>("world.clearance_m", s.world.clearance_m, pos, "> 0");
   r.get<double>("world.spacing_m", s.world.spacing_m, pos, "> 0");
   s.world.seed = s.seed;
   if (s.central_robot >= s.robots) {
-    r.error("radio.central_robot " + std::to_string(s.central_robot) + " is not one of the " + std::to_string(s.robots) +
-            " robots");
+    r.error("radio.central_robot " + std::to_string(s.central_robot) + " is not one of the " +
+            std::to_string(s.robots) + " robots");
   }
   if (s.central_id < static_cast<uint32_t>(s.robots)) {
     r.error("radio.central_id " + std::to_string(s.central_id) + " collides with a robot id");
@@ -149,7 +164,8 @@ std::vector<RadioNode> radio_nodes(const Scenario& s, const std::vector<SplineTr
   }
   if (s.central_robot >= 0) {
     const SplineTrajectory* sp = &splines[static_cast<size_t>(s.central_robot)];
-    nodes.push_back({s.central_id, s.central_range_m, [sp](double t) { return Eigen::Vector3d(sp->pose(t).translation()); }});
+    nodes.push_back(
+        {s.central_id, s.central_range_m, [sp](double t) { return Eigen::Vector3d(sp->pose(t).translation()); }});
   } else {
     const Eigen::Vector3d c = s.central_position;
     nodes.push_back({s.central_id, s.central_range_m, [c](double) { return c; }});
@@ -213,7 +229,8 @@ GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_
       }
       io::Sweep out;
       out.has_time = out.has_ring = out.has_intensity = true;
-      for (const auto& p : sweep(world, model, [&](double tau) { return sp.pose(t + tau); }, rng)) {
+      for (const auto& p : sweep(
+               world, model, [&](double tau) { return sp.pose(t + tau); }, rng)) {
         out.points.push_back({p.x, p.y, p.z, p.intensity, p.time_offset, p.ring});
       }
       const auto stamp = static_cast<int64_t>(std::llround(t * 1e9));
@@ -227,7 +244,8 @@ GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_
     const double t_imu_start = t_first - 0.05;
     const double t_imu_end = gt.empty() ? t_first : static_cast<double>(gt.back().stamp_ns) * 1e-9 + model.period_s();
     std::vector<io::DatasetImu> imu;
-    for (const auto& m : simulate_imu(sp, T_lidar_imu, t_imu_start, t_imu_end, s.imu_rate_hz, ImuNoise{}, s.seed * 1000 + 500 + r)) {
+    for (const auto& m :
+         simulate_imu(sp, T_lidar_imu, t_imu_start, t_imu_end, s.imu_rate_hz, ImuNoise{}, s.seed * 1000 + 500 + r)) {
       imu.push_back({static_cast<int64_t>(std::llround(m.t * 1e9)), m.accel, m.gyro});
     }
     writer.set_imu(robot, imu);
@@ -248,9 +266,11 @@ GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_
   }
   writer.set_radio(radio_csv(timeline), periods);
   char world_json[256];
-  std::snprintf(world_json, sizeof world_json, "{\"seed\": %llu, \"boxes\": %zu, \"cylinders\": %zu, \"terrain\": {\"cells\": [%d, %d], \"cell_m\": %g}}\n",
-                static_cast<unsigned long long>(s.seed), world.boxes().size(), world.cylinders().size(),
-                world.terrain().nx, world.terrain().ny, world.terrain().cell);
+  std::snprintf(
+      world_json, sizeof world_json,
+      "{\"seed\": %llu, \"boxes\": %zu, \"cylinders\": %zu, \"terrain\": {\"cells\": [%d, %d], \"cell_m\": %g}}\n",
+      static_cast<unsigned long long>(s.seed), world.boxes().size(), world.cylinders().size(), world.terrain().nx,
+      world.terrain().ny, world.terrain().cell);
   write_text(writer.partial_dir() / "world.json", world_json);
   fs::copy_file(scenario_path, writer.partial_dir() / "scenario.yaml", fs::copy_options::overwrite_existing);
   io::DatasetInfo info;

@@ -15,8 +15,8 @@ namespace cdc::sim {
 struct Scenario {
   std::string name = "scenario";
   uint64_t seed = 1;
-  std::string source = "kitti";          // kitti | procedural
-  std::string kitti_sequence = "05";     // poses file <data>/kitti/poses/<seq>.txt
+  std::string source = "kitti";       // kitti | procedural
+  std::string kitti_sequence = "05";  // poses file <data>/kitti/poses/<seq>.txt
   std::string calib_key = "Tr_04_10";
   int robots = 3;
   double overlap = 0.15;
@@ -29,11 +29,11 @@ struct Scenario {
   double lidar_range_offset_m = 0;       // sigma of each beam's (fixed, seeded) distance offset
   bool lidar_per_robot = false;          // each robot's LiDAR has calibration errors of its own (else one shared draw)
   double imu_rate_hz = 200;
-  double duration_s = 0;                 // 0: the whole trajectories
-  int central_robot = 0;                 // the central rides on this robot; -1: fixed position
+  double duration_s = 0;  // 0: the whole trajectories
+  int central_robot = 0;  // the central rides on this robot; -1: fixed position
   Eigen::Vector3d central_position = Eigen::Vector3d::Zero();
   uint32_t central_id = 200;
-  double central_range_m = 150;          // CR_0
+  double central_range_m = 150;  // CR_0
   double robot_range_m = 150;
   RadioOptions radio;
   WorldOptions world;
@@ -48,8 +48,8 @@ Scenario load_scenario(const std::string& path);
 LidarModel scenario_lidar(const Scenario& s, int robot = 0);
 
 struct GenerateOptions {
-  std::string data_dir;   // reference data (KITTI poses and calibration)
-  size_t max_scans = 0;   // per robot; 0: all
+  std::string data_dir;  // reference data (KITTI poses and calibration)
+  size_t max_scans = 0;  // per robot; 0: all
 };
 
 struct GenerateSummary {

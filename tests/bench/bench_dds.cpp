@@ -1,7 +1,8 @@
 // cdc-bench-dds: cost of moving one LiDAR sweep through the DDS layer within one process
 // (Writer::write and Reader::take of cdc/sensor/lidar, per-topic byte counting included), of
 // measuring its serialised size as the writer does (a walk over the type's instructions), and of
-// serialising it once more instead (how both sides counted before). Medians over --rounds. Needs a Cyclone configuration (CYCLONEDDS_URI or
+// serialising it once more instead (how both sides counted before). Medians over --rounds. Needs a Cyclone
+// configuration (CYCLONEDDS_URI or
 // --config); run it with deploy/cyclonedds/loopback.xml. Last output line: one JSON object.
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
@@ -11,21 +12,19 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <unistd.h>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <iostream>
 #include <string>
-#include <unistd.h>
 #include <vector>
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double ms_since(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
+double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
@@ -95,7 +94,8 @@ int main(int argc, char** argv) {
         const double dt = ms_since(t0);
         if (!s.empty()) {
           take_ms.push_back(dt);
-          s.for_each_valid([&](const cdc_msg_LidarScan& m, const dds_sample_info_t&) { taken_points += m.points._length; });
+          s.for_each_valid(
+              [&](const cdc_msg_LidarScan& m, const dds_sample_info_t&) { taken_points += m.points._length; });
           break;
         }
         if (tries > 5000) {
@@ -115,9 +115,10 @@ int main(int argc, char** argv) {
                      {"points_taken", taken_points},
                      {"bytes_per_sweep", totals.bytes_written / static_cast<uint64_t>(rounds)},
                      {"bytes_taken_equal_written", totals.bytes_taken == totals.bytes_written}};
-    std::printf("sweep of %zu points: write %.3f ms, take %.3f ms, measuring its size %.4f ms, serialising it again "
-                "%.3f ms (medians of %d)\n",
-                points, median(write_ms), median(take_ms), median(size_ms), median(serialise_ms), rounds);
+    std::printf(
+        "sweep of %zu points: write %.3f ms, take %.3f ms, measuring its size %.4f ms, serialising it again "
+        "%.3f ms (medians of %d)\n",
+        points, median(write_ms), median(take_ms), median(size_ms), median(serialise_ms), rounds);
     std::cout << j.dump() << "\n";
     return taken_points == points * static_cast<size_t>(rounds) ? 0 : 1;
   } catch (const std::exception& e) {

@@ -14,11 +14,11 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <malloc.h>
 #include <algorithm>
 #include <chrono>
-#include <malloc.h>
-#include <cstring>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -75,7 +75,8 @@ nlohmann::json memory_run(double minutes, const frontend::FrontendParams& params
   size_t n = 0;
   for (double t = traj.start(); t + 0.1 < traj.end() && t < traj.start() + minutes * 60; t += 0.1, ++n) {
     scan.clear();
-    for (const auto& p : sim::sweep(world, sim::LidarModel::vlp16(), [&](double dt) { return traj.pose(t + dt); }, rng)) {
+    for (const auto& p : sim::sweep(
+             world, sim::LidarModel::vlp16(), [&](double dt) { return traj.pose(t + dt); }, rng)) {
       scan.push_back({Eigen::Vector3f(p.x, p.y, p.z), p.time_offset, p.ring});
     }
     while (imu_next < imu.size() && imu[imu_next].t <= t + 0.1) {
@@ -86,19 +87,18 @@ nlohmann::json memory_run(double minutes, const frontend::FrontendParams& params
     if (n % 600 == 599) {
       // glibc's view: bytes in use by the program against bytes the heap holds (fragmentation).
       const struct mallinfo2 mi = mallinfo2();
-      samples.push_back({{"minute", (n + 1) / 600}, {"rss_kb", rss_kb("VmRSS:")}, {"map_voxels", core.map_voxels()},
-                         {"heap_in_use_kb", mi.uordblks / 1024}, {"heap_held_kb", (mi.arena + mi.hblkhd) / 1024}});
+      samples.push_back({{"minute", (n + 1) / 600},
+                         {"rss_kb", rss_kb("VmRSS:")},
+                         {"map_voxels", core.map_voxels()},
+                         {"heap_in_use_kb", mi.uordblks / 1024},
+                         {"heap_held_kb", (mi.arena + mi.hblkhd) / 1024}});
       std::printf("minute %zu: RSS %ld kB, %zu map voxels, heap in use %zu kB of %zu kB held\n", (n + 1) / 600,
                   rss_kb("VmRSS:"), core.map_voxels(), mi.uordblks / 1024, (mi.arena + mi.hblkhd) / 1024);
       std::fflush(stdout);
     }
   }
-  return {{"minutes", minutes},
-          {"scans", n},
-          {"imu_predictions", core.stats().imu_predictions},
-          {"rss_before_kb", before},
-          {"samples", samples},
-          {"peak_rss_kb", rss_kb("VmHWM:")}};
+  return {{"minutes", minutes},      {"scans", n},         {"imu_predictions", core.stats().imu_predictions},
+          {"rss_before_kb", before}, {"samples", samples}, {"peak_rss_kb", rss_kb("VmHWM:")}};
 }
 
 long peak_rss_kb() {
@@ -129,7 +129,8 @@ nlohmann::json run(const Setup& s, const sim::LidarModel& lidar, bool use_imu, c
   std::vector<frontend::ScanPoint> pts;
   for (double t : s.stamps) {
     pts.clear();
-    for (const auto& p : sim::sweep(s.world, lidar, [&](double dt) { return s.traj.pose(t + dt); }, rng)) {
+    for (const auto& p : sim::sweep(
+             s.world, lidar, [&](double dt) { return s.traj.pose(t + dt); }, rng)) {
       pts.push_back({Eigen::Vector3f(p.x, p.y, p.z), p.time_offset, p.ring});
     }
     const auto t_start = std::chrono::steady_clock::now();
@@ -158,12 +159,13 @@ nlohmann::json run(const Setup& s, const sim::LidarModel& lidar, bool use_imu, c
     gravity_error_deg = deg;
     gravity_text = ", gravity " + std::to_string(deg).substr(0, 5) + " deg off";
   }
-  std::printf("%-18s %zu scans: drift %.3f %% / %.4f deg/100m, ATE %.3f m, %.1f scans/s, %llu registration failures, "
-              "%.1f iterations per scan (last pass); IMU window: %llu predictions, %llu rejected, %llu restarts%s\n",
-              name.c_str(), s.stamps.size(), drift.translation_pct, drift.rotation_deg_per_100m, ate.translation.rmse, rate,
-              static_cast<unsigned long long>(st.registration_failures), iterations / static_cast<double>(s.stamps.size()),
-              static_cast<unsigned long long>(st.imu_predictions), static_cast<unsigned long long>(st.imu_predictions_rejected),
-              static_cast<unsigned long long>(st.imu_window_restarts), gravity_text.c_str());
+  std::printf(
+      "%-18s %zu scans: drift %.3f %% / %.4f deg/100m, ATE %.3f m, %.1f scans/s, %llu registration failures, "
+      "%.1f iterations per scan (last pass); IMU window: %llu predictions, %llu rejected, %llu restarts%s\n",
+      name.c_str(), s.stamps.size(), drift.translation_pct, drift.rotation_deg_per_100m, ate.translation.rmse, rate,
+      static_cast<unsigned long long>(st.registration_failures), iterations / static_cast<double>(s.stamps.size()),
+      static_cast<unsigned long long>(st.imu_predictions), static_cast<unsigned long long>(st.imu_predictions_rejected),
+      static_cast<unsigned long long>(st.imu_window_restarts), gravity_text.c_str());
   if (!out_dir.empty()) {
     std::ofstream f(std::filesystem::path(out_dir) / (name + ".txt"));
     for (size_t i = 0; i < est.size(); ++i) {
@@ -196,15 +198,19 @@ int main(int argc, char** argv) {
   app.add_option("--out", out_dir, "write per-configuration trajectories here");
   bool no_deskew = false, no_imu_window = false, imu_deskew = false, no_gravity_refinement = false, no_level = false;
   double memory_minutes = 0;
-  app.add_option("--memory-minutes", memory_minutes, "instead: a drive this long, reporting resident memory every minute");
+  app.add_option("--memory-minutes", memory_minutes,
+                 "instead: a drive this long, reporting resident memory every minute");
   app.add_flag("--no-deskew", no_deskew, "turn deskewing off (for comparison)");
-  app.add_flag("--no-imu-window", no_imu_window,
-               "predict from constant velocity and the raw gyro instead of the sliding-window IMU estimator (for comparison)");
-  app.add_flag("--imu-deskew", imu_deskew,
-               "deskew with the IMU's whole motion (translation from the window's velocity) instead of its rotation and "
-               "constant-velocity translation (for comparison)");
-  app.add_flag("--no-gravity-refinement", no_gravity_refinement,
-               "hold the IMU window's gravity at its first alignment instead of refining it in every window (for comparison)");
+  app.add_flag(
+      "--no-imu-window", no_imu_window,
+      "predict from constant velocity and the raw gyro instead of the sliding-window IMU estimator (for comparison)");
+  app.add_flag(
+      "--imu-deskew", imu_deskew,
+      "deskew with the IMU's whole motion (translation from the window's velocity) instead of its rotation and "
+      "constant-velocity translation (for comparison)");
+  app.add_flag(
+      "--no-gravity-refinement", no_gravity_refinement,
+      "hold the IMU window's gravity at its first alignment instead of refining it in every window (for comparison)");
   app.add_flag("--no-level", no_level,
                "do not level the odometry with the IMU window's gravity "
                "(roll, pitch and height then follow the map's tilt; for comparison)");

@@ -89,8 +89,9 @@ std::string format(const char* fmt, Args... args) {
 
 // One set of sweeps through a fresh core, each read from disk inside the timed span.
 std::vector<Eigen::Isometry3d> run_set(const std::vector<fs::path>& files, const std::vector<int64_t>& stamps_ns,
-                                       const frontend::FrontendParams& params, Timing& timing, frontend::FrontendStats* stats,
-                                       std::vector<double>* per_sweep_s, std::vector<ScanInfo>* info = nullptr) {
+                                       const frontend::FrontendParams& params, Timing& timing,
+                                       frontend::FrontendStats* stats, std::vector<double>* per_sweep_s,
+                                       std::vector<ScanInfo>* info = nullptr) {
   frontend::FrontendCore core(params);
   std::vector<Eigen::Isometry3d> poses;
   poses.reserve(files.size());
@@ -138,7 +139,8 @@ int run_sequence(const fs::path& dir, std::string poses_path, std::string times_
     }
     stamps.resize(files.size());
   } else {
-    for (size_t i = 0; i < files.size(); ++i) stamps.push_back(static_cast<int64_t>(static_cast<double>(i) * period_s * 1e9));
+    for (size_t i = 0; i < files.size(); ++i)
+      stamps.push_back(static_cast<int64_t>(static_cast<double>(i) * period_s * 1e9));
   }
   // Repeats only for the speed figure: every run of a core over the same sweeps gives the same poses.
   std::vector<double> rates, cpu_rates, per_sweep;
@@ -153,29 +155,30 @@ int run_sequence(const fs::path& dir, std::string poses_path, std::string times_
   }
   const geometry::ErrorStats rate = geometry::compute_stats(rates), cpu_rate = geometry::compute_stats(cpu_rates);
   const geometry::ErrorStats sweep_s = geometry::compute_stats(per_sweep);
-  nlohmann::json j{{"mode", "sequence"},
-                   {"sequence", dir.string()},
-                   {"sweeps", files.size()},
-                   {"registration_failures", st.registration_failures},
-                   {"registration_rejected", st.registration_rejected},
-                   {"recoveries", st.recoveries},
-                   {"recovery_attempts", st.recovery_attempts},
-                   {"recoveries_global", st.recoveries_global},
-                   {"sweeps_per_s", rate.median},
-                   {"sweeps_per_cpu_s", cpu_rate.median},
-                   {"sweep_ms", {{"median", 1e3 * sweep_s.median}, {"p90", 1e3 * sweep_s.p90}, {"max", 1e3 * sweep_s.max}}},
-                   {"repeat", repeat}};
-  std::string summary = format("%s: %zu sweeps, %llu registration failures (%llu rejected), %llu recoveries (%llu global), %.1f "
-                                "sweeps/s (%.1f per CPU s)",
-                                dir.string().c_str(), files.size(), static_cast<unsigned long long>(st.registration_failures),
-                                static_cast<unsigned long long>(st.registration_rejected),
-                                static_cast<unsigned long long>(st.recoveries), static_cast<unsigned long long>(st.recoveries_global),
-                                rate.median, cpu_rate.median);
+  nlohmann::json j{
+      {"mode", "sequence"},
+      {"sequence", dir.string()},
+      {"sweeps", files.size()},
+      {"registration_failures", st.registration_failures},
+      {"registration_rejected", st.registration_rejected},
+      {"recoveries", st.recoveries},
+      {"recovery_attempts", st.recovery_attempts},
+      {"recoveries_global", st.recoveries_global},
+      {"sweeps_per_s", rate.median},
+      {"sweeps_per_cpu_s", cpu_rate.median},
+      {"sweep_ms", {{"median", 1e3 * sweep_s.median}, {"p90", 1e3 * sweep_s.p90}, {"max", 1e3 * sweep_s.max}}},
+      {"repeat", repeat}};
+  std::string summary = format(
+      "%s: %zu sweeps, %llu registration failures (%llu rejected), %llu recoveries (%llu global), %.1f "
+      "sweeps/s (%.1f per CPU s)",
+      dir.string().c_str(), files.size(), static_cast<unsigned long long>(st.registration_failures),
+      static_cast<unsigned long long>(st.registration_rejected), static_cast<unsigned long long>(st.recoveries),
+      static_cast<unsigned long long>(st.recoveries_global), rate.median, cpu_rate.median);
   if (!poses_path.empty()) {
     const geometry::Trajectory ref = geometry::read_kitti(poses_path);
     if (ref.size() < files.size()) {
-      throw std::runtime_error(poses_path + ": " + std::to_string(ref.size()) + " poses for " + std::to_string(files.size()) +
-                               " sweeps");
+      throw std::runtime_error(poses_path + ": " + std::to_string(ref.size()) + " poses for " +
+                               std::to_string(files.size()) + " sweeps");
     }
     geometry::Poses gt;
     for (size_t i = 0; i < files.size(); ++i) gt.push_back(ref[i].pose);
@@ -186,12 +189,14 @@ int run_sequence(const fs::path& dir, std::string poses_path, std::string times_
         const Eigen::Isometry3d d_ref = gt[i - 1].inverse() * gt[i], d_est = est[i - 1].inverse() * est[i];
         const auto [et, er] = relative_error(d_est, d_ref);
         const ScanInfo& in = info[i];
-        std::printf("sweep %3zu: reference %.2f m %5.1f deg, estimated %.2f m %5.1f deg, error %.3f m %5.2f deg; fit %.3f (%d points, "
-                    "rms %.3f m), %d correspondences, %d iterations%s%s\n",
-                    i, d_ref.translation().norm(), geometry::rotation_angle(d_ref.rotation()) * 180 / M_PI,
-                    d_est.translation().norm(), geometry::rotation_angle(d_est.rotation()) * 180 / M_PI, et, er, in.fit,
-                    in.fit_points, in.fit_rms, in.correspondences, in.iterations, in.recovered ? ", recovered" : "",
-                    in.converged ? "" : ", NOT CONVERGED");
+        std::printf(
+            "sweep %3zu: reference %.2f m %5.1f deg, estimated %.2f m %5.1f deg, error %.3f m %5.2f deg; fit %.3f (%d "
+            "points, "
+            "rms %.3f m), %d correspondences, %d iterations%s%s\n",
+            i, d_ref.translation().norm(), geometry::rotation_angle(d_ref.rotation()) * 180 / M_PI,
+            d_est.translation().norm(), geometry::rotation_angle(d_est.rotation()) * 180 / M_PI, et, er, in.fit,
+            in.fit_points, in.fit_rms, in.correspondences, in.iterations, in.recovered ? ", recovered" : "",
+            in.converged ? "" : ", NOT CONVERGED");
       }
     }
     j["ate_m"] = ate.translation.rmse;
@@ -199,9 +204,10 @@ int run_sequence(const fs::path& dir, std::string poses_path, std::string times_
     j["ate_rot_deg"] = ate.rotation_deg.rmse;
     j["rpe_m"] = stats_json(rpe.translation);
     j["rpe_deg"] = stats_json(rpe.rotation_deg);
-    summary += format("; ATE %.3f m (max %.3f m); RPE per sweep %.3f / %.3f / %.3f m, %.2f / %.2f / %.2f deg (median / p90 / max)",
-                      ate.translation.rmse, ate.translation.max, rpe.translation.median, rpe.translation.p90, rpe.translation.max,
-                      rpe.rotation_deg.median, rpe.rotation_deg.p90, rpe.rotation_deg.max);
+    summary += format(
+        "; ATE %.3f m (max %.3f m); RPE per sweep %.3f / %.3f / %.3f m, %.2f / %.2f / %.2f deg (median / p90 / max)",
+        ate.translation.rmse, ate.translation.max, rpe.translation.median, rpe.translation.p90, rpe.translation.max,
+        rpe.rotation_deg.median, rpe.rotation_deg.p90, rpe.rotation_deg.max);
   }
   std::cout << summary << '\n' << j.dump() << '\n';
   return 0;
@@ -217,7 +223,8 @@ int run_speed(const fs::path& data, int repeat, const frontend::FrontendParams& 
   std::vector<Set> sets;
   sets.push_back({"unknown", list_bins(scans / "unknown"), std::nullopt});
   const fs::path poses = data / "kitti" / "poses" / "00.txt", calib = data / "kitti" / "calib_Tr.txt";
-  const geometry::Trajectory gt = io::kitti_lidar_trajectory(poses.string(), io::read_kitti_calib(calib.string(), "Tr_00_02"));
+  const geometry::Trajectory gt =
+      io::kitti_lidar_trajectory(poses.string(), io::read_kitti_calib(calib.string(), "Tr_00_02"));
   for (size_t first : {size_t{94}, size_t{198}}) {
     Set s{"seq00_" + std::to_string(first), {}, std::nullopt};
     for (size_t k : {first, first + 1}) {
@@ -226,7 +233,8 @@ int run_speed(const fs::path& data, int repeat, const frontend::FrontendParams& 
       s.files.push_back(scans / "seq00" / name);
       if (!fs::exists(s.files.back())) throw std::runtime_error(s.files.back().string() + ": not found");
     }
-    if (gt.size() <= first + 1) throw std::runtime_error(poses.string() + ": fewer than " + std::to_string(first + 2) + " poses");
+    if (gt.size() <= first + 1)
+      throw std::runtime_error(poses.string() + ": fewer than " + std::to_string(first + 2) + " poses");
     s.truth = gt[first].pose.inverse() * gt[first + 1].pose;
     sets.push_back(std::move(s));
   }
@@ -257,9 +265,10 @@ int run_speed(const fs::path& data, int repeat, const frontend::FrontendParams& 
     cpu_rates.push_back(static_cast<double>(per_round) / t.cpu_s);
   }
   const geometry::ErrorStats rate = geometry::compute_stats(rates), cpu_rate = geometry::compute_stats(cpu_rates);
-  std::printf("real HDL-64E sweeps (%zu a round, %d rounds, reading included): %.1f sweeps/s median (%.1f per CPU s; min %.1f, "
-              "max %.1f); %llu registration failures; pair errors",
-              per_round, repeat, rate.median, cpu_rate.median, rate.min, rate.max, static_cast<unsigned long long>(failures));
+  std::printf(
+      "real HDL-64E sweeps (%zu a round, %d rounds, reading included): %.1f sweeps/s median (%.1f per CPU s; min %.1f, "
+      "max %.1f); %llu registration failures; pair errors",
+      per_round, repeat, rate.median, cpu_rate.median, rate.min, rate.max, static_cast<unsigned long long>(failures));
   for (const auto& [name, e] : pairs.items()) {
     std::printf(" %s %.3f m %.3f deg", name.c_str(), e["error_m"].get<double>(), e["error_deg"].get<double>());
   }
@@ -295,8 +304,9 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   app.add_option("--times", times, "sweep times in seconds, one a line (default: DIR/times.txt if present)")
       ->check(CLI::ExistingFile);
-  app.add_option("--period", period_s, "seconds between sweeps without a times file")->capture_default_str()->check(
-      CLI::PositiveNumber);
+  app.add_option("--period", period_s, "seconds between sweeps without a times file")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   app.add_flag("--speed", speed, "speed on the real HDL-64E sweeps of DATA/kitti/scans");
   app.add_option("--data", data, "reference data folder (CDC_DATA_DIR)")->capture_default_str();
   app.add_option("--repeat", repeat, "rounds (default: 1 for --sequence, 20 for --speed); the median speed is reported")

@@ -6,10 +6,10 @@
 // lies within 5 m. Last output line: one JSON object.
 #include "cdc/dds/compact.hpp"
 #include "cdc/dds/convert.hpp"
+#include "cdc/io/kitti.hpp"
 #include "cdc/lidar/scan_context.hpp"
 #include "cdc/loop_closure/evaluation.hpp"
 #include "cdc/loop_closure/loop_core.hpp"
-#include "cdc/io/kitti.hpp"
 #include "cdc/sim/lidar.hpp"
 #include "cdc/sim/world.hpp"
 
@@ -59,7 +59,7 @@ struct WireCounters {
 nlohmann::json run_sequence(const std::string& data, const std::string& seq, const loops::LoopParams& params,
                             uint32_t exclude_recent, const WireOptions& wire) {
   const auto full = io::kitti_lidar_trajectory(data + "/kitti/poses/" + seq + ".txt",
-                                                io::read_kitti_calib(data + "/kitti/calib_Tr.txt", "Tr_04_10"));
+                                               io::read_kitti_calib(data + "/kitti/calib_Tr.txt", "Tr_04_10"));
   const auto robots = io::split_robots(full, io::SplitOptions{3, 0.15, 0.0});
   std::vector<std::vector<Eigen::Vector3d>> paths;
   std::vector<Kf> kfs;
@@ -102,12 +102,15 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
       const Eigen::Isometry3d e = gt.inverse() * l.T_a_b;
       Eigen::Matrix<double, 6, 1> r;
       r << e.translation(), Eigen::AngleAxisd(e.rotation()).angle() * Eigen::AngleAxisd(e.rotation()).axis();
-      std::printf("%s %u/%u - %u/%u  error %.3f m %.2f deg  nees %.1f  fitness %.4f\n", l.withdrawn ? "withdraw" : "publish",
-                  l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b, e.translation().norm(),
-                  Eigen::AngleAxisd(e.rotation()).angle() * 180 / M_PI, r.dot(l.information * r), l.fitness);
+      std::printf("%s %u/%u - %u/%u  error %.3f m %.2f deg  nees %.1f  fitness %.4f\n",
+                  l.withdrawn ? "withdraw" : "publish", l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b,
+                  e.translation().norm(), Eigen::AngleAxisd(e.rotation()).angle() * 180 / M_PI,
+                  r.dot(l.information * r), l.fitness);
     }
-    if (l.withdrawn) accepted.erase(key);
-    else accepted[key] = l;
+    if (l.withdrawn)
+      accepted.erase(key);
+    else
+      accepted[key] = l;
   };
   // The wire run: events of robot r's core; a cloud request is answered from its owner's core.
   auto settle = [&](uint32_t r, loops::LoopEvents ev, loops::Nanos now) {
@@ -139,15 +142,17 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
   std::vector<lidar::ScanContext> contexts;
   const auto t0 = std::chrono::steady_clock::now();
   for (const Kf& k : kfs) {
-    const auto pts = sim::sweep(world, lidar, [&](double) { return k.truth; }, rng);
+    const auto pts = sim::sweep(
+        world, lidar, [&](double) { return k.truth; }, rng);
     loops::KeyframeIn in;
     in.robot = k.robot;
     in.id = k.id;
     if (k.id > 0) {
       Eigen::Isometry3d noise = Eigen::Isometry3d::Identity();
       noise.translation() = Eigen::Vector3d(nt(rng), nt(rng), nt(rng));
-      noise.linear() = (Eigen::AngleAxisd(nr(rng), Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(nr(rng), Eigen::Vector3d::UnitY()))
-                           .toRotationMatrix();
+      noise.linear() =
+          (Eigen::AngleAxisd(nr(rng), Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(nr(rng), Eigen::Vector3d::UnitY()))
+              .toRotationMatrix();
       // As the keyframe message carries it (a rotation renormalised from its quaternion: the
       // ground truth's rotations are orthonormal only to the digits KITTI prints).
       in.T_prev = dds::to_eigen(dds::to_msg(prev_truth[k.robot].inverse() * k.truth * noise));
@@ -186,8 +191,8 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
   if (std::getenv("CDC_BENCH_VERBOSE") != nullptr) {
     for (const auto& v : ev.loops) {
       if (!v.correct) {
-        std::printf("false loop %u/%u - %u/%u: error %.2f m %.1f deg, fitness %.3f\n", v.loop.robot_a, v.loop.keyframe_a,
-                    v.loop.robot_b, v.loop.keyframe_b, v.error_m, v.error_deg, v.loop.fitness);
+        std::printf("false loop %u/%u - %u/%u: error %.2f m %.1f deg, fitness %.3f\n", v.loop.robot_a,
+                    v.loop.keyframe_a, v.loop.robot_b, v.loop.keyframe_b, v.error_m, v.error_deg, v.loop.fitness);
       }
     }
     for (const auto& [robot, id] : ev.missed) std::printf("missed revisit %u/%u\n", robot, id);
@@ -222,51 +227,54 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
     for (const auto& c : robot_cores) n += c->stats().*field;
     return n;
   };
-  nlohmann::json j{{"keyframes", kfs.size()},
-                   {"accepted", accepted.size()},
-                   {"true_positives", tp},
-                   {"false_intra", false_intra},
-                   {"false_inter", false_inter},
-                   {"precision", accepted.empty() ? 1.0 : static_cast<double>(tp) / static_cast<double>(accepted.size())},
-                   {"revisits", revisits},
-                   {"recall", ev.recall()},
-                   {"verified", stat(&loops::LoopStats::verified)},
-                   {"verification_failed", stat(&loops::LoopStats::verification_failed)},
-                   {"inter_accepted", stat(&loops::LoopStats::inter_accepted)},
-                   {"intra_accepted", stat(&loops::LoopStats::intra_accepted)},
-                   {"intra_inconsistent", stat(&loops::LoopStats::intra_inconsistent)},
-                   {"inter_proposed", stat(&loops::LoopStats::inter_proposed)},
-                   {"withdrawn", stat(&loops::LoopStats::withdrawn)},
-                   {"failed_not_converged", stat(&loops::LoopStats::failed_not_converged)},
-                   {"failed_fitness", stat(&loops::LoopStats::failed_fitness)},
-                   {"failed_overlap", stat(&loops::LoopStats::failed_overlap)},
-                   {"skipped_near_requested", stat(&loops::LoopStats::skipped_near_requested)},
-                   {"verified_with_neighbour", stat(&loops::LoopStats::verified_with_neighbour)},
-                   {"reaim_too_far", stat(&loops::LoopStats::reaim_too_far)},
-                   {"reverse_queries", stat(&loops::LoopStats::reverse_queries)},
-                   {"left_to_lower_robot", stat(&loops::LoopStats::left_to_lower_robot)},
-                   {"quantization_decisions", decisions},
-                   {"quantization_changed", changed},
-                   {"quantization_max_distance_change", max_change},
-                   {"inter_true", inter_m.size()},
-                   {"inter_error_m_median", median(inter_m)},
-                   {"inter_error_m_p90", quantile(inter_m, 0.9)},
-                   {"inter_error_deg_median", median(inter_deg)},
-                   {"inter_error_deg_p90", quantile(inter_deg, 0.9)},
-                   {"run_s", run_s}};
-  std::printf("KITTI %s: %zu keyframes, %zu loops accepted (%zu true), precision %.3f, recall %.3f of %zu revisits, %.1f s\n",
-              seq.c_str(), kfs.size(), accepted.size(), tp, j["precision"].get<double>(), j["recall"].get<double>(),
-              revisits, run_s);
+  nlohmann::json j{
+      {"keyframes", kfs.size()},
+      {"accepted", accepted.size()},
+      {"true_positives", tp},
+      {"false_intra", false_intra},
+      {"false_inter", false_inter},
+      {"precision", accepted.empty() ? 1.0 : static_cast<double>(tp) / static_cast<double>(accepted.size())},
+      {"revisits", revisits},
+      {"recall", ev.recall()},
+      {"verified", stat(&loops::LoopStats::verified)},
+      {"verification_failed", stat(&loops::LoopStats::verification_failed)},
+      {"inter_accepted", stat(&loops::LoopStats::inter_accepted)},
+      {"intra_accepted", stat(&loops::LoopStats::intra_accepted)},
+      {"intra_inconsistent", stat(&loops::LoopStats::intra_inconsistent)},
+      {"inter_proposed", stat(&loops::LoopStats::inter_proposed)},
+      {"withdrawn", stat(&loops::LoopStats::withdrawn)},
+      {"failed_not_converged", stat(&loops::LoopStats::failed_not_converged)},
+      {"failed_fitness", stat(&loops::LoopStats::failed_fitness)},
+      {"failed_overlap", stat(&loops::LoopStats::failed_overlap)},
+      {"skipped_near_requested", stat(&loops::LoopStats::skipped_near_requested)},
+      {"verified_with_neighbour", stat(&loops::LoopStats::verified_with_neighbour)},
+      {"reaim_too_far", stat(&loops::LoopStats::reaim_too_far)},
+      {"reverse_queries", stat(&loops::LoopStats::reverse_queries)},
+      {"left_to_lower_robot", stat(&loops::LoopStats::left_to_lower_robot)},
+      {"quantization_decisions", decisions},
+      {"quantization_changed", changed},
+      {"quantization_max_distance_change", max_change},
+      {"inter_true", inter_m.size()},
+      {"inter_error_m_median", median(inter_m)},
+      {"inter_error_m_p90", quantile(inter_m, 0.9)},
+      {"inter_error_deg_median", median(inter_deg)},
+      {"inter_error_deg_p90", quantile(inter_deg, 0.9)},
+      {"run_s", run_s}};
+  std::printf(
+      "KITTI %s: %zu keyframes, %zu loops accepted (%zu true), precision %.3f, recall %.3f of %zu revisits, %.1f s\n",
+      seq.c_str(), kfs.size(), accepted.size(), tp, j["precision"].get<double>(), j["recall"].get<double>(), revisits,
+      run_s);
   std::printf("  %zu true inter-robot loops: error median %.3f m / %.3f deg, 90th percentile %.3f m / %.3f deg\n",
               inter_m.size(), median(inter_m), median(inter_deg), quantile(inter_m, 0.9), quantile(inter_deg, 0.9));
   if (wire.enabled) {
-    j["wire"] = {{"resolution_m", wire.resolution_m},
-                 {"cloud_replies", wc.replies},
-                 {"cloud_missing", wc.missing},
-                 {"cloud_bytes", wc.bytes},
-                 {"bytes_per_reply", wc.replies == 0 ? 0.0 : static_cast<double>(wc.bytes) / static_cast<double>(wc.replies)},
-                 {"points_per_reply", wc.replies == 0 ? 0.0 : static_cast<double>(wc.points) / static_cast<double>(wc.replies)},
-                 {"cloud_bytes_per_keyframe", static_cast<double>(wc.bytes) / static_cast<double>(kfs.size())}};
+    j["wire"] = {
+        {"resolution_m", wire.resolution_m},
+        {"cloud_replies", wc.replies},
+        {"cloud_missing", wc.missing},
+        {"cloud_bytes", wc.bytes},
+        {"bytes_per_reply", wc.replies == 0 ? 0.0 : static_cast<double>(wc.bytes) / static_cast<double>(wc.replies)},
+        {"points_per_reply", wc.replies == 0 ? 0.0 : static_cast<double>(wc.points) / static_cast<double>(wc.replies)},
+        {"cloud_bytes_per_keyframe", static_cast<double>(wc.bytes) / static_cast<double>(kfs.size())}};
     // How the registrations spread over the robots (the lower robot of a pair verifies it).
     nlohmann::json per_robot = nlohmann::json::array();
     for (const auto& c : robot_cores) per_robot.push_back(c->stats().verified);
@@ -292,20 +300,24 @@ int main(int argc, char** argv) {
   app.add_option("--pcm-chi2", chi2, "PCM threshold")->capture_default_str();
   app.add_option("--min-overlap", defaults.min_overlap, "verification: least overlap")->capture_default_str();
   app.add_option("--max-fitness", defaults.max_fitness, "verification: largest fitness [m^2]")->capture_default_str();
-  app.add_option("--max-sc-distance", defaults.max_sc_distance, "retrieval: Scan Context distance")->capture_default_str();
+  app.add_option("--max-sc-distance", defaults.max_sc_distance, "retrieval: Scan Context distance")
+      ->capture_default_str();
   app.add_option("--max-verify", defaults.max_verify, "candidates verified per keyframe")->capture_default_str();
-  app.add_option("--reaim-max", defaults.reaim_max_m,
-                 "with --wire: largest offset [m] at which a candidate is verified against a neighbour's cloud (0: any)")
+  app.add_option(
+         "--reaim-max", defaults.reaim_max_m,
+         "with --wire: largest offset [m] at which a candidate is verified against a neighbour's cloud (0: any)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
-  app.add_option("--peer-request-spacing", defaults.peer_request_spacing,
-                 "with --wire: no cloud request within this many keyframes of a peer keyframe already requested (0: none)")
+  app.add_option(
+         "--peer-request-spacing", defaults.peer_request_spacing,
+         "with --wire: no cloud request within this many keyframes of a peer keyframe already requested (0: none)")
       ->capture_default_str();
   WireOptions wire;
   app.add_flag("--wire", wire.enabled,
                "one loop-closure core per robot, peers' clouds requested and packed as the service sends them");
-  app.add_option("--reply-resolution", wire.resolution_m,
-                 "with --wire: quantisation of the packed clouds [m] (loop_closure.yaml's verification.reply_resolution_m)")
+  app.add_option(
+         "--reply-resolution", wire.resolution_m,
+         "with --wire: quantisation of the packed clouds [m] (loop_closure.yaml's verification.reply_resolution_m)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   bool both_verify = false;

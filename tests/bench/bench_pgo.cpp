@@ -44,8 +44,8 @@ Run run_once(const PoseGraph& input, bool chordal, Objective objective) {
   r.init_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   SolverOptions o;
   o.objective = objective;
-  o.max_iterations = 200;            // Ceres' pose_graph_3d example
-  o.function_tolerance = 1e-6;       // Ceres' defaults
+  o.max_iterations = 200;       // Ceres' pose_graph_3d example
+  o.function_tolerance = 1e-6;  // Ceres' defaults
   o.gradient_tolerance = 1e-10;
   o.parameter_tolerance = 1e-8;
   // The baseline keeps Ceres' default initial trust region; ours starts nearly Gauss-Newton.
@@ -81,7 +81,8 @@ int main(int argc, char** argv) {
   data_dir = env != nullptr ? env : "../shared/data";
   app.add_option("--data", data_dir, "reference data folder (CDC_DATA_DIR)")->capture_default_str();
   app.add_option("--graph", graphs, "graphs under <data>/pose-graphs")->capture_default_str();
-  app.add_option("--runs", runs, "runs per configuration (median reported)")->check(CLI::Range(1, 100))
+  app.add_option("--runs", runs, "runs per configuration (median reported)")
+      ->check(CLI::Range(1, 100))
       ->capture_default_str();
   app.add_option("--gap", gap, "relative gap that counts as reaching the optimum")->capture_default_str();
   CLI11_PARSE(app, argc, argv);
@@ -127,10 +128,12 @@ int main(int argc, char** argv) {
                        {"baseline_final_objective", 2.0 * base.front().solve.trace.back().second},
                        {"ours_final_objective", 2.0 * ours.front().solve.trace.back().second}};
       out[key][mode] = j;
-      std::printf("%-16s %-6s baseline %.3f s (%d it) | ours %.3f s (%d it) | to gap %.0e: %.3f s vs %.3f s, x%.2f | f %.6g vs %.6g\n",
-                  key.c_str(), mode.c_str(), median(totb), base.front().solve.iterations, median(toto),
-                  ours.front().solve.iterations, gap, median(tb), median(to), median(tb) / median(to),
-                  2.0 * base.front().solve.trace.back().second, 2.0 * ours.front().solve.trace.back().second);
+      std::printf(
+          "%-16s %-6s baseline %.3f s (%d it) | ours %.3f s (%d it) | to gap %.0e: %.3f s vs %.3f s, x%.2f | f %.6g vs "
+          "%.6g\n",
+          key.c_str(), mode.c_str(), median(totb), base.front().solve.iterations, median(toto),
+          ours.front().solve.iterations, gap, median(tb), median(to), median(tb) / median(to),
+          2.0 * base.front().solve.trace.back().second, 2.0 * ours.front().solve.trace.back().second);
     }
   }
   out["runs"] = runs;

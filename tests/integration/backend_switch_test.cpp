@@ -20,15 +20,15 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <sys/wait.h>
+#include <unistd.h>
 #include <csignal>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
-#include <sys/wait.h>
 #include <thread>
-#include <unistd.h>
 
 namespace cdc {
 namespace {
@@ -106,9 +106,10 @@ class BackendSwarm : public ::testing::Test {
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
 
   void start_central(const std::string& config, const std::string& tag) {
-    central_ = test::ChildProcess::spawn({std::getenv("CDC_CENTRAL_BIN"), "--config", config, "--stats-out",
-                                          path("central_" + tag + ".json"), "--graph-out", path("central_" + tag + ".g2o")},
-                                         path("central_" + tag + ".log"));
+    central_ =
+        test::ChildProcess::spawn({std::getenv("CDC_CENTRAL_BIN"), "--config", config, "--stats-out",
+                                   path("central_" + tag + ".json"), "--graph-out", path("central_" + tag + ".g2o")},
+                                  path("central_" + tag + ".log"));
   }
   void start_peers(const std::string& config) {
     for (int r = 0; r < 3; ++r) {
@@ -313,9 +314,9 @@ TEST_F(BackendSwarm, CentralOutageSwitchesEveryRobotAndLosesNothing) {
 TEST_F(BackendSwarm, RangeTriggerSwitchesAndCorrectionsNeverJump) {
   const double pos_max = 0.3, rot_max_deg = 1.0;
   const std::string central_cfg = write("central.yaml", "robots: 3\ncentral_on_robot: 0\n");
-  const std::string peer_cfg =
-      write("peer.yaml", "robots: 3\nrange_m: 120\nhysteresis_m: 10\ndwell_ms: 1500\nmask_ms: 1000\n"
-                         "fusion:\n  pos_max_m: 0.3\n  rot_max_deg: 1.0\n");
+  const std::string peer_cfg = write("peer.yaml",
+                                     "robots: 3\nrange_m: 120\nhysteresis_m: 10\ndwell_ms: 1500\nmask_ms: 1000\n"
+                                     "fusion:\n  pos_max_m: 0.3\n  rot_max_deg: 1.0\n");
   start_central(central_cfg, "range");
   start_peers(peer_cfg);
   // 80 m x 60 m lap (at most 100 m between robots on it); robot 2 leaves it for 200 m and returns.

@@ -13,13 +13,13 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <sys/wait.h>
+#include <unistd.h>
 #include <cmath>
 #include <csignal>
 #include <filesystem>
 #include <fstream>
-#include <sys/wait.h>
 #include <thread>
-#include <unistd.h>
 
 namespace cdc {
 namespace {
@@ -31,12 +31,13 @@ TEST(FrontendService, OdometryAndKeyframesFromAPlayedDrive) {
   for (const char* v : {"CDC_FRONTEND_BIN", "CDC_SIM_BIN"}) ASSERT_NE(std::getenv(v), nullptr) << v;
   const fs::path dir = fs::temp_directory_path() / ("cdc_frontend_service_" + std::to_string(::getpid()));
   fs::create_directories(dir);
-  std::ofstream(dir / "drive.yaml") << "name: drive\nseed: 4\ntrajectories:\n  source: procedural\n  pattern: crossing\n"
-                                       "  robots: 1\n  speed_mps: 6\n  size_m: 80\n  duration_s: 16\nlidar: vlp16\n";
+  std::ofstream(dir / "drive.yaml")
+      << "name: drive\nseed: 4\ntrajectories:\n  source: procedural\n  pattern: crossing\n"
+         "  robots: 1\n  speed_mps: 6\n  size_m: 80\n  duration_s: 16\nlidar: vlp16\n";
   std::ofstream(dir / "frontend.yaml") << "robots: 1\n";
-  test::ChildProcess gen = test::ChildProcess::spawn(
-      {std::getenv("CDC_SIM_BIN"), "generate", "--scenario", (dir / "drive.yaml").string(), "--out", (dir / "ds").string()},
-      (dir / "generate.log").string());
+  test::ChildProcess gen = test::ChildProcess::spawn({std::getenv("CDC_SIM_BIN"), "generate", "--scenario",
+                                                      (dir / "drive.yaml").string(), "--out", (dir / "ds").string()},
+                                                     (dir / "generate.log").string());
   const auto gs = gen.wait(120s);
   ASSERT_TRUE(gs && WIFEXITED(*gs) && WEXITSTATUS(*gs) == 0) << "see " << dir / "generate.log";
 
@@ -47,7 +48,8 @@ TEST(FrontendService, OdometryAndKeyframesFromAPlayedDrive) {
   dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
   dds::Writer<cdc_msg_LidarScan> w_scan(participant, t_scan, dds::qos::sensor_stream(16, true));
   // The front-end writes its keyframes in its robot's partition, as the central node reads them.
-  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf, dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
+  dds::Reader<cdc_msg_Keyframe> r_kf(participant, t_kf,
+                                     dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
 
   test::ChildProcess fe = test::ChildProcess::spawn(
       {std::getenv("CDC_FRONTEND_BIN"), "--robot", "0", "--config", (dir / "frontend.yaml").string(), "--stats-out",
@@ -68,8 +70,8 @@ TEST(FrontendService, OdometryAndKeyframesFromAPlayedDrive) {
     dds::borrow(m.points, pts);
     w_scan.write(m);
   };
-  bad_scan(1, 1000, true);   // a NaN point
-  bad_scan(2, 0, false);     // an empty sweep
+  bad_scan(1, 1000, true);  // a NaN point
+  bad_scan(2, 0, false);    // an empty sweep
 
   test::ChildProcess player = test::ChildProcess::spawn(
       {std::getenv("CDC_SIM_BIN"), "play", (dir / "ds").string(), "--lockstep", "--wait-readers", "1"},
@@ -113,15 +115,18 @@ TEST(FrontendService, OdometryAndKeyframesFromAPlayedDrive) {
     b.push_back(gt.front().pose.inverse() * gt[i].pose);
   }
   const geometry::AteResult ate = geometry::compute_ate(a, b, geometry::AlignMode::kNone);
-  std::printf("%zu sweeps, %zu keyframes, ATE %.3f m (max %.3f m)\n", a.size(), keyframes, ate.translation.rmse, ate.translation.max);
+  std::printf("%zu sweeps, %zu keyframes, ATE %.3f m (max %.3f m)\n", a.size(), keyframes, ate.translation.rmse,
+              ate.translation.max);
   EXPECT_LT(ate.translation.max, 0.3);
   std::ifstream log(dir / "frontend.log");
   const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("non-finite value"), std::string::npos);
   EXPECT_NE(text.find("empty sweep"), std::string::npos);
   EXPECT_NE(text.find("out of order"), std::string::npos);
-  if (!HasFailure()) fs::remove_all(dir);
-  else std::printf("logs kept in %s\n", dir.c_str());
+  if (!HasFailure())
+    fs::remove_all(dir);
+  else
+    std::printf("logs kept in %s\n", dir.c_str());
 }
 
 }  // namespace

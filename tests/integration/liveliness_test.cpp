@@ -12,13 +12,13 @@
 
 #include <gtest/gtest.h>
 
-#include <atomic>
-#include <csignal>
-#include <thread>
-#include <cstdlib>
-#include <string>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <atomic>
+#include <csignal>
+#include <cstdlib>
+#include <string>
+#include <thread>
 
 namespace cdc::dds {
 namespace {
@@ -164,8 +164,9 @@ TEST_F(LivelinessAcrossProcesses, AfterAShortCutOnlyAWriterThatWritesIsSeenAlive
   const auto back = std::chrono::steady_clock::now();
   const auto alive = writes.wait_for(Liveliness::kAlive, 5s);
   ASSERT_TRUE(alive) << "the writing writer was not seen alive again";
-  std::printf("writing writer alive again %lld ms after the radio returned\n",
-              static_cast<long long>(std::chrono::duration_cast<std::chrono::milliseconds>(alive->when - back).count()));
+  std::printf(
+      "writing writer alive again %lld ms after the radio returned\n",
+      static_cast<long long>(std::chrono::duration_cast<std::chrono::milliseconds>(alive->when - back).count()));
   std::this_thread::sleep_for(3s);
   EXPECT_EQ(asserts.state(), Liveliness::kLost) << "Cyclone now revives a writer on assertions alone";
   w_data.signal(SIGTERM);

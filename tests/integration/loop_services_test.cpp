@@ -23,15 +23,15 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
-#include <csignal>
+#include <unistd.h>
 #include <cmath>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <random>
 #include <set>
 #include <thread>
-#include <unistd.h>
 
 namespace cdc {
 namespace {
@@ -82,11 +82,11 @@ Workspace make_workspace(const std::string& name, const std::string& loops_yaml,
 }
 
 // One service of one robot, its stats in DIR/<stem><robot>.json and its log beside them.
-test::ChildProcess spawn_service(const char* binary_env, const std::string& stem, uint32_t robot, const std::string& config,
-                                 const fs::path& dir, std::vector<std::string> extra = {}) {
+test::ChildProcess spawn_service(const char* binary_env, const std::string& stem, uint32_t robot,
+                                 const std::string& config, const fs::path& dir, std::vector<std::string> extra = {}) {
   const std::string r = std::to_string(robot);
-  std::vector<std::string> argv = {std::getenv(binary_env), "--robot", r, "--config", config, "--stats-out",
-                                   (dir / (stem + r + ".json")).string()};
+  std::vector<std::string> argv = {
+      std::getenv(binary_env), "--robot", r, "--config", config, "--stats-out", (dir / (stem + r + ".json")).string()};
   argv.insert(argv.end(), extra.begin(), extra.end());
   return test::ChildProcess::spawn(argv, (dir / (stem + r + ".log")).string());
 }
@@ -107,7 +107,8 @@ void write_keyframe(dds::Writer<cdc_msg_Keyframe>& w, const sim::World& world, s
   info.diagonal() << 2500, 2500, 2500, 250000, 250000, 250000;
   dds::information_to_msg(info, m.information);
   storage.clear();
-  for (const auto& p : sim::sweep(world, sim::LidarModel::vlp16(), [&](double) { return T; }, rng)) {
+  for (const auto& p : sim::sweep(
+           world, sim::LidarModel::vlp16(), [&](double) { return T; }, rng)) {
     storage.push_back(cdc_msg_PointXYZI{p.x, p.y, p.z, 0.5f});
   }
   m.point_count = static_cast<uint32_t>(storage.size());
@@ -118,9 +119,9 @@ void write_keyframe(dds::Writer<cdc_msg_Keyframe>& w, const sim::World& world, s
 TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   ASSERT_NO_FATAL_FAILURE(require_service_binaries());
   // Every loop written since the start counts as possibly missed by a peer heard again after a silence.
-  const Workspace ws = make_workspace("cdc_loop_services",
-                                      "robots: 2\nretrieval:\n  exclude_recent: 1000\nloop_resend:\n  margin_ms: 600000\n",
-                                      "robots: 2\n");
+  const Workspace ws = make_workspace(
+      "cdc_loop_services", "robots: 2\nretrieval:\n  exclude_recent: 1000\nloop_resend:\n  margin_ms: 600000\n",
+      "robots: 2\n");
   const fs::path& dir = ws.dir;
 
   // Scenario: 68 m of a circle of radius 40 m, robot 1 eight metres behind robot 0, keyframes every 2 m.
@@ -140,8 +141,8 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   dds::Writer<cdc_msg_CloudReply> w_rep(participant, t_rep, dds::qos::event_stream(256));
   // As the central reads loops (every robot's partition), and as a third robot's peer optimiser
   // would (its own): loops between robots 0 and 1 must not reach it.
-  dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop,
-                                          dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
+  dds::Reader<cdc_msg_LoopClosure> r_loop(
+      participant, t_loop, dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
   dds::Reader<cdc_msg_LoopClosure> r_third(participant, t_loop,
                                            dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(2)));
 
@@ -154,7 +155,8 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   ASSERT_TRUE(w_kf.wait_for_readers(4, 15s)) << "services did not subscribe to keyframes";
   ASSERT_TRUE(r_loop.wait_for_writers(4, 15s));
   ASSERT_TRUE(w_desc.wait_for_readers(2, 15s));
-  ASSERT_TRUE(w_rep.wait_for_readers(2, 15s)) << "services did not subscribe to cloud replies";  // else the bad reply is lost
+  ASSERT_TRUE(w_rep.wait_for_readers(2, 15s))
+      << "services did not subscribe to cloud replies";  // else the bad reply is lost
 
   // Bad input first: a descriptor with a NaN quantisation step, and a cloud reply whose declared
   // point count disagrees with its points, addressed to robot 1.
@@ -187,7 +189,8 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   std::vector<cdc_msg_LoopClosure> loops;
   size_t third_robot_loops = 0;
   auto poll = [&] {
-    r_loop.take(256).for_each_valid([&](const cdc_msg_LoopClosure& m, const dds_sample_info_t&) { loops.push_back(m); });
+    r_loop.take(256).for_each_valid(
+        [&](const cdc_msg_LoopClosure& m, const dds_sample_info_t&) { loops.push_back(m); });
     third_robot_loops += r_third.take(256).size();
   };
   std::vector<cdc_msg_PointXYZI> storage;
@@ -313,7 +316,8 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
 // service is killed (SIGKILL: no shutdown step) after two laps.
 TEST(LoopServices, ARestartedServiceNumbersItsLoopsOnUnderTheSameIncarnation) {
   ASSERT_NO_FATAL_FAILURE(require_service_binaries());
-  const Workspace ws = make_workspace("cdc_loop_restart", "robots: 1\nretrieval:\n  exclude_recent: 10\n", "robots: 1\n");
+  const Workspace ws =
+      make_workspace("cdc_loop_restart", "robots: 1\nretrieval:\n  exclude_recent: 10\n", "robots: 1\n");
   const fs::path& dir = ws.dir;
   const std::string state = (dir / "loop-closure-0.state").string();
   const test::CircleLap circuit = test::circle_lap(10, 126, 5);  // four laps of 62.8 m
@@ -326,17 +330,19 @@ TEST(LoopServices, ARestartedServiceNumbersItsLoopsOnUnderTheSameIncarnation) {
   dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
   dds::Topic<cdc_msg_LoopClosure> t_loop(participant, dds::topics::kLoopClosure);
   dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096));
-  dds::Reader<cdc_msg_LoopClosure> r_loop(participant, t_loop,
-                                          dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
+  dds::Reader<cdc_msg_LoopClosure> r_loop(
+      participant, t_loop, dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
   const std::vector<std::string> with_state = {"--state-file", state};
   test::ChildProcess descriptor = spawn_service("CDC_DESCRIPTOR_BIN", "descriptor", 0, ws.descriptor_config, dir);
-  test::ChildProcess loops_first = spawn_service("CDC_LOOP_CLOSURE_BIN", "loops_first", 0, ws.loops_config, dir, with_state);
+  test::ChildProcess loops_first =
+      spawn_service("CDC_LOOP_CLOSURE_BIN", "loops_first", 0, ws.loops_config, dir, with_state);
   ASSERT_TRUE(w_kf.wait_for_readers(2, 15s)) << "services did not subscribe to keyframes";
   ASSERT_TRUE(r_loop.wait_for_writers(1, 15s));
 
   std::vector<cdc_msg_LoopClosure> loops;
   auto poll = [&] {
-    r_loop.take(256).for_each_valid([&](const cdc_msg_LoopClosure& m, const dds_sample_info_t&) { loops.push_back(m); });
+    r_loop.take(256).for_each_valid(
+        [&](const cdc_msg_LoopClosure& m, const dds_sample_info_t&) { loops.push_back(m); });
   };
   std::vector<cdc_msg_PointXYZI> storage;
   Eigen::Isometry3d previous = Eigen::Isometry3d::Identity();
@@ -362,7 +368,8 @@ TEST(LoopServices, ARestartedServiceNumbersItsLoopsOnUnderTheSameIncarnation) {
   // Until its participant's lease (10 s) runs out, the dead service's endpoints still count as matched.
   for (int i = 0; i < 150 && w_kf.matched_readers() > 1; ++i) std::this_thread::sleep_for(100ms);
   ASSERT_EQ(w_kf.matched_readers(), 1u) << "the killed service's keyframe reader did not go";
-  test::ChildProcess loops_second = spawn_service("CDC_LOOP_CLOSURE_BIN", "loops_second", 0, ws.loops_config, dir, with_state);
+  test::ChildProcess loops_second =
+      spawn_service("CDC_LOOP_CLOSURE_BIN", "loops_second", 0, ws.loops_config, dir, with_state);
   ASSERT_TRUE(w_kf.wait_for_readers(2, 15s)) << "the restarted service did not subscribe to keyframes";
   ASSERT_TRUE(r_loop.wait_for_writers(1, 15s));
   std::this_thread::sleep_for(1s);  // its own readers may still be matching the test's writer
@@ -380,8 +387,8 @@ TEST(LoopServices, ARestartedServiceNumbersItsLoopsOnUnderTheSameIncarnation) {
   std::set<uint32_t> second_seqs;
   for (const auto& l : loops) {
     EXPECT_EQ(l.sender_incarnation, 77u);
-    EXPECT_EQ(first_seqs.count(l.loop_seq), 0u) << "loop " << l.robot_a << "/" << l.keyframe_a << " - " << l.robot_b << "/"
-                                                << l.keyframe_b << " reuses seq " << l.loop_seq;
+    EXPECT_EQ(first_seqs.count(l.loop_seq), 0u) << "loop " << l.robot_a << "/" << l.keyframe_a << " - " << l.robot_b
+                                                << "/" << l.keyframe_b << " reuses seq " << l.loop_seq;
     second_seqs.insert(l.loop_seq);
   }
   EXPECT_EQ(*second_seqs.begin(), first_seqs.size()) << "the restarted service goes on from the first's next number";
@@ -393,8 +400,9 @@ TEST(LoopServices, ARestartedServiceNumbersItsLoopsOnUnderTheSameIncarnation) {
   EXPECT_EQ(st["loop_numbering"].value("save_failures", -1), 0);
   std::ifstream log(dir / "loops_second0.log");
   const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
-  EXPECT_NE(text.find("incarnation 77 as before the restart: loop numbers go on from " + std::to_string(first_seqs.size())),
-            std::string::npos);
+  EXPECT_NE(
+      text.find("incarnation 77 as before the restart: loop numbers go on from " + std::to_string(first_seqs.size())),
+      std::string::npos);
   std::printf("first service: %zu loops (seq 0..%u); restarted: %zu loops (seq %u..%u)\n", first.size(),
               *first_seqs.rbegin(), loops.size(), *second_seqs.begin(), *second_seqs.rbegin());
   if (!HasFailure()) fs::remove_all(dir);
@@ -406,7 +414,8 @@ TEST(LoopServices, ARestartedServiceNumbersItsLoopsOnUnderTheSameIncarnation) {
 // robot 1 towards a real descriptor service (robot 0).
 TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
   ASSERT_NO_FATAL_FAILURE(require_service_binaries());
-  const Workspace ws = make_workspace("cdc_descriptor_sync", "robots: 3\ndescriptor_sync:\n  resend_ms: 1000\n", "robots: 3\n");
+  const Workspace ws =
+      make_workspace("cdc_descriptor_sync", "robots: 3\ndescriptor_sync:\n  resend_ms: 1000\n", "robots: 3\n");
   const fs::path& dir = ws.dir;
 
   dds::ParticipantOptions po;
@@ -422,8 +431,10 @@ TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
   dds::Writer<cdc_msg_DescriptorSync> w_sync(participant, t_sync, dds::qos::event_stream(64));
   dds::Reader<cdc_msg_DescriptorSync> r_sync(participant, t_sync, dds::qos::event_stream(64));
   dds::Reader<cdc_msg_Descriptor> r_live(participant, t_desc, dds::qos::event_stream(256));
-  dds::Reader<cdc_msg_Descriptor> r_to1(participant, t_desc, dds::qos::event_stream(256).partitions({dds::partitions::robot(1)}));
-  dds::Reader<cdc_msg_Descriptor> r_to2(participant, t_desc, dds::qos::event_stream(256).partitions({dds::partitions::robot(2)}));
+  dds::Reader<cdc_msg_Descriptor> r_to1(participant, t_desc,
+                                        dds::qos::event_stream(256).partitions({dds::partitions::robot(1)}));
+  dds::Reader<cdc_msg_Descriptor> r_to2(participant, t_desc,
+                                        dds::qos::event_stream(256).partitions({dds::partitions::robot(2)}));
 
   std::vector<test::ChildProcess> procs;
   procs.push_back(spawn_service("CDC_DESCRIPTOR_BIN", "descriptor", 0, ws.descriptor_config, dir));
@@ -468,7 +479,10 @@ TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
   }
   std::set<uint32_t> live;
   take_until(
-      r_live, [&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) { if (m.robot_id == 0) live.insert(m.keyframe_id); },
+      r_live,
+      [&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
+        if (m.robot_id == 0) live.insert(m.keyframe_id);
+      },
       [&] { return live.size() >= 5; });
   ASSERT_EQ(live.size(), 5u) << "robot 0's live descriptors";
   {
@@ -481,12 +495,16 @@ TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
   }
   std::vector<uint32_t> resent2;
   take_until(
-      r_to2, [&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) { if (m.robot_id == 0) resent2.push_back(m.keyframe_id); },
+      r_to2,
+      [&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
+        if (m.robot_id == 0) resent2.push_back(m.keyframe_id);
+      },
       [&] { return resent2.size() >= 3; });
   EXPECT_EQ(resent2, (std::vector<uint32_t>{1, 2, 3})) << "just the range asked for, in order";
   std::this_thread::sleep_for(300ms);
   size_t to1 = 0;
-  r_to1.take(64).for_each_valid([&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) { to1 += m.robot_id == 0 ? 1 : 0; });
+  r_to1.take(64).for_each_valid(
+      [&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) { to1 += m.robot_id == 0 ? 1 : 0; });
   EXPECT_EQ(to1, 0u) << "robot 1 did not ask for robot 0's descriptors, and must not get them again";
 
   // Part 2: as robot 2, the test sends descriptors 0, 1 and 4 live: robot 1's loop closure asks for 2..3.
@@ -508,7 +526,10 @@ TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
   }
   std::vector<cdc_msg_DescriptorSync> asked;
   take_until(
-      r_sync, [&](const cdc_msg_DescriptorSync& m, const dds_sample_info_t&) { if (m.owner_robot_id == 2) asked.push_back(m); },
+      r_sync,
+      [&](const cdc_msg_DescriptorSync& m, const dds_sample_info_t&) {
+        if (m.owner_robot_id == 2) asked.push_back(m);
+      },
       [&] { return !asked.empty(); });
   ASSERT_FALSE(asked.empty()) << "robot 1 did not ask for the gap";
   EXPECT_EQ(asked[0].requester_robot_id, 1u);
@@ -523,9 +544,8 @@ TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
   r_sync.take(16).for_each_valid([&](const cdc_msg_DescriptorSync&, const dds_sample_info_t&) {});
   std::this_thread::sleep_for(2500ms);  // more than two resend intervals
   size_t later = 0;
-  r_sync.take(16).for_each_valid([&](const cdc_msg_DescriptorSync& m, const dds_sample_info_t&) {
-    later += m.owner_robot_id == 2 ? 1 : 0;
-  });
+  r_sync.take(16).for_each_valid(
+      [&](const cdc_msg_DescriptorSync& m, const dds_sample_info_t&) { later += m.owner_robot_id == 2 ? 1 : 0; });
   EXPECT_EQ(later, 0u) << "the gap was filled, yet robot 1 kept asking";
   for (auto& p : procs) stop(p);
 

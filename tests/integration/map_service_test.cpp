@@ -10,13 +10,13 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <sys/wait.h>
+#include <unistd.h>
 #include <cmath>
 #include <csignal>
 #include <filesystem>
 #include <fstream>
-#include <sys/wait.h>
 #include <thread>
-#include <unistd.h>
 
 namespace cdc {
 namespace {
@@ -36,16 +36,18 @@ TEST(MapService, BuildsAndWritesTheMapFromKeyframesAndCentralPoses) {
   dds::Topic<cdc_msg_OptimizedPoses> t_opt(participant, dds::topics::kCentralOptimized);
   dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096));
   dds::Writer<cdc_msg_OptimizedPoses> w_opt(participant, t_opt, dds::qos::monitored_writer(std::chrono::seconds(1)));
-  test::ChildProcess map = test::ChildProcess::spawn(
-      {std::getenv("CDC_MAP_BIN"), "--config", (dir / "map.yaml").string(), "--out", (dir / "out").string(), "--stats-out",
-       (dir / "stats.json").string()},
-      (dir / "map.log").string());
+  test::ChildProcess map =
+      test::ChildProcess::spawn({std::getenv("CDC_MAP_BIN"), "--config", (dir / "map.yaml").string(), "--out",
+                                 (dir / "out").string(), "--stats-out", (dir / "stats.json").string()},
+                                (dir / "map.log").string());
   ASSERT_TRUE(w_kf.wait_for_readers(1, 15s));
   ASSERT_TRUE(w_opt.wait_for_readers(1, 15s));
   // Each keyframe: a 10 x 10 m wall of points 5 m ahead, 1,000 points.
   std::vector<cdc_msg_PointXYZI> cloud;
   for (int i = 0; i < 40; ++i) {
-    for (int j = 0; j < 25; ++j) cloud.push_back(cdc_msg_PointXYZI{5.0f, -5.0f + 0.25f * static_cast<float>(i), -2.0f + 0.25f * static_cast<float>(j), 0.5f});
+    for (int j = 0; j < 25; ++j)
+      cloud.push_back(
+          cdc_msg_PointXYZI{5.0f, -5.0f + 0.25f * static_cast<float>(i), -2.0f + 0.25f * static_cast<float>(j), 0.5f});
   }
   for (uint32_t r = 0; r < 2; ++r) {
     for (uint32_t k = 0; k < 5; ++k) {

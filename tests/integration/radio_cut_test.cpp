@@ -12,6 +12,7 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <csignal>
 #include <cstdlib>
 #include <filesystem>
@@ -19,7 +20,6 @@
 #include <set>
 #include <string>
 #include <thread>
-#include <unistd.h>
 
 namespace cdc::dds {
 namespace {
@@ -73,7 +73,8 @@ TEST_F(RadioCut, ADiscardingWriterSendsNothingItHeldWhenTheLinkReturns) {
   ASSERT_TRUE(local.has_value());
   RobotDomains domains(radio, local, [](bool) {});
   const std::string base = "cdc/test/radio_cut_" + std::to_string(::getpid());
-  Topic<cdc_msg_RobotStatus> t_kept(domains.radio(), base + "_kept"), t_discarding(domains.radio(), base + "_discarding");
+  Topic<cdc_msg_RobotStatus> t_kept(domains.radio(), base + "_kept"),
+      t_discarding(domains.radio(), base + "_discarding");
   Writer<cdc_msg_RobotStatus> kept(domains.radio(), t_kept, qos::event_stream());
   Writer<cdc_msg_RobotStatus> discarding(domains.radio(), t_discarding, qos::event_stream());
   const std::string log_kept = (dir_ / "kept.log").string(), log_discarding = (dir_ / "discarding.log").string();
@@ -91,7 +92,8 @@ TEST_F(RadioCut, ADiscardingWriterSendsNothingItHeldWhenTheLinkReturns) {
   };
   write(kept, 0, 5);
   write(discarding, 0, 5);
-  ASSERT_TRUE(wait_until([&] { return ids_read(log_kept).size() == 5 && ids_read(log_discarding).size() == 5; }, 10000ms));
+  ASSERT_TRUE(
+      wait_until([&] { return ids_read(log_kept).size() == 5 && ids_read(log_discarding).size() == 5; }, 10000ms));
 
   ::kill(::getpid(), SIGUSR1);  // the link is cut: samples 5-9 stay unacknowledged
   std::this_thread::sleep_for(300ms);

@@ -10,14 +10,14 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
+#include <unistd.h>
 #include <csignal>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <sys/wait.h>
 #include <thread>
-#include <unistd.h>
 
 namespace cdc {
 namespace {
@@ -39,13 +39,16 @@ class SimPlay : public ::testing::Test {
     t_lidar_ = std::make_unique<dds::Topic<cdc_msg_LidarScan>>(*participant_, dds::topics::kLidar);
     t_gt_ = std::make_unique<dds::Topic<cdc_msg_GroundTruth>>(*participant_, dds::topics::kGroundTruth);
     t_progress_ = std::make_unique<dds::Topic<cdc_msg_ConsumerProgress>>(*participant_, dds::topics::kProgress);
-    r_lidar_ = std::make_unique<dds::Reader<cdc_msg_LidarScan>>(*participant_, *t_lidar_, dds::qos::sensor_stream(16, true));
+    r_lidar_ =
+        std::make_unique<dds::Reader<cdc_msg_LidarScan>>(*participant_, *t_lidar_, dds::qos::sensor_stream(16, true));
     dds::Qos gt_qos;
     gt_qos.reliable().keep_last(4096).transient_local();
     r_gt_ = std::make_unique<dds::Reader<cdc_msg_GroundTruth>>(*participant_, *t_gt_, gt_qos);
     t_radio_ = std::make_unique<dds::Topic<cdc_msg_RadioState>>(*participant_, dds::topics::kRadio);
-    r_radio_ = std::make_unique<dds::Reader<cdc_msg_RadioState>>(*participant_, *t_radio_, dds::qos::event_stream(1024));
-    w_progress_ = std::make_unique<dds::Writer<cdc_msg_ConsumerProgress>>(*participant_, *t_progress_, dds::qos::keyed_state());
+    r_radio_ =
+        std::make_unique<dds::Reader<cdc_msg_RadioState>>(*participant_, *t_radio_, dds::qos::event_stream(1024));
+    w_progress_ =
+        std::make_unique<dds::Writer<cdc_msg_ConsumerProgress>>(*participant_, *t_progress_, dds::qos::keyed_state());
   }
   void TearDown() override { fs::remove_all(dir_); }
 
@@ -132,12 +135,13 @@ TEST_F(SimPlay, APlayerBesideARobotPlaysOnlyThatRobot) {
   }
   const auto st = player.wait(20s);
   ASSERT_TRUE(st && WIFEXITED(*st) && WEXITSTATUS(*st) == 0) << "player failed, see " << (dir_ / "player.log");
-  r_lidar_->take(64).for_each_valid([&](const cdc_msg_LidarScan& s, const dds_sample_info_t&) { ++per_robot[s.robot_id]; });
+  r_lidar_->take(64).for_each_valid(
+      [&](const cdc_msg_LidarScan& s, const dds_sample_info_t&) { ++per_robot[s.robot_id]; });
   EXPECT_EQ(per_robot[1], 10u);
   EXPECT_EQ(per_robot[0], 0u) << "robot 0's sweeps were played too";
   // A robot the dataset does not have is named.
-  test::ChildProcess bad = test::ChildProcess::spawn({std::getenv("CDC_SIM_BIN"), "play", (dir_ / "ds").string(), "--robot", "7"},
-                                                     (dir_ / "bad.log").string());
+  test::ChildProcess bad = test::ChildProcess::spawn(
+      {std::getenv("CDC_SIM_BIN"), "play", (dir_ / "ds").string(), "--robot", "7"}, (dir_ / "bad.log").string());
   const auto bs = bad.wait(20s);
   ASSERT_TRUE(bs && WIFEXITED(*bs));
   EXPECT_NE(WEXITSTATUS(*bs), 0);
@@ -154,8 +158,8 @@ TEST_F(SimPlay, ImportedKittiSweepsPlayWithTheirGroundTruthAndNoInventedTimes) {
   }
   test::ChildProcess import = test::ChildProcess::spawn(
       {std::getenv("CDC_IMPORT_BIN"), "kitti", (data / "kitti/scans/seq00").string(), "--allow-gaps", "--poses",
-       (data / "kitti/poses/00.txt").string(), "--calib", (data / "kitti/calib_Tr.txt").string(), "--calib-key", "Tr_00_02",
-       "--out", (dir_ / "seq00").string()},
+       (data / "kitti/poses/00.txt").string(), "--calib", (data / "kitti/calib_Tr.txt").string(), "--calib-key",
+       "Tr_00_02", "--out", (dir_ / "seq00").string()},
       (dir_ / "import.log").string());
   const auto is = import.wait(60s);
   ASSERT_TRUE(is && WIFEXITED(*is) && WEXITSTATUS(*is) == 0) << "cdc-import failed: see " << (dir_ / "import.log");
@@ -183,7 +187,7 @@ TEST_F(SimPlay, ImportedKittiSweepsPlayWithTheirGroundTruthAndNoInventedTimes) {
   ASSERT_TRUE(st && WIFEXITED(*st) && WEXITSTATUS(*st) == 0);
   ASSERT_EQ(scans.size(), 4u);
   const auto seq = io::kitti_lidar_trajectory((data / "kitti/poses/00.txt").string(),
-                                               io::read_kitti_calib((data / "kitti/calib_Tr.txt").string(), "Tr_00_02"));
+                                              io::read_kitti_calib((data / "kitti/calib_Tr.txt").string(), "Tr_00_02"));
   const int frames[4] = {94, 95, 198, 199};
   for (int i = 0; i < 4; ++i) {
     const int64_t stamp = (frames[i] - frames[0]) * 100'000'000LL;  // the import's clock starts at the first sweep

@@ -155,14 +155,16 @@ class SwarmEndToEnd : public ::testing::Test {
     ChildProcess p = launch(out, log, network);
     const auto status = p.wait(std::chrono::minutes(12));
     if (!status.has_value()) throw std::runtime_error("cdc-launch did not finish; see " + log);
-    if (!WIFEXITED(*status) || WEXITSTATUS(*status) != 0) throw std::runtime_error("cdc-launch failed:\n" + read_file(log));
+    if (!WIFEXITED(*status) || WEXITSTATUS(*status) != 0)
+      throw std::runtime_error("cdc-launch failed:\n" + read_file(log));
     return json::parse(read_file(out / "report.json"));
   }
 
   static ChildProcess launch(const fs::path& out, const std::string& log, const std::string& network = "netns") {
-    return ChildProcess::spawn({env("CDC_LAUNCH_BIN"), (work_ / ("swarm_" + network + ".yaml")).string(), "--root", env("CDC_SOURCE_DIR"),
-                                "--bin-dir", env("CDC_BUILD_DIR"), "--out", out.string(), "--no-progress"},
-                               log);
+    return ChildProcess::spawn(
+        {env("CDC_LAUNCH_BIN"), (work_ / ("swarm_" + network + ".yaml")).string(), "--root", env("CDC_SOURCE_DIR"),
+         "--bin-dir", env("CDC_BUILD_DIR"), "--out", out.string(), "--no-progress"},
+        log);
   }
 
   static inline std::string skip_, netns_skip_;
@@ -189,7 +191,8 @@ TEST_F(SwarmEndToEnd, ThreeRobotsSwitchOnLivelinessLapsesAndStayAccurate) {
   // DISTRIBUTED mode on any link (robot or central), and over the whole run both directions on a
   // robot-to-robot link per keyframe made by either end.
   std::cout << "links: " << r["traffic"]["max_distributed_sent_bytes_per_own_keyframe_per_link"]
-            << " B sent per own keyframe in DISTRIBUTED (largest), " << r["traffic"]["max_robot_link_bytes_per_keyframe_whole_run"]
+            << " B sent per own keyframe in DISTRIBUTED (largest), "
+            << r["traffic"]["max_robot_link_bytes_per_keyframe_whole_run"]
             << " B per keyframe over the run (largest)\n";
   EXPECT_LE(r["traffic"]["max_distributed_sent_bytes_per_own_keyframe_per_link"].get<double>(), 2048.0)
       << r["traffic"].dump();
@@ -206,7 +209,8 @@ TEST_F(SwarmEndToEnd, ThreeRobotsSwitchOnLivelinessLapsesAndStayAccurate) {
   };
   uint64_t kf_written = 0;
   for (const char* node : {"robot0", "robot1", "robot2"}) {
-    EXPECT_GT(counter(node, "descriptor", cdc::dds::topics::kDescriptor, "bytes_written"), 0u) << node << ": " << per_topic.dump();
+    EXPECT_GT(counter(node, "descriptor", cdc::dds::topics::kDescriptor, "bytes_written"), 0u)
+        << node << ": " << per_topic.dump();
     kf_written += counter(node, "peer_optimiser", cdc::dds::topics::kKeyframe, "bytes_written");
   }
   const uint64_t kf_taken = counter("central", "central_optimiser", cdc::dds::topics::kKeyframe, "bytes_taken");
@@ -217,7 +221,8 @@ TEST_F(SwarmEndToEnd, ThreeRobotsSwitchOnLivelinessLapsesAndStayAccurate) {
   for (const char* node : {"robot0", "robot1", "robot2"}) {
     results_taken += counter(node, "peer_optimiser", cdc::dds::topics::kCentralOptimized, "samples_taken");
   }
-  const uint64_t results_written = counter("central", "central_optimiser", cdc::dds::topics::kCentralOptimized, "samples_written");
+  const uint64_t results_written =
+      counter("central", "central_optimiser", cdc::dds::topics::kCentralOptimized, "samples_written");
   EXPECT_GT(results_taken, 0u);
   EXPECT_LE(results_taken, results_written);
   for (const char* f : {"trajectories.svg", "modes.svg", "global_graph.g2o", "map/map.pcd", "map/map.bt", "report.md",
@@ -250,7 +255,8 @@ TEST_F(SwarmEndToEnd, LoopbackCutsRobotsWithDeafMuteAndTheySwitchOnLivelinessLap
     EXPECT_EQ(session["keyframes_held"], fe["keyframes"]) << "robot " << robot;
     const json peer = json::parse(read_file(run / ("robot_" + robot) / "peer_optimiser.stats.json"));
     EXPECT_EQ(peer["keyframe_writer_discards"], r["robots"][robot]["switches_to_distributed"]) << "robot " << robot;
-    EXPECT_EQ(r["robots"][robot]["switches_to_centralized"].get<int>(), r["robots"][robot]["switches_to_distributed"].get<int>() + 1)
+    EXPECT_EQ(r["robots"][robot]["switches_to_centralized"].get<int>(),
+              r["robots"][robot]["switches_to_distributed"].get<int>() + 1)
         << "robot " << robot << " did not come back";
   }
   EXPECT_EQ(central["sessions"].size(), 3u);
@@ -280,7 +286,8 @@ TEST_F(SwarmEndToEnd, LoopbackCutsRobotsWithDeafMuteAndTheySwitchOnLivelinessLap
     EXPECT_EQ(own_vertices, fe["keyframes"].get<int>()) << robot;
     // Keyframes go to the central only while CENTRALIZED; a DISTRIBUTED robot keeps them and re-sends
     // the backlog when it rejoins (robot 1 comes back at 39 s).
-    EXPECT_EQ(peer["forwarded_keyframes"].get<int>() + peer["withheld_keyframes"].get<int>(), fe["keyframes"].get<int>())
+    EXPECT_EQ(peer["forwarded_keyframes"].get<int>() + peer["withheld_keyframes"].get<int>(),
+              fe["keyframes"].get<int>())
         << robot;
     if (jr["switches_to_distributed"].get<int>() > 0) {
       EXPECT_GT(peer["withheld_keyframes"].get<int>(), 0) << robot;

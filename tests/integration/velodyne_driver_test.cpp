@@ -54,7 +54,8 @@ std::vector<Packet> vlp16_packets() {
   io::BagMessage m;
   while (bag->next(m)) {
     if (m.type != "velodyne_msgs/msg/VelodyneScan") continue;
-    for (const io::VelodynePacketMsg& p : io::decode_velodyne_scan(m).packets) out.push_back({{p.data.begin(), p.data.end()}, p.stamp_ns});
+    for (const io::VelodynePacketMsg& p : io::decode_velodyne_scan(m).packets)
+      out.push_back({{p.data.begin(), p.data.end()}, p.stamp_ns});
   }
   return out;
 }
@@ -90,7 +91,8 @@ std::string text_of(const fs::path& p) {
 class VelodyneDriver : public ::testing::Test {
  protected:
   void SetUp() override {
-    for (const char* v : {"CDC_VELODYNE_BIN", "CDC_FRONTEND_BIN", "CDC_IMPORT_BIN"}) ASSERT_NE(std::getenv(v), nullptr) << v;
+    for (const char* v : {"CDC_VELODYNE_BIN", "CDC_FRONTEND_BIN", "CDC_IMPORT_BIN"})
+      ASSERT_NE(std::getenv(v), nullptr) << v;
     if (!fs::exists(vlp16_bag())) GTEST_SKIP() << "no Velodyne fixture at " << vlp16_bag() << " (set CDC_DATA_DIR)";
     dir_ = fs::temp_directory_path() / ("cdc_velodyne_driver_" + std::to_string(::getpid()) + "_" +
                                         ::testing::UnitTest::GetInstance()->current_test_info()->name());
@@ -100,13 +102,22 @@ class VelodyneDriver : public ::testing::Test {
   }
   void TearDown() override {
     if (dir_.empty()) return;
-    if (!HasFailure()) fs::remove_all(dir_);
-    else std::printf("logs kept in %s\n", dir_.c_str());
+    if (!HasFailure())
+      fs::remove_all(dir_);
+    else
+      std::printf("logs kept in %s\n", dir_.c_str());
   }
 
   std::vector<std::string> driver_args(const std::string& stats) const {
-    return {std::getenv("CDC_VELODYNE_BIN"), "--robot", "0", "--model", "VLP16", "--calibration", vlp16_calibration().string(),
-            "--stats-out", (dir_ / stats).string()};
+    return {std::getenv("CDC_VELODYNE_BIN"),
+            "--robot",
+            "0",
+            "--model",
+            "VLP16",
+            "--calibration",
+            vlp16_calibration().string(),
+            "--stats-out",
+            (dir_ / stats).string()};
   }
 
   fs::path dir_;
@@ -136,10 +147,10 @@ TEST_F(VelodyneDriver, PcapReplayReachesTheFrontEndWithTheSweepsCdcImportMakes) 
     }
   }
   // cdc-import's sweeps of the same packets.
-  test::ChildProcess importer = test::ChildProcess::spawn(
-      {std::getenv("CDC_IMPORT_BIN"), "bag", vlp16_bag().string(), "--calibration", vlp16_calibration().string(), "--model", "VLP16",
-       "--out", (dir_ / "ds").string()},
-      (dir_ / "import.log").string());
+  test::ChildProcess importer =
+      test::ChildProcess::spawn({std::getenv("CDC_IMPORT_BIN"), "bag", vlp16_bag().string(), "--calibration",
+                                 vlp16_calibration().string(), "--model", "VLP16", "--out", (dir_ / "ds").string()},
+                                (dir_ / "import.log").string());
   ASSERT_TRUE(exited_zero(importer.wait(60s))) << "see " << dir_ / "import.log";
   size_t imported = 0;
   {
@@ -152,11 +163,13 @@ TEST_F(VelodyneDriver, PcapReplayReachesTheFrontEndWithTheSweepsCdcImportMakes) 
   po.domain_id = dds::domain_from_env(0);
   dds::Participant participant(po);
   dds::Topic<cdc_msg_Odometry> t_odom(participant, dds::topics::kOdometry);
-  dds::Reader<cdc_msg_Odometry> r_odom(participant, t_odom, dds::qos::sensor_stream(64, true).partitions(dds::partitions::all_robots_reader()));
+  dds::Reader<cdc_msg_Odometry> r_odom(
+      participant, t_odom, dds::qos::sensor_stream(64, true).partitions(dds::partitions::all_robots_reader()));
   std::ofstream(dir_ / "frontend.yaml") << "robots: 1\nimu:\n  use: false\n";
-  test::ChildProcess fe = test::ChildProcess::spawn({std::getenv("CDC_FRONTEND_BIN"), "--robot", "0", "--config",
-                                                     (dir_ / "frontend.yaml").string(), "--stats-out", (dir_ / "frontend.json").string()},
-                                                    (dir_ / "frontend.log").string());
+  test::ChildProcess fe =
+      test::ChildProcess::spawn({std::getenv("CDC_FRONTEND_BIN"), "--robot", "0", "--config",
+                                 (dir_ / "frontend.yaml").string(), "--stats-out", (dir_ / "frontend.json").string()},
+                                (dir_ / "frontend.log").string());
   ASSERT_TRUE(r_odom.wait_for_writers(1, 15s)) << "the front-end did not come up, see " << dir_ / "frontend.log";
 
   // (c) The replay at sensor rate, once the front-end's reader has matched.
@@ -169,8 +182,10 @@ TEST_F(VelodyneDriver, PcapReplayReachesTheFrontEndWithTheSweepsCdcImportMakes) 
   const nlohmann::json ds = read_json(dir_ / "driver.json");
   const size_t published = ds["published"].get<size_t>();
   size_t odometry = 0;
-  for (auto deadline = std::chrono::steady_clock::now() + 30s; odometry < published && std::chrono::steady_clock::now() < deadline;) {
-    r_odom.take(64).for_each_valid([&](const cdc_msg_Odometry& m, const dds_sample_info_t&) { odometry += m.robot_id == 0 ? 1u : 0u; });
+  for (auto deadline = std::chrono::steady_clock::now() + 30s;
+       odometry < published && std::chrono::steady_clock::now() < deadline;) {
+    r_odom.take(64).for_each_valid(
+        [&](const cdc_msg_Odometry& m, const dds_sample_info_t&) { odometry += m.robot_id == 0 ? 1u : 0u; });
     std::this_thread::sleep_for(20ms);
   }
   fe.signal(SIGTERM);
@@ -178,9 +193,11 @@ TEST_F(VelodyneDriver, PcapReplayReachesTheFrontEndWithTheSweepsCdcImportMakes) 
   const nlohmann::json fs_ = read_json(dir_ / "frontend.json");
 
   // (d) Every count equal, and not zero.
-  std::printf("cdc-import %zu sweeps, driver %zu published (%llu datagrams, %llu points), front-end %zu scans / %zu odometry\n",
-              imported, published, static_cast<unsigned long long>(ds["datagrams"].get<uint64_t>()),
-              static_cast<unsigned long long>(ds["points"].get<uint64_t>()), fs_["scans"].get<size_t>(), fs_["odometry"].get<size_t>());
+  std::printf(
+      "cdc-import %zu sweeps, driver %zu published (%llu datagrams, %llu points), front-end %zu scans / %zu odometry\n",
+      imported, published, static_cast<unsigned long long>(ds["datagrams"].get<uint64_t>()),
+      static_cast<unsigned long long>(ds["points"].get<uint64_t>()), fs_["scans"].get<size_t>(),
+      fs_["odometry"].get<size_t>());
   EXPECT_GT(imported, 0u);
   EXPECT_EQ(published, imported);
   EXPECT_EQ(ds["sweeps"].get<size_t>(), published);
@@ -195,7 +212,8 @@ TEST_F(VelodyneDriver, PcapReplayReachesTheFrontEndWithTheSweepsCdcImportMakes) 
   EXPECT_EQ(ds["error"].get<std::string>(), "");
   // Paced at the capture's rate, the replay lasts at least as long as the capture.
   EXPECT_GE(replay_time, std::chrono::nanoseconds(packets_.back().stamp_ns - packets_.front().stamp_ns));
-  EXPECT_NE(text_of(dir_ / "driver.log").find("stopped after " + std::to_string(published) + " sweeps"), std::string::npos);
+  EXPECT_NE(text_of(dir_ / "driver.log").find("stopped after " + std::to_string(published) + " sweeps"),
+            std::string::npos);
 }
 
 // A free UDP port on 127.0.0.1, chosen by the kernel.
@@ -206,7 +224,8 @@ uint16_t free_udp_port() {
   a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
   a.sin_port = 0;
   socklen_t len = sizeof a;
-  if (fd < 0 || ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 || ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len) != 0) {
+  if (fd < 0 || ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) != 0 ||
+      ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len) != 0) {
     if (fd >= 0) ::close(fd);
     return 0;
   }
@@ -223,11 +242,14 @@ TEST_F(VelodyneDriver, UdpDatagramsOnLoopbackWithMalformedOnesCounted) {
   dds::Topic<cdc_msg_LidarScan> t_scan(participant, dds::topics::kLidar);
   dds::Reader<cdc_msg_LidarScan> r_scan(participant, t_scan, dds::qos::sensor_stream(16, true));
   std::vector<std::string> args = driver_args("driver.json");
-  for (const std::string& a : {std::string("--bind"), std::string("127.0.0.1"), std::string("--port"), std::to_string(port)}) args.push_back(a);
+  for (const std::string& a :
+       {std::string("--bind"), std::string("127.0.0.1"), std::string("--port"), std::to_string(port)})
+    args.push_back(a);
   test::ChildProcess driver = test::ChildProcess::spawn(args, (dir_ / "driver.log").string());
   ASSERT_TRUE(r_scan.wait_for_writers(1, 15s)) << "see " << dir_ / "driver.log";
   // The socket is bound right after the writer is made; the log says when.
-  ASSERT_TRUE(dds::wait_until([&] { return text_of(dir_ / "driver.log").find("listening on UDP") != std::string::npos; }, 15000ms))
+  ASSERT_TRUE(dds::wait_until(
+      [&] { return text_of(dir_ / "driver.log").find("listening on UDP") != std::string::npos; }, 15000ms))
       << "see " << dir_ / "driver.log";
 
   const int fd = ::socket(AF_INET, SOCK_DGRAM, 0);
@@ -285,10 +307,12 @@ TEST_F(VelodyneDriver, UdpDatagramsOnLoopbackWithMalformedOnesCounted) {
   EXPECT_LT(std::chrono::steady_clock::now() - stop, 3s) << "shutdown is not prompt";
 
   const nlohmann::json ds = read_json(dir_ / "driver.json");
-  std::printf("UDP: %zu packets + %llu malformed + %llu truncated -> %zu sweeps (%llu points), kernel drops %llu, buffer %d bytes\n",
-              packets_.size(), static_cast<unsigned long long>(malformed), static_cast<unsigned long long>(truncated), seqs.size(),
-              static_cast<unsigned long long>(points), static_cast<unsigned long long>(ds["kernel_drops"].get<uint64_t>()),
-              ds["receive_buffer_bytes"].get<int>());
+  std::printf(
+      "UDP: %zu packets + %llu malformed + %llu truncated -> %zu sweeps (%llu points), kernel drops %llu, buffer %d "
+      "bytes\n",
+      packets_.size(), static_cast<unsigned long long>(malformed), static_cast<unsigned long long>(truncated),
+      seqs.size(), static_cast<unsigned long long>(points),
+      static_cast<unsigned long long>(ds["kernel_drops"].get<uint64_t>()), ds["receive_buffer_bytes"].get<int>());
   EXPECT_GT(expected, 0u);
   EXPECT_EQ(seqs.size(), expected);
   for (size_t i = 0; i < seqs.size(); ++i) EXPECT_EQ(seqs[i], i);

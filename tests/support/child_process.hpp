@@ -2,11 +2,10 @@
 // started itself.
 #pragma once
 
+#include <sys/types.h>
 #include <chrono>
 #include <optional>
 #include <string>
-#include <string>
-#include <sys/types.h>
 #include <vector>
 
 namespace cdc::test {

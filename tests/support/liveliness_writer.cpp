@@ -21,7 +21,8 @@ int main(int argc, char** argv) {
   uint32_t domain = 0;
   int data_every = 1;
   app.add_option("--topic", topic_name, "topic name")->required();
-  app.add_option("--data-every", data_every, "write a sample every this many periods, assert in the others (0: never write)")
+  app.add_option("--data-every", data_every,
+                 "write a sample every this many periods, assert in the others (0: never write)")
       ->check(CLI::Range(0, 1000000));
   app.add_option("--lease-ms", lease_ms, "liveliness lease [ms]")->check(CLI::Range(10, 60000));
   app.add_option("--period-ms", period_ms, "assertion period [ms]")->check(CLI::Range(1, 60000));

@@ -47,7 +47,8 @@ int main(int argc, char** argv) {
     cdc::dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, cdc::dds::qos::event_stream(4096));
     cdc::dds::Writer<cdc_msg_LoopClosure> w_loop(participant, t_loop, cdc::dds::qos::event_stream(4096));
     if (wait_readers > 0 && !w_kf.wait_for_readers(wait_readers, std::chrono::seconds(30))) {
-      std::fprintf(stderr, "cdc-test-swarm-feeder: only %u of %u readers matched\n", w_kf.matched_readers(), wait_readers);
+      std::fprintf(stderr, "cdc-test-swarm-feeder: only %u of %u readers matched\n", w_kf.matched_readers(),
+                   wait_readers);
       return 1;
     }
     w_loop.wait_for_readers(wait_readers, std::chrono::seconds(10));

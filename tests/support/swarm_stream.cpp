@@ -51,9 +51,10 @@ Eigen::Isometry3d path_pose(double s, const SwarmStreamOptions& o, bool excursio
 Eigen::Isometry3d noise(std::mt19937& rng, double st, double sr) {
   std::normal_distribution<double> t(0, st), r(0, sr);
   Eigen::Isometry3d N = Eigen::Isometry3d::Identity();
-  N.linear() = (Eigen::AngleAxisd(r(rng), Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(r(rng), Eigen::Vector3d::UnitY()) *
-                Eigen::AngleAxisd(r(rng), Eigen::Vector3d::UnitZ()))
-                   .toRotationMatrix();
+  N.linear() =
+      (Eigen::AngleAxisd(r(rng), Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(r(rng), Eigen::Vector3d::UnitY()) *
+       Eigen::AngleAxisd(r(rng), Eigen::Vector3d::UnitZ()))
+          .toRotationMatrix();
   N.translation() = Eigen::Vector3d(t(rng), t(rng), t(rng));
   return N;
 }

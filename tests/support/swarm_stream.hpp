@@ -17,10 +17,10 @@ using Matrix6d = Eigen::Matrix<double, 6, 6>;
 struct StreamKeyframe {
   uint32_t robot = 0;
   uint32_t id = 0;
-  Eigen::Isometry3d T_odom_keyframe;   // noisy odometry, robot's odometry frame
-  Eigen::Isometry3d T_prev_keyframe;   // noisy relative odometry from id - 1
+  Eigen::Isometry3d T_odom_keyframe;  // noisy odometry, robot's odometry frame
+  Eigen::Isometry3d T_prev_keyframe;  // noisy relative odometry from id - 1
   Matrix6d information;
-  Eigen::Isometry3d T_world_truth;     // ground truth in W (robot 0's first odometry frame)
+  Eigen::Isometry3d T_world_truth;  // ground truth in W (robot 0's first odometry frame)
 };
 
 struct StreamLoop {
@@ -36,13 +36,13 @@ struct SwarmStreamOptions {
   uint32_t robots = 3;
   uint32_t keyframes_per_robot = 200;
   uint32_t seed = 1;
-  double spacing_m = 2.0;           // between keyframes
+  double spacing_m = 2.0;              // between keyframes
   double block_w = 120, block_h = 80;  // the lap [m]
-  double odom_sigma_t = 0.02;       // [m] per keyframe
-  double odom_sigma_r = 0.002;      // [rad] per keyframe
-  double loop_radius_m = 4.0;       // true distance for a loop closure
-  uint32_t loop_every = 3;          // at most one loop per robot every this many keyframes
-  uint32_t min_loop_gap = 30;       // same-robot loops skip this many recent keyframes
+  double odom_sigma_t = 0.02;          // [m] per keyframe
+  double odom_sigma_r = 0.002;         // [rad] per keyframe
+  double loop_radius_m = 4.0;          // true distance for a loop closure
+  uint32_t loop_every = 3;             // at most one loop per robot every this many keyframes
+  uint32_t min_loop_gap = 30;          // same-robot loops skip this many recent keyframes
   // Robot `excursion_robot` leaves the block along +x for excursion_m and comes back, every lap.
   int excursion_robot = -1;
   double excursion_m = 0;

@@ -3,9 +3,9 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <filesystem>
 #include <fstream>
-#include <unistd.h>
 
 namespace cdc::config {
 namespace {
@@ -20,7 +20,8 @@ TEST(ConfigReader, ReadsNestedValuesAndKeepsDefaults) {
   const std::string p = write("ok", "range_m: 150\nfusion:\n  pos_max_m: 0.2\n");
   Reader r(p);
   double range = 100, pos = 0.1, rot = 1.0;
-  r.get<double>("range_m", range, [](const double& v) { return v > 0; }, "> 0");
+  r.get<double>(
+      "range_m", range, [](const double& v) { return v > 0; }, "> 0");
   r.get<double>("fusion.pos_max_m", pos);
   r.get<double>("fusion.rot_max_deg", rot);
   EXPECT_NO_THROW(r.finish());
@@ -35,7 +36,8 @@ TEST(ConfigReader, ListsEveryErrorAtOnce) {
   Reader r(p);
   double range = 100;
   int dwell = 3000;
-  r.get<double>("range_m", range, [](const double& v) { return v > 0; }, "a positive range in metres");
+  r.get<double>(
+      "range_m", range, [](const double& v) { return v > 0; }, "a positive range in metres");
   r.get<int>("dwell_ms", dwell);
   try {
     r.finish();

@@ -15,9 +15,12 @@ void liveliness_changed_cb(dds_entity_t /*reader*/, const dds_liveliness_changed
 
 const char* to_string(Liveliness state) noexcept {
   switch (state) {
-    case Liveliness::kAlive: return "alive";
-    case Liveliness::kLost: return "lost";
-    case Liveliness::kUnknown: break;
+    case Liveliness::kAlive:
+      return "alive";
+    case Liveliness::kLost:
+      return "lost";
+    case Liveliness::kUnknown:
+      break;
   }
   return "unknown";
 }
@@ -45,9 +48,9 @@ void LivelinessMonitor::on_liveliness_changed(int32_t alive_count) {
     LivelinessEvent ev;
     ev.state = now;
     ev.when = std::chrono::steady_clock::now();
-    ev.wall_time_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                          std::chrono::system_clock::now().time_since_epoch())
-                          .count();
+    ev.wall_time_ns =
+        std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+            .count();
     ev.alive_writers = alive_count;
     state_ = now;
     last_ = ev;

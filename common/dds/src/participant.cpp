@@ -29,8 +29,7 @@ uint32_t domain_from_env(uint32_t fallback) {
   char* end = nullptr;
   const unsigned long v = std::strtoul(env, &end, 10);
   if (end == env || *end != '\0' || v > 232) {
-    throw DdsError(std::string("CDC_DDS_DOMAIN='") + env + "' is not a domain id 0..232",
-                   DDS_RETCODE_BAD_PARAMETER);
+    throw DdsError(std::string("CDC_DDS_DOMAIN='") + env + "' is not a domain id 0..232", DDS_RETCODE_BAD_PARAMETER);
   }
   return static_cast<uint32_t>(v);
 }

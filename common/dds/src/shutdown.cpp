@@ -2,9 +2,9 @@
 
 #include "cdc/dds/waitset.hpp"
 
+#include <pthread.h>
 #include <csignal>
 #include <mutex>
-#include <pthread.h>
 #include <thread>
 #include <vector>
 

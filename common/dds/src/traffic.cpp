@@ -19,7 +19,6 @@ Registry& registry() {
   return r;
 }
 
-
 // XCDR1 body size of a sample, walked from the type's serialiser instructions (dds_opcodes.h)
 // without writing it: what Cyclone's dds_stream_write would produce, at a fraction of the cost for
 // long sequences of structs (a LiDAR sweep). Only the instructions cdc-slam's IDL compiles to are
@@ -33,12 +32,17 @@ size_t pad4(size_t n) { return align_to(n, 4); }  // DDSI pads every payload to 
 size_t primitive_size(uint32_t type) {
   switch (type) {
     case DDS_OP_VAL_1BY:
-    case DDS_OP_VAL_BLN: return 1;
-    case DDS_OP_VAL_2BY: return 2;
+    case DDS_OP_VAL_BLN:
+      return 1;
+    case DDS_OP_VAL_2BY:
+      return 2;
     case DDS_OP_VAL_4BY:
-    case DDS_OP_VAL_ENU: return 4;  // XCDR1 sends every enum as 4 bytes
-    case DDS_OP_VAL_8BY: return 8;
-    default: return 0;
+    case DDS_OP_VAL_ENU:
+      return 4;  // XCDR1 sends every enum as 4 bytes
+    case DDS_OP_VAL_8BY:
+      return 8;
+    default:
+      return 0;
   }
 }
 
@@ -178,7 +182,7 @@ std::map<std::pair<uint32_t, std::string>, TopicTotals> topic_traffic() {
 
 size_t serialized_size_by_writing(const dds_topic_descriptor_t* descriptor, const void* sample) {
   constexpr size_t kEncapsulation = 4;  // the encapsulation header
-  constexpr uint32_t kXcdr1 = 1;  // CDR_ENC_VERSION_1 (dds/ddsi/q_protocol.h)
+  constexpr uint32_t kXcdr1 = 1;        // CDR_ENC_VERSION_1 (dds/ddsi/q_protocol.h)
   dds_ostream_t os;
   dds_ostream_init(&os, 0, kXcdr1);
   dds_stream_write(&os, static_cast<const char*>(sample), descriptor->m_ops);

@@ -35,8 +35,8 @@ Validation check_sequence(const Seq& seq, uint32_t declared, uint32_t max, std::
                                            std::to_string(seq._length) + " received (length mismatch)"));
   }
   if (seq._length > max) {
-    return Validation::fail(cat(field, ": " + std::to_string(seq._length) + " elements exceed the limit of " +
-                                           std::to_string(max)));
+    return Validation::fail(
+        cat(field, ": " + std::to_string(seq._length) + " elements exceed the limit of " + std::to_string(max)));
   }
   return Validation::ok();
 }
@@ -67,7 +67,8 @@ Validation check_finite(double v, std::string_view field) {
 template <class Vec>
 Validation check_vec3(const Vec& v, std::string_view field) {
   if (!finite(v.x) || !finite(v.y) || !finite(v.z)) {
-    return Validation::fail(cat(field, ": non-finite component (" + num(v.x) + ", " + num(v.y) + ", " + num(v.z) + ")"));
+    return Validation::fail(
+        cat(field, ": non-finite component (" + num(v.x) + ", " + num(v.y) + ", " + num(v.z) + ")"));
   }
   return Validation::ok();
 }
@@ -119,12 +120,12 @@ Validation check_keyframe_poses(const dds_sequence_cdc_msg_KeyframePose& poses, 
 }
 
 // Runs checks in order and returns the first failure.
-#define CDC_CHECK(expr)      \
-  do {                       \
-    Validation v_ = (expr);  \
-    if (!v_) {               \
-      return v_;             \
-    }                        \
+#define CDC_CHECK(expr)     \
+  do {                      \
+    Validation v_ = (expr); \
+    if (!v_) {              \
+      return v_;            \
+    }                       \
   } while (false)
 
 }  // namespace
@@ -173,8 +174,8 @@ Validation validate_information(const cdc_msg_Information6& info, std::string_vi
   }
   for (int r = 0; r < 6; ++r) {
     if (!(info[r * 6 + r] > 0.0)) {
-      return Validation::fail(cat(field, ": diagonal entry " + std::to_string(r) + " is " + num(info[r * 6 + r]) +
-                                             ", must be positive"));
+      return Validation::fail(
+          cat(field, ": diagonal entry " + std::to_string(r) + " is " + num(info[r * 6 + r]) + ", must be positive"));
     }
     for (int c = r + 1; c < 6; ++c) {
       const double a = info[r * 6 + c];
@@ -293,15 +294,13 @@ Validation validate_ends(const M& m, const ValidationLimits& limits) {
 }
 }  // namespace
 
-Validation validate(const cdc_msg_CloudRequest& m, const ValidationLimits& limits) {
-  return validate_ends(m, limits);
-}
+Validation validate(const cdc_msg_CloudRequest& m, const ValidationLimits& limits) { return validate_ends(m, limits); }
 
 Validation validate(const cdc_msg_DescriptorSync& m, const ValidationLimits& limits) {
   CDC_CHECK(validate_ends(m, limits));
   if (m.first_keyframe_id > m.last_keyframe_id) {
-    return Validation::fail("last_keyframe_id: " + std::to_string(m.last_keyframe_id) + " is before first_keyframe_id " +
-                            std::to_string(m.first_keyframe_id));
+    return Validation::fail("last_keyframe_id: " + std::to_string(m.last_keyframe_id) +
+                            " is before first_keyframe_id " + std::to_string(m.first_keyframe_id));
   }
   return Validation::ok();
 }

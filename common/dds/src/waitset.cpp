@@ -38,9 +38,9 @@ void WaitSet::detach(dds_entity_t entity) {
 
 std::vector<intptr_t> WaitSet::wait(std::chrono::nanoseconds timeout) {
   std::vector<dds_attach_t> xs(attached_ == 0 ? 1 : attached_);
-  const dds_return_t n = check(
-      dds_waitset_wait(ws_.handle(), xs.data(), xs.size(), static_cast<dds_duration_t>(timeout.count())),
-      "wait on waitset");
+  const dds_return_t n =
+      check(dds_waitset_wait(ws_.handle(), xs.data(), xs.size(), static_cast<dds_duration_t>(timeout.count())),
+            "wait on waitset");
   std::vector<intptr_t> tags;
   tags.reserve(static_cast<size_t>(n));
   for (dds_return_t i = 0; i < n && static_cast<size_t>(i) < xs.size(); ++i) {

@@ -72,7 +72,9 @@ TEST(Compact, SurfacesPackInUnderThreeBytesPerPointAtOneCentimetre) {
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> in_voxel(0.0f, 0.4f);
   std::vector<Eigen::Vector3f> pts;
-  auto centroid = [&](float x, float y, float z) { pts.emplace_back(x + in_voxel(rng), y + in_voxel(rng), z + in_voxel(rng)); };
+  auto centroid = [&](float x, float y, float z) {
+    pts.emplace_back(x + in_voxel(rng), y + in_voxel(rng), z + in_voxel(rng));
+  };
   for (float x = -40.0f; x < 40.0f; x += 0.4f) {
     for (float y = -8.0f; y < 8.0f; y += 0.4f) centroid(x, y, -1.8f);  // the road
     for (float z = -1.8f; z < 8.0f; z += 0.4f) {
@@ -109,7 +111,8 @@ TEST(Compact, RandomAndMutatedInputNeverCrashes) {
   // must come back as a reason or as exactly the size asked for (run under the asan preset too).
   std::mt19937 rng(99);
   std::vector<Eigen::Vector3f> pts;
-  for (int i = 0; i < 500; ++i) pts.emplace_back(0.1f * static_cast<float>(i % 37), 0.2f * static_cast<float>(i % 11), 1.0f);
+  for (int i = 0; i < 500; ++i)
+    pts.emplace_back(0.1f * static_cast<float>(i % 37), 0.2f * static_cast<float>(i % 11), 1.0f);
   const PackedCloud good = pack_points(pts, 0.01f);
   std::vector<Eigen::Vector3f> out;
   std::vector<uint8_t> bytes;

@@ -1,9 +1,9 @@
 // Participants, typed pub/sub, waitsets and conversions over Cyclone on the loopback configuration.
+#include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/cloud_convert.hpp"
 #include "cdc/dds/convert.hpp"
 #include "cdc/dds/error.hpp"
 #include "cdc/dds/participant.hpp"
-#include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/topics.hpp"
 #include "cdc/dds/validate.hpp"
 #include "cdc/dds/waitset.hpp"
@@ -13,13 +13,13 @@
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
 
+#include <unistd.h>
 #include <cmath>
 #include <cstdlib>
 #include <limits>
 #include <memory>
 #include <string>
 #include <thread>
-#include <unistd.h>
 
 namespace cdc::dds {
 namespace {
@@ -32,9 +32,7 @@ ParticipantOptions test_options() {
   return o;
 }
 
-std::string unique_topic(const std::string& base) {
-  return "cdc/test/" + base + "_" + std::to_string(::getpid());
-}
+std::string unique_topic(const std::string& base) { return "cdc/test/" + base + "_" + std::to_string(::getpid()); }
 
 // A participant with one writer and one reader of a fresh topic, both with the same QoS.
 template <class T>
@@ -214,9 +212,8 @@ TEST(PubSub, TransientLocalStateReachesALateJoiner) {
   std::vector<uint32_t> seen;
   ASSERT_TRUE(wait_until(
       [&] {
-        late.take().for_each_valid([&](const cdc_msg_ModeState& s, const dds_sample_info_t&) {
-          seen.push_back(s.transition_count);
-        });
+        late.take().for_each_valid(
+            [&](const cdc_msg_ModeState& s, const dds_sample_info_t&) { seen.push_back(s.transition_count); });
         return !seen.empty();
       },
       5000ms));
@@ -240,7 +237,8 @@ TEST(PubSub, TakesOfDifferentSizesOnOneReaderGetEverySampleOnce) {
         [&] {
           const Samples<cdc_msg_ModeState> s = reader.take(max);
           EXPECT_LE(s.size(), max);
-          s.for_each_valid([&](const cdc_msg_ModeState& x, const dds_sample_info_t&) { seen.push_back(x.transition_count); });
+          s.for_each_valid(
+              [&](const cdc_msg_ModeState& x, const dds_sample_info_t&) { seen.push_back(x.transition_count); });
           return seen.size() >= want;
         },
         5000ms);
@@ -273,11 +271,13 @@ TEST(PubSub, SamplesStillHeldKeepTheirDataWhenTheReaderTakesAgain) {
   writer.write(big.msg);
   writer.write(small.msg);
   std::vector<Samples<cdc_msg_Keyframe>> held;
-  ASSERT_TRUE(wait_until([&] {
-    Samples<cdc_msg_Keyframe> s = reader.take(1);
-    if (!s.empty()) held.push_back(std::move(s));
-    return held.size() == 2;
-  }, 5000ms));
+  ASSERT_TRUE(wait_until(
+      [&] {
+        Samples<cdc_msg_Keyframe> s = reader.take(1);
+        if (!s.empty()) held.push_back(std::move(s));
+        return held.size() == 2;
+      },
+      5000ms));
   ASSERT_TRUE(held[0].valid(0) && held[1].valid(0));
   EXPECT_EQ(held[0][0].keyframe_id, 1u);
   EXPECT_EQ(held[0][0].cloud._length, 3000u);
@@ -287,14 +287,16 @@ TEST(PubSub, SamplesStillHeldKeepTheirDataWhenTheReaderTakesAgain) {
   writer.write(medium.msg);
   std::vector<uint32_t> ids, lengths;
   std::vector<float> last_x;
-  ASSERT_TRUE(wait_until([&] {
-    reader.take().for_each_valid([&](const cdc_msg_Keyframe& k, const dds_sample_info_t&) {
-      ids.push_back(k.keyframe_id);
-      lengths.push_back(k.cloud._length);
-      last_x.push_back(k.cloud._buffer[k.cloud._length - 1].x);
-    });
-    return !ids.empty();
-  }, 5000ms));
+  ASSERT_TRUE(wait_until(
+      [&] {
+        reader.take().for_each_valid([&](const cdc_msg_Keyframe& k, const dds_sample_info_t&) {
+          ids.push_back(k.keyframe_id);
+          lengths.push_back(k.cloud._length);
+          last_x.push_back(k.cloud._buffer[k.cloud._length - 1].x);
+        });
+        return !ids.empty();
+      },
+      5000ms));
   EXPECT_EQ(ids, std::vector<uint32_t>{3});
   EXPECT_EQ(lengths, std::vector<uint32_t>{200});
   EXPECT_EQ(last_x, std::vector<float>{199.0f});
@@ -315,13 +317,15 @@ TEST(PubSub, RecycledBuffersReadTheNextBacklogExactly) {
       writer.write(k.msg);
       want.push_back(static_cast<uint32_t>(base * (i + 1) + i));
     }
-    ASSERT_TRUE(wait_until([&] {
-      reader.take().for_each_valid([&](const cdc_msg_Keyframe& m, const dds_sample_info_t&) {
-        EXPECT_EQ(m.cloud._buffer[m.cloud._length - 1].x, static_cast<float>(m.cloud._length - 1));
-        got.push_back(m.cloud._length);
-      });
-      return got.size() >= want.size();
-    }, 5000ms));
+    ASSERT_TRUE(wait_until(
+        [&] {
+          reader.take().for_each_valid([&](const cdc_msg_Keyframe& m, const dds_sample_info_t&) {
+            EXPECT_EQ(m.cloud._buffer[m.cloud._length - 1].x, static_cast<float>(m.cloud._length - 1));
+            got.push_back(m.cloud._length);
+          });
+          return got.size() >= want.size();
+        },
+        5000ms));
     EXPECT_EQ(got, want) << "clouds of " << base << " points and up";
   }
 }
@@ -375,7 +379,8 @@ TEST(PubSub, PerRobotWritersReachOnlyTheirRobot) {
   EXPECT_EQ(to.to(3), nullptr);  // beyond the swarm
   ASSERT_NE(to.to(1), nullptr);
   ASSERT_NE(to.to(2), nullptr);
-  auto r1 = std::make_unique<Reader<cdc_msg_ModeState>>(p, topic, qos::keyed_state().partitions(partitions::own_reader(1)));
+  auto r1 =
+      std::make_unique<Reader<cdc_msg_ModeState>>(p, topic, qos::keyed_state().partitions(partitions::own_reader(1)));
   Reader<cdc_msg_ModeState> r2(p, topic, qos::keyed_state().partitions(partitions::own_reader(2)));
   ASSERT_TRUE(to.to(1)->wait_for_readers(1, 5000ms));
   ASSERT_TRUE(to.to(2)->wait_for_readers(1, 5000ms));

@@ -158,7 +158,8 @@ TEST(Validation, DescriptorShape) {
   EXPECT_THAT(validate(d, ValidationLimits{}).reason(), HasSubstr("pose_hint.orientation: not a unit quaternion"));
   d.pose_hint.orientation.w = 1.0f;
   d.sectors = 61;
-  EXPECT_THAT(validate(d, ValidationLimits{}).reason(), HasSubstr("packed_cells: unpacks to 1200 bytes, 1220 expected"));
+  EXPECT_THAT(validate(d, ValidationLimits{}).reason(),
+              HasSubstr("packed_cells: unpacks to 1200 bytes, 1220 expected"));
   d.sectors = 59;
   EXPECT_THAT(validate(d, ValidationLimits{}).reason(), HasSubstr("packed_cells: unpacks to more than the 1180 bytes"));
   d.sectors = 60;

@@ -43,11 +43,20 @@ std::string xml_escape(const std::string& in) {
   std::string out;
   for (char c : in) {
     switch (c) {
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '&': out += "&amp;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '&':
+        out += "&amp;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      default:
+        out += c;
     }
   }
   return out;
@@ -70,9 +79,9 @@ Evaluation evaluate(const std::string& name, const geometry::Trajectory& est, co
   const auto pairs = geometry::associate(est, gt, options.max_dt_ns);
   e.matched = pairs.size();
   if (pairs.size() < 2) {
-    throw std::runtime_error(name + ": only " + std::to_string(pairs.size()) +
-                             " poses match the ground truth in time (tolerance " +
-                             std::to_string(static_cast<double>(options.max_dt_ns) / 1e6) + " ms); check time stamps or --max-dt");
+    throw std::runtime_error(
+        name + ": only " + std::to_string(pairs.size()) + " poses match the ground truth in time (tolerance " +
+        std::to_string(static_cast<double>(options.max_dt_ns) / 1e6) + " ms); check time stamps or --max-dt");
   }
   geometry::Poses pe, pg;
   geometry::Trajectory gt_sub;
@@ -146,7 +155,8 @@ constexpr double kPlotSize = 800, kPlotMargin = 60;  // [px]
 // Where the plot puts a point: the two axes drawn, and metres to pixels so that every path fits (y up).
 class PlotFrame {
  public:
-  PlotFrame(const std::vector<Evaluation>& evaluations, const std::string& plane) : axes_(choose_axes(evaluations, plane)) {
+  PlotFrame(const std::vector<Evaluation>& evaluations, const std::string& plane)
+      : axes_(choose_axes(evaluations, plane)) {
     for (const auto& e : evaluations) {
       extend(e.gt_matched);
       extend(e.est_aligned);
@@ -187,22 +197,23 @@ class PlotFrame {
 // A round length near a fifth of the span, drawn at the bottom left with the axes' directions.
 void draw_scale_bar(std::ostream& svg, const PlotFrame& f) {
   const double h = kPlotSize, bar = std::pow(10.0, std::floor(std::log10(f.span() / 5.0)));
-  svg << "<line x1=\"" << kPlotMargin << "\" y1=\"" << h - 20 << "\" x2=\"" << kPlotMargin + bar * f.scale() << "\" y2=\""
-      << h - 20 << "\" stroke=\"black\" stroke-width=\"2\"/>\n"
-      << "<text x=\"" << kPlotMargin << "\" y=\"" << h - 5 << "\">" << fmt(bar, bar < 1 ? 2 : 0) << " m (" << f.axis_name(0)
-      << " right, " << f.axis_name(1) << " up)</text>\n";
+  svg << "<line x1=\"" << kPlotMargin << "\" y1=\"" << h - 20 << "\" x2=\"" << kPlotMargin + bar * f.scale()
+      << "\" y2=\"" << h - 20 << "\" stroke=\"black\" stroke-width=\"2\"/>\n"
+      << "<text x=\"" << kPlotMargin << "\" y=\"" << h - 5 << "\">" << fmt(bar, bar < 1 ? 2 : 0) << " m ("
+      << f.axis_name(0) << " right, " << f.axis_name(1) << " up)</text>\n";
 }
 
 // Every estimate over its ground truth, each with a legend entry (three per row) below the plot.
-void draw_estimates(std::ostream& svg, const PlotFrame& f, const std::vector<Evaluation>& evaluations, double legend_y) {
+void draw_estimates(std::ostream& svg, const PlotFrame& f, const std::vector<Evaluation>& evaluations,
+                    double legend_y) {
   size_t k = 0;
   for (const auto& e : evaluations) {
     const char* color = plot_color(k);
     const double column = 260 * static_cast<double>(k % 3);
     svg << f.polyline(e.gt_matched, "#555555", " stroke-dasharray=\"4 3\"");
     svg << f.polyline(e.est_aligned, color, "");
-    svg << "<rect x=\"" << kPlotMargin + column << "\" y=\"" << legend_y - 10 << "\" width=\"14\" height=\"4\" fill=\"" << color
-        << "\"/>"
+    svg << "<rect x=\"" << kPlotMargin + column << "\" y=\"" << legend_y - 10 << "\" width=\"14\" height=\"4\" fill=\""
+        << color << "\"/>"
         << "<text x=\"" << kPlotMargin + 20 + column << "\" y=\"" << legend_y << "\">" << xml_escape(e.name) << " (ATE "
         << fmt(e.ate.translation.rmse, 3) << " m)</text>\n";
     ++k;
@@ -212,8 +223,9 @@ void draw_estimates(std::ostream& svg, const PlotFrame& f, const std::vector<Eva
 void draw_marker(std::ostream& svg, const PlotFrame& f, const SvgMarker& m) {
   const double x = f.px(m.position), y = f.py(m.position);
   if (m.triangle) {
-    svg << "<polygon points=\"" << fmt(x, 1) << ',' << fmt(y - 7, 1) << ' ' << fmt(x - 6, 1) << ',' << fmt(y + 5, 1) << ' '
-        << fmt(x + 6, 1) << ',' << fmt(y + 5, 1) << "\" fill=\"" << m.color << "\" stroke=\"black\" stroke-width=\"0.8\"/>";
+    svg << "<polygon points=\"" << fmt(x, 1) << ',' << fmt(y - 7, 1) << ' ' << fmt(x - 6, 1) << ',' << fmt(y + 5, 1)
+        << ' ' << fmt(x + 6, 1) << ',' << fmt(y + 5, 1) << "\" fill=\"" << m.color
+        << "\" stroke=\"black\" stroke-width=\"0.8\"/>";
   } else {
     svg << "<circle cx=\"" << fmt(x, 1) << "\" cy=\"" << fmt(y, 1) << "\" r=\"5\" fill=\"white\" stroke=\"" << m.color
         << "\" stroke-width=\"2\"/>";

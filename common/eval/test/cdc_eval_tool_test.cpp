@@ -7,11 +7,11 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <unistd.h>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <unistd.h>
 
 namespace cdc {
 namespace {
@@ -21,7 +21,9 @@ using geometry::Trajectory;
 
 using ToolRun = test::CommandResult;
 
-ToolRun run(const std::string& args) { return test::run_command(std::string(std::getenv("CDC_EVAL_BIN")) + " " + args); }
+ToolRun run(const std::string& args) {
+  return test::run_command(std::string(std::getenv("CDC_EVAL_BIN")) + " " + args);
+}
 
 class CdcEvalTool : public ::testing::Test {
  protected:
@@ -46,11 +48,11 @@ class CdcEvalTool : public ::testing::Test {
   fs::path dir_;
 };
 
-#define CDC_REQUIRE_KITTI(var)                                                                  \
-  const std::string var = kitti_gt();                                                           \
-  if (var.empty()) {                                                                            \
-    GTEST_SKIP() << "reference data absent: CDC_DATA_DIR/kitti/poses/05.txt not found "         \
-                    "(set CDC_DATA_DIR to the shared data folder)";                             \
+#define CDC_REQUIRE_KITTI(var)                                                          \
+  const std::string var = kitti_gt();                                                   \
+  if (var.empty()) {                                                                    \
+    GTEST_SKIP() << "reference data absent: CDC_DATA_DIR/kitti/poses/05.txt not found " \
+                    "(set CDC_DATA_DIR to the shared data folder)";                     \
   }
 
 TEST_F(CdcEvalTool, RigidlyMovedCopyHasZeroErrorAfterAlignment) {
@@ -74,7 +76,8 @@ TEST_F(CdcEvalTool, RigidlyMovedCopyHasZeroErrorAfterAlignment) {
   EXPECT_LT(j["rpe_frames"]["trans_m"]["rmse"].get<double>(), 1e-5);
   EXPECT_LT(j["kitti_drift"]["trans_pct"].get<double>(), 1e-5);
   // Without alignment the rigid offset is the whole error.
-  const ToolRun none = run("--gt " + gt_path + " --est " + path("moved.txt") + " --align none --json " + path("n.json"));
+  const ToolRun none =
+      run("--gt " + gt_path + " --est " + path("moved.txt") + " --align none --json " + path("n.json"));
   ASSERT_EQ(none.exit_code, 0) << none.output;
   EXPECT_GT(read_json("n.json")["trajectories"][0]["ate_m"]["rmse"].get<double>(), 100.0);
 }
@@ -88,7 +91,7 @@ TEST_F(CdcEvalTool, AlternatingOffsetGivesItsSizeAsAteAndTwiceAsRpe) {
   }
   geometry::write_tum(path("alt.tum"), est);  // TUM estimate against KITTI ground truth
   const ToolRun r = run("--gt " + gt_path + " --est " + path("alt.tum") + " --align none --json " + path("out.json") +
-                    " --svg " + path("plot.svg"));
+                        " --svg " + path("plot.svg"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   const auto j = read_json("out.json")["trajectories"][0];
   EXPECT_NEAR(j["ate_m"]["rmse"].get<double>(), d, 1e-6);
@@ -143,7 +146,8 @@ TEST_F(CdcEvalTool, ScaleErrorShowsInKittiDriftAndSim3RemovesIt) {
   EXPECT_EQ(j["kitti_drift"]["segments"].get<size_t>(), segments);
   EXPECT_NEAR(j["kitti_drift"]["trans_pct"].get<double>(), ratio_sum / static_cast<double>(segments), 1e-6);
   EXPECT_LT(j["kitti_drift"]["rot_deg_per_100m"].get<double>(), 1e-4);
-  const ToolRun sim = run("--gt " + gt_path + " --est " + path("scaled.txt") + " --align sim3 --json " + path("s.json"));
+  const ToolRun sim =
+      run("--gt " + gt_path + " --est " + path("scaled.txt") + " --align sim3 --json " + path("s.json"));
   ASSERT_EQ(sim.exit_code, 0) << sim.output;
   const auto s = read_json("s.json")["trajectories"][0];
   EXPECT_LT(s["ate_m"]["rmse"].get<double>(), 1e-5);

@@ -64,24 +64,35 @@ struct Options {
 
 void add_options(CLI::App& app, Options& o) {
   app.add_option("--gt", o.gt_path, "ground-truth trajectory file")->required()->check(CLI::ExistingFile);
-  app.add_option("--est", o.est_paths, "estimated trajectory file (repeat for several)")->required()->check(CLI::ExistingFile);
+  app.add_option("--est", o.est_paths, "estimated trajectory file (repeat for several)")
+      ->required()
+      ->check(CLI::ExistingFile);
   app.add_option("--name", o.names, "display name per --est (default: file name)");
-  app.add_option("--format", o.format, "file format of all inputs")->check(CLI::IsMember({"auto", "tum", "kitti"}))
+  app.add_option("--format", o.format, "file format of all inputs")
+      ->check(CLI::IsMember({"auto", "tum", "kitti"}))
       ->capture_default_str();
   app.add_option("--gt-times", o.gt_times, "KITTI times file (seconds per line) for --gt")->check(CLI::ExistingFile);
   app.add_option("--est-times", o.est_times, "KITTI times file per --est")->check(CLI::ExistingFile);
-  app.add_option("--period", o.period_s, "KITTI pose period when no times file [s]")->check(CLI::PositiveNumber)
+  app.add_option("--period", o.period_s, "KITTI pose period when no times file [s]")
+      ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  app.add_option("--max-dt", o.max_dt_s, "association tolerance between stamps [s]")->check(CLI::NonNegativeNumber)
+  app.add_option("--max-dt", o.max_dt_s, "association tolerance between stamps [s]")
+      ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
-  app.add_option("--align", o.align, "alignment before ATE")->check(CLI::IsMember({"none", "se3", "sim3"}))
+  app.add_option("--align", o.align, "alignment before ATE")
+      ->check(CLI::IsMember({"none", "se3", "sim3"}))
       ->capture_default_str();
-  app.add_option("--rpe-frames", o.rpe_delta_frames, "RPE frame delta")->check(CLI::PositiveNumber)->capture_default_str();
-  app.add_option("--rpe-distance", o.rpe_delta_m, "RPE distance delta [m]")->check(CLI::PositiveNumber)
+  app.add_option("--rpe-frames", o.rpe_delta_frames, "RPE frame delta")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--rpe-distance", o.rpe_delta_m, "RPE distance delta [m]")
+      ->check(CLI::PositiveNumber)
       ->capture_default_str();
   app.add_option("--json", o.json_path, "write the figures as JSON to this file ('-' for stdout)");
   app.add_option("--svg", o.svg_path, "write a top-view SVG plot to this file");
-  app.add_option("--plane", o.plane, "plot plane")->check(CLI::IsMember({"auto", "xy", "xz", "yz"}))->capture_default_str();
+  app.add_option("--plane", o.plane, "plot plane")
+      ->check(CLI::IsMember({"auto", "xy", "xz", "yz"}))
+      ->capture_default_str();
   app.add_option("--title", o.title, "plot title");
 }
 
@@ -107,7 +118,8 @@ void evaluate_all(const Options& o) {
     write_text(o.json_path, report.dump(2) + "\n");
   }
   if (!o.svg_path.empty()) {
-    write_text(o.svg_path, cdc::eval::render_svg(evals, o.plane, o.title.empty() ? "estimate vs ground truth" : o.title));
+    write_text(o.svg_path,
+               cdc::eval::render_svg(evals, o.plane, o.title.empty() ? "estimate vs ground truth" : o.title));
   }
 }
 

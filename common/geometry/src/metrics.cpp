@@ -70,9 +70,12 @@ std::optional<AlignMode> parse_align_mode(const std::string& name) {
 
 const char* to_string(AlignMode mode) {
   switch (mode) {
-    case AlignMode::kNone: return "none";
-    case AlignMode::kSE3: return "se3";
-    case AlignMode::kSim3: return "sim3";
+    case AlignMode::kNone:
+      return "none";
+    case AlignMode::kSE3:
+      return "se3";
+    case AlignMode::kSim3:
+      return "sim3";
   }
   return "?";
 }

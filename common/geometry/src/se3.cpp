@@ -41,7 +41,8 @@ Eigen::Matrix3d so3_left_jacobian(const Eigen::Vector3d& phi) {
     return Eigen::Matrix3d::Identity() + 0.5 * W + W * W / 6.0;
   }
   const double t2 = theta * theta;
-  return Eigen::Matrix3d::Identity() + (1.0 - std::cos(theta)) / t2 * W + (theta - std::sin(theta)) / (t2 * theta) * W * W;
+  return Eigen::Matrix3d::Identity() + (1.0 - std::cos(theta)) / t2 * W +
+         (theta - std::sin(theta)) / (t2 * theta) * W * W;
 }
 
 Eigen::Matrix3d so3_left_jacobian_inverse(const Eigen::Vector3d& phi) {

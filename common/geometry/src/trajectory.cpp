@@ -94,12 +94,14 @@ std::ofstream create_or_throw(const std::string& path) {
   return out;
 }
 
-Eigen::Isometry3d pose_from_rt(const Eigen::Matrix3d& R, const Eigen::Vector3d& t, const std::string& path, size_t line) {
+Eigen::Isometry3d pose_from_rt(const Eigen::Matrix3d& R, const Eigen::Vector3d& t, const std::string& path,
+                               size_t line) {
   // Files written with limited precision carry slightly non-orthonormal rotations; project them
   // back, but refuse matrices that are not rotations at all.
   const double err = (R * R.transpose() - Eigen::Matrix3d::Identity()).norm();
   if (err > 1e-2 || R.determinant() < 0.0) {
-    throw TrajectoryFileError(path, line, "rotation block is not a rotation matrix (|R R^T - I| = " + std::to_string(err) + ")");
+    throw TrajectoryFileError(path, line,
+                              "rotation block is not a rotation matrix (|R R^T - I| = " + std::to_string(err) + ")");
   }
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.linear() = project_to_so3(R);
@@ -128,8 +130,8 @@ std::optional<int64_t> parse_seconds_ns(const std::string& text) {
     return std::nullopt;
   }
   // Plain decimal "123.456789": integer and fraction separately, exact to the nanosecond.
-  const bool plain = t.find_first_not_of("0123456789.-+") == std::string::npos &&
-                     std::count(t.begin(), t.end(), '.') <= 1;
+  const bool plain =
+      t.find_first_not_of("0123456789.-+") == std::string::npos && std::count(t.begin(), t.end(), '.') <= 1;
   if (plain) {
     bool neg = t[0] == '-';
     std::string body = (t[0] == '-' || t[0] == '+') ? t.substr(1) : t;
@@ -163,7 +165,8 @@ Trajectory read_tum(const std::string& path) {
   Trajectory traj;
   for_each_data_line(path, [&](size_t line, const std::vector<std::string>& cols) {
     if (cols.size() != 8) {
-      throw TrajectoryFileError(path, line, "expected 8 columns (t x y z qx qy qz qw), found " + std::to_string(cols.size()));
+      throw TrajectoryFileError(path, line,
+                                "expected 8 columns (t x y z qx qy qz qw), found " + std::to_string(cols.size()));
     }
     const auto stamp = parse_seconds_ns(cols[0]);
     if (!stamp) {
@@ -172,8 +175,9 @@ Trajectory read_tum(const std::string& path) {
     double v[7];
     for (int i = 0; i < 7; ++i) {
       if (!parse_double(cols[static_cast<size_t>(i) + 1], v[i])) {
-        throw TrajectoryFileError(path, line, "column " + std::to_string(i + 2) + ": '" + cols[static_cast<size_t>(i) + 1] +
-                                                  "' is not a finite number");
+        throw TrajectoryFileError(
+            path, line,
+            "column " + std::to_string(i + 2) + ": '" + cols[static_cast<size_t>(i) + 1] + "' is not a finite number");
       }
     }
     const Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);
@@ -210,12 +214,14 @@ Trajectory read_kitti(const std::string& path, const std::vector<int64_t>* stamp
   Trajectory traj;
   for_each_data_line(path, [&](size_t line, const std::vector<std::string>& cols) {
     if (cols.size() != 12) {
-      throw TrajectoryFileError(path, line, "expected 12 columns (3x4 row-major [R|t]), found " + std::to_string(cols.size()));
+      throw TrajectoryFileError(path, line,
+                                "expected 12 columns (3x4 row-major [R|t]), found " + std::to_string(cols.size()));
     }
     double v[12];
     for (size_t i = 0; i < 12; ++i) {
       if (!parse_double(cols[i], v[i])) {
-        throw TrajectoryFileError(path, line, "column " + std::to_string(i + 1) + ": '" + cols[i] + "' is not a finite number");
+        throw TrajectoryFileError(path, line,
+                                  "column " + std::to_string(i + 1) + ": '" + cols[i] + "' is not a finite number");
       }
     }
     Eigen::Matrix3d R;
@@ -225,15 +231,16 @@ Trajectory read_kitti(const std::string& path, const std::vector<int64_t>* stamp
     int64_t stamp = static_cast<int64_t>(index) * period_ns;
     if (stamps_ns != nullptr) {
       if (index >= stamps_ns->size()) {
-        throw TrajectoryFileError(path, line, "more poses than time stamps (" + std::to_string(stamps_ns->size()) + ")");
+        throw TrajectoryFileError(path, line,
+                                  "more poses than time stamps (" + std::to_string(stamps_ns->size()) + ")");
       }
       stamp = (*stamps_ns)[index];
     }
     traj.push_back({stamp, pose_from_rt(R, t, path, line)});
   });
   if (stamps_ns != nullptr && stamps_ns->size() != traj.size()) {
-    throw TrajectoryFileError(path, 0, std::to_string(traj.size()) + " poses but " + std::to_string(stamps_ns->size()) +
-                                           " time stamps");
+    throw TrajectoryFileError(
+        path, 0, std::to_string(traj.size()) + " poses but " + std::to_string(stamps_ns->size()) + " time stamps");
   }
   return traj;
 }
@@ -257,7 +264,8 @@ std::vector<int64_t> read_times(const std::string& path) {
   std::vector<int64_t> out;
   for_each_data_line(path, [&](size_t line, const std::vector<std::string>& cols) {
     if (cols.size() != 1) {
-      throw TrajectoryFileError(path, line, "expected one time in seconds, found " + std::to_string(cols.size()) + " columns");
+      throw TrajectoryFileError(path, line,
+                                "expected one time in seconds, found " + std::to_string(cols.size()) + " columns");
     }
     const auto ns = parse_seconds_ns(cols[0]);
     if (!ns) {
@@ -285,8 +293,8 @@ TrajectoryFormat detect_format(const std::string& path) {
   if (cols == 12) {
     return TrajectoryFormat::kKitti;
   }
-  throw TrajectoryFileError(path, n, "cannot tell the format: " + std::to_string(cols) +
-                                         " columns (TUM has 8, KITTI 12)");
+  throw TrajectoryFileError(path, n,
+                            "cannot tell the format: " + std::to_string(cols) + " columns (TUM has 8, KITTI 12)");
 }
 
 std::optional<TrajectoryFormat> parse_format(const std::string& name) {

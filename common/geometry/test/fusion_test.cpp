@@ -52,7 +52,8 @@ TEST(Fusion, SlerpWeightsMatchEquation14) {
   const double l = r.lambda;
   ASSERT_LT(l, 1.0);
   Eigen::Quaterniond expected;
-  expected.coeffs() = qa.coeffs() * std::sin((1 - l) * th) / std::sin(th) + qb.coeffs() * std::sin(l * th) / std::sin(th);
+  expected.coeffs() =
+      qa.coeffs() * std::sin((1 - l) * th) / std::sin(th) + qb.coeffs() * std::sin(l * th) / std::sin(th);
   EXPECT_LT(Eigen::Quaterniond(r.fused.rotation()).angularDistance(expected), 1e-9);
   EXPECT_NEAR(rotation_angle(a.rotation().transpose() * r.fused.rotation()), 0.1, 1e-9);  // exactly rot_max
 }

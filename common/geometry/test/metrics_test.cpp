@@ -1,5 +1,5 @@
-#include "cdc/geometry/alignment.hpp"
 #include "cdc/geometry/metrics.hpp"
+#include "cdc/geometry/alignment.hpp"
 #include "cdc/geometry/se3.hpp"
 
 #include <gtest/gtest.h>

@@ -1,5 +1,5 @@
-#include "cdc/geometry/se3.hpp"
 #include "cdc/geometry/trajectory.hpp"
+#include "cdc/geometry/se3.hpp"
 
 #include <gtest/gtest.h>
 

@@ -218,7 +218,8 @@ std::vector<size_t> greedy_clique(const std::vector<std::vector<bool>>& adj, con
       if (adj[s][v]) cand.push_back(v);
     }
     while (!cand.empty()) {
-      const size_t v = *std::max_element(cand.begin(), cand.end(), [&](size_t a, size_t b) { return degree[a] < degree[b]; });
+      const size_t v =
+          *std::max_element(cand.begin(), cand.end(), [&](size_t a, size_t b) { return degree[a] < degree[b]; });
       clique.push_back(v);
       std::vector<size_t> next;
       for (size_t u : cand) {
@@ -272,8 +273,7 @@ class CliqueSearch {
  private:
   // The candidates in order of colour class (each vertex into the first class it has no neighbour
   // in), with each vertex's colour 1, 2, ...: the bound on a clique among it and those before it.
-  void colour_greedily(const std::vector<size_t>& cand, std::vector<size_t>& order,
-                       std::vector<size_t>& colour) const {
+  void colour_greedily(const std::vector<size_t>& cand, std::vector<size_t>& order, std::vector<size_t>& colour) const {
     std::vector<std::vector<size_t>> classes;
     for (size_t v : cand) {
       auto k = std::find_if(classes.begin(), classes.end(), [&](const std::vector<size_t>& c) {

@@ -27,7 +27,8 @@ void PoseGraph::add_between(Key a, Key b, const Eigen::Isometry3d& T_a_b, const 
 }
 
 size_t PoseGraph::count(FactorKind kind) const {
-  return static_cast<size_t>(std::count_if(factors.begin(), factors.end(), [&](const Factor& f) { return f.kind == kind; }));
+  return static_cast<size_t>(
+      std::count_if(factors.begin(), factors.end(), [&](const Factor& f) { return f.kind == kind; }));
 }
 
 std::map<Key, int> loop_counts(const PoseGraph& graph) {
@@ -74,8 +75,8 @@ void level_loop_information(PoseGraph& graph, double tilt_scale) {
   for (Factor& f : graph.factors) {
     const auto it = graph.poses.find(f.b);
     if (f.kind == FactorKind::kLoop && it != graph.poses.end()) {
-      f.information = level_information(f.information, it->second.linear().transpose() * Eigen::Vector3d::UnitZ(),
-                                        tilt_scale);
+      f.information =
+          level_information(f.information, it->second.linear().transpose() * Eigen::Vector3d::UnitZ(), tilt_scale);
     }
   }
 }

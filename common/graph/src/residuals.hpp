@@ -2,8 +2,8 @@
 // t[3] and q[4] (Eigen storage x, y, z, w, on ceres::EigenQuaternionManifold).
 #pragma once
 
-#include <ceres/ceres.h>
 #include <ceres/autodiff_manifold.h>
+#include <ceres/ceres.h>
 #include <ceres/rotation.h>
 
 #include <Eigen/Geometry>
@@ -44,7 +44,8 @@ struct BetweenResidual {
   }
 
   static ceres::CostFunction* create(const Eigen::Isometry3d& T_a_b, const Matrix6d& sqrt_information) {
-    return new ceres::AutoDiffCostFunction<BetweenResidual, 6, 3, 4, 3, 4>(new BetweenResidual(T_a_b, sqrt_information));
+    return new ceres::AutoDiffCostFunction<BetweenResidual, 6, 3, 4, 3, 4>(
+        new BetweenResidual(T_a_b, sqrt_information));
   }
 
   Eigen::Vector3d t_ab;

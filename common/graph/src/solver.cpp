@@ -133,9 +133,15 @@ ceres::Solver::Options ceres_options(const SolverOptions& options) {
   ceres::Solver::Options sopts;
   sopts.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
   switch (options.sparse_backend) {
-    case SparseBackend::kSuiteSparse: sopts.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE; break;
-    case SparseBackend::kEigen: sopts.sparse_linear_algebra_library_type = ceres::EIGEN_SPARSE; break;
-    case SparseBackend::kCxSparse: sopts.sparse_linear_algebra_library_type = ceres::CX_SPARSE; break;
+    case SparseBackend::kSuiteSparse:
+      sopts.sparse_linear_algebra_library_type = ceres::SUITE_SPARSE;
+      break;
+    case SparseBackend::kEigen:
+      sopts.sparse_linear_algebra_library_type = ceres::EIGEN_SPARSE;
+      break;
+    case SparseBackend::kCxSparse:
+      sopts.sparse_linear_algebra_library_type = ceres::CX_SPARSE;
+      break;
   }
   sopts.max_num_iterations = options.max_iterations;
   sopts.max_solver_time_in_seconds = options.max_time_s;

@@ -21,9 +21,10 @@ Eigen::Isometry3d pose(double x, double y, double z, double yaw) {
 Eigen::Isometry3d noise(std::mt19937& rng, double sigma_t, double sigma_r) {
   std::normal_distribution<double> t(0, sigma_t), r(0, sigma_r);
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = (Eigen::AngleAxisd(r(rng), Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(r(rng), Eigen::Vector3d::UnitY()) *
-                Eigen::AngleAxisd(r(rng), Eigen::Vector3d::UnitZ()))
-                   .toRotationMatrix();
+  T.linear() =
+      (Eigen::AngleAxisd(r(rng), Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(r(rng), Eigen::Vector3d::UnitY()) *
+       Eigen::AngleAxisd(r(rng), Eigen::Vector3d::UnitZ()))
+          .toRotationMatrix();
   T.translation() = Eigen::Vector3d(t(rng), t(rng), t(rng));
   return T;
 }
@@ -35,7 +36,8 @@ PoseGraph three_robots(std::vector<Eigen::Isometry3d>* truth_out = nullptr) {
   std::map<Key, Eigen::Isometry3d> truth;
   for (uint32_t r = 0; r < 3; ++r) {
     for (uint64_t i = 0; i < 30; ++i) {
-      truth[make_key(r, i)] = pose(2.0 * static_cast<double>(i), 5.0 * r, 0.1 * r, 0.05 * std::sin(0.3 * static_cast<double>(i)));
+      truth[make_key(r, i)] =
+          pose(2.0 * static_cast<double>(i), 5.0 * r, 0.1 * r, 0.05 * std::sin(0.3 * static_cast<double>(i)));
     }
   }
   Matrix6d info = Matrix6d::Identity() * 100.0;
@@ -100,7 +102,8 @@ TEST(Distributed, OverRelaxationConvergesFasterOnTheSameGraph) {
   plain.pose_change_tolerance = 1e-9;
   DistributedOptions sor = plain;
   sor.over_relaxation = DistributedOptions{}.over_relaxation;
-  EXPECT_LT(solve_distributed(b, sor).objective_per_round.back(), solve_distributed(a, plain).objective_per_round.back());
+  EXPECT_LT(solve_distributed(b, sor).objective_per_round.back(),
+            solve_distributed(a, plain).objective_per_round.back());
 }
 
 TEST(Distributed, InitialisationNeedsInterRobotFactors) {

@@ -6,11 +6,11 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <random>
-#include <unistd.h>
 
 namespace cdc::graph {
 namespace {
@@ -121,8 +121,8 @@ TEST(LevelledLoops, TiltInformationIsScaledAboutTheLevelAxesOfTheKeyframe) {
   PoseGraph g;
   g.poses[make_key(0, 0)] = pose(0, 0, 0, 0);
   g.poses[make_key(0, 1)] = pose(1, 0, 0, 0);
-  g.poses[make_key(1, 0)] = pose(0, 2, 0, 0.7);           // level, turned: tilt axes still x and y
-  g.poses[make_key(1, 1)] = pose(1, 2, 0, 0, M_PI / 2);   // pitched up 90 deg: up is its -x axis
+  g.poses[make_key(1, 0)] = pose(0, 2, 0, 0.7);          // level, turned: tilt axes still x and y
+  g.poses[make_key(1, 1)] = pose(1, 2, 0, 0, M_PI / 2);  // pitched up 90 deg: up is its -x axis
   const Matrix6d info = Matrix6d::Identity() * 100.0;
   g.add_between(make_key(0, 0), make_key(0, 1), pose(1, 0, 0, 0), info);
   g.add_between(make_key(0, 0), make_key(1, 0), pose(0, 2, 0, 0.7), info);
@@ -134,12 +134,12 @@ TEST(LevelledLoops, TiltInformationIsScaledAboutTheLevelAxesOfTheKeyframe) {
   }
   level_loop_information(g, 0.01);
   using Diag = Eigen::Matrix<double, 6, 1>;
-  const std::vector<Diag> expected{(Diag() << 100, 100, 100, 100, 100, 100).finished(),   // odometry: untouched
-                                   (Diag() << 100, 100, 100, 1, 1, 100).finished(),       // roll, pitch scaled
-                                   (Diag() << 100, 100, 100, 100, 1, 1).finished()};      // about its y and z
+  const std::vector<Diag> expected{(Diag() << 100, 100, 100, 100, 100, 100).finished(),  // odometry: untouched
+                                   (Diag() << 100, 100, 100, 1, 1, 100).finished(),      // roll, pitch scaled
+                                   (Diag() << 100, 100, 100, 100, 1, 1).finished()};     // about its y and z
   for (size_t i = 0; i < expected.size(); ++i) {
-    EXPECT_LT((g.factors[i].information - Matrix6d(expected[i].asDiagonal())).norm(), 1e-9)
-        << "factor " << i << ":\n" << g.factors[i].information;
+    EXPECT_LT((g.factors[i].information - Matrix6d(expected[i].asDiagonal())).norm(), 1e-9) << "factor " << i << ":\n"
+                                                                                            << g.factors[i].information;
   }
 }
 
@@ -195,7 +195,7 @@ TEST(Objective, ZeroAtTheTruthAndWeightsAsSpecified) {
   EXPECT_LT(sesync_objective(g), 1e-18);
   Factor f;
   f.information = Matrix6d::Identity();
-  f.information.topLeftCorner<3, 3>() *= 4.0;   // tr(inv) = 3/4 -> tau = 4
+  f.information.topLeftCorner<3, 3>() *= 4.0;        // tr(inv) = 3/4 -> tau = 4
   f.information.bottomRightCorner<3, 3>() *= 100.0;  // tr(inv) = 3/100 -> kappa = 50
   const IsotropicWeights w = isotropic_weights(f, 3);
   EXPECT_DOUBLE_EQ(w.tau, 4.0);
@@ -225,7 +225,9 @@ TEST(Initialise, ChordalRecoversConsistentGraphExactly) {
   }
   ASSERT_TRUE(chordal_initialise(g));
   for (int i = 0; i < 80; ++i) {
-    EXPECT_LT((g.poses.at(make_key(0, static_cast<uint64_t>(i))).matrix() - gt[static_cast<size_t>(i)].matrix()).norm(), 1e-8) << i;
+    EXPECT_LT((g.poses.at(make_key(0, static_cast<uint64_t>(i))).matrix() - gt[static_cast<size_t>(i)].matrix()).norm(),
+              1e-8)
+        << i;
   }
 }
 
@@ -238,7 +240,10 @@ TEST(Initialise, OdometryChainingFollowsTheMeasurements) {
   // The anchor starts at identity; the chain reproduces the truth relative to pose 0.
   const Eigen::Isometry3d offset = gt[0].inverse();
   for (int i = 0; i < 30; ++i) {
-    EXPECT_LT((g.poses.at(make_key(0, static_cast<uint64_t>(i))).matrix() - (offset * gt[static_cast<size_t>(i)]).matrix()).norm(), 1e-9);
+    EXPECT_LT(
+        (g.poses.at(make_key(0, static_cast<uint64_t>(i))).matrix() - (offset * gt[static_cast<size_t>(i)]).matrix())
+            .norm(),
+        1e-9);
   }
 }
 
@@ -288,7 +293,10 @@ TEST(Solver, RecoversTruthFromNoisyInitialValuesWithBothObjectives) {
     EXPECT_GT(r.initial_cost, 1.0);
     EXPECT_LT(r.final_cost, 1e-12);
     for (int i = 0; i < 60; ++i) {
-      EXPECT_LT((g.poses.at(make_key(0, static_cast<uint64_t>(i))).translation() - gt[static_cast<size_t>(i)].translation()).norm(), 1e-6);
+      EXPECT_LT(
+          (g.poses.at(make_key(0, static_cast<uint64_t>(i))).translation() - gt[static_cast<size_t>(i)].translation())
+              .norm(),
+          1e-6);
     }
   }
 }
@@ -374,7 +382,8 @@ TEST_F(G2oFiles, ErrorsNameFileAndLine) {
   std::ofstream(path("nan.g2o")) << "VERTEX_SE3:QUAT 0 nan 0 0 0 0 0 1\n";
   EXPECT_THROW(read_g2o(path("nan.g2o")), G2oError);
   std::ofstream(path("pd.g2o")) << "EDGE_SE2 0 1 1 0 0 -1 0 0 1 0 1\n";
-  EXPECT_THAT([&] { read_g2o(path("pd.g2o")); }, ::testing::ThrowsMessage<G2oError>(::testing::HasSubstr("positive definite")));
+  EXPECT_THAT([&] { read_g2o(path("pd.g2o")); },
+              ::testing::ThrowsMessage<G2oError>(::testing::HasSubstr("positive definite")));
   EXPECT_THROW(read_g2o(path("none.g2o")), G2oError);
 }
 

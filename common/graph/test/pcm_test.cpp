@@ -1,5 +1,5 @@
-#include "cdc/graph/g2o.hpp"
 #include "cdc/graph/pcm.hpp"
+#include "cdc/graph/g2o.hpp"
 #include "cdc/graph/solver.hpp"
 
 #include <gtest/gtest.h>
@@ -112,15 +112,20 @@ TEST(Pcm, RejectsEveryPlantedOutlier) {
   }
   Matrix6d info = Matrix6d::Identity() * 1e4;
   for (int i = 0; i + 1 < 40; ++i) {
-    g.add_between(make_key(0, static_cast<uint64_t>(i)), make_key(0, static_cast<uint64_t>(i + 1)),
-                  truth_a[static_cast<size_t>(i)].inverse() * truth_a[static_cast<size_t>(i + 1)] * pose(n(rng), n(rng), n(rng)), info);
-    g.add_between(make_key(1, static_cast<uint64_t>(i)), make_key(1, static_cast<uint64_t>(i + 1)),
-                  truth_b[static_cast<size_t>(i)].inverse() * truth_b[static_cast<size_t>(i + 1)] * pose(n(rng), n(rng), n(rng)), info);
+    g.add_between(
+        make_key(0, static_cast<uint64_t>(i)), make_key(0, static_cast<uint64_t>(i + 1)),
+        truth_a[static_cast<size_t>(i)].inverse() * truth_a[static_cast<size_t>(i + 1)] * pose(n(rng), n(rng), n(rng)),
+        info);
+    g.add_between(
+        make_key(1, static_cast<uint64_t>(i)), make_key(1, static_cast<uint64_t>(i + 1)),
+        truth_b[static_cast<size_t>(i)].inverse() * truth_b[static_cast<size_t>(i + 1)] * pose(n(rng), n(rng), n(rng)),
+        info);
   }
   std::vector<size_t> inliers, outliers;
   for (int k = 0; k < 12; ++k) {
     const size_t i = static_cast<size_t>(3 * k + 1), j = static_cast<size_t>(3 * k);
-    g.add_between(make_key(0, i), make_key(1, j), truth_a[i].inverse() * truth_b[j] * pose(n(rng), n(rng), n(rng)), info);
+    g.add_between(make_key(0, i), make_key(1, j), truth_a[i].inverse() * truth_b[j] * pose(n(rng), n(rng), n(rng)),
+                  info);
     inliers.push_back(g.factors.size() - 1);
   }
   for (int k = 0; k < 8; ++k) {  // wrong places, as perceptual aliasing produces

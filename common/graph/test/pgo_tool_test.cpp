@@ -81,8 +81,8 @@ TEST(PgoTool, ReachesThePublishedOptimaWithSeSyncWeights) {
     const double lo = (p.fstar - h) * (1.0 - 1e-4);
     const double hi = (p.fstar + h) * (1.0 + 1e-4);
     std::printf("%-15s f = %.7g, published f* = %s, relative difference %.2e, %d iterations, %.3f s\n",
-                p.dataset.c_str(), f, p.fstar_text.c_str(), std::abs(f - p.fstar) / p.fstar,
-                j["iterations"].get<int>(), j["time_s"].get<double>());
+                p.dataset.c_str(), f, p.fstar_text.c_str(), std::abs(f - p.fstar) / p.fstar, j["iterations"].get<int>(),
+                j["time_s"].get<double>());
     EXPECT_GE(f, lo) << p.dataset;
     EXPECT_LE(f, hi) << p.dataset;
   }

@@ -49,23 +49,30 @@ void add_options(CLI::App& app, Options& o) {
                  "scale each loop closure's roll/pitch information by this factor in its keyframe's level frame"
                  " (world z up, from the estimate read), as the loop-closure service does for robots whose odometry"
                  " holds its tilt with gravity; for graphs whose loops were not levelled")
-      ->check(CLI::Range(0.0, 1.0))->capture_default_str();
-  app.add_option("--max-iterations", o.max_iterations, "solver iteration limit")->check(CLI::PositiveNumber)
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  app.add_option("--max-iterations", o.max_iterations, "solver iteration limit")
+      ->check(CLI::PositiveNumber)
       ->capture_default_str();
   app.add_option("--tolerance", o.tolerance, "relative cost-change tolerance at which the solver stops")
-      ->check(CLI::PositiveNumber)->capture_default_str();
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app.add_option("--trust-region", o.trust_region, "initial trust-region radius (1 / initial LM damping)")
-      ->check(CLI::PositiveNumber)->capture_default_str();
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   app.add_option("--sparse-backend", o.backend, "sparse Cholesky library")
-      ->check(CLI::IsMember({"suitesparse", "eigen", "cxsparse"}))->capture_default_str();
+      ->check(CLI::IsMember({"suitesparse", "eigen", "cxsparse"}))
+      ->capture_default_str();
   app.add_option("--out", o.out_path, "write the optimised graph to this .g2o file");
   app.add_flag("--json", o.json, "print one JSON line instead of text");
   app.add_flag("--distributed", o.distributed,
                "also run the distributed algorithm (robots = top byte of the keys; exchanges separator poses only)"
                " and compare it with the centralized solution");
   app.add_option("--over-relaxation", o.over_relaxation, "distributed: over-relaxation factor gamma (1 = Gauss-Seidel)")
-      ->check(CLI::Range(0.1, 1.99))->capture_default_str();
-  app.add_option("--max-rounds", o.max_rounds, "distributed: round limit")->check(CLI::PositiveNumber)
+      ->check(CLI::Range(0.1, 1.99))
+      ->capture_default_str();
+  app.add_option("--max-rounds", o.max_rounds, "distributed: round limit")
+      ->check(CLI::PositiveNumber)
       ->capture_default_str();
   app.add_flag("--verbose", o.verbose, "print the solver's full report to stderr");
 }
@@ -210,10 +217,11 @@ void print_json(const Options& o, const graph::PoseGraph& g, const Summary& s) {
 }
 
 void print_distributed_text(const nlohmann::json& d) {
-  std::printf("distributed      %d rounds (1%% of centralized after %d), objective %.6g, gap %.2e, ATE to "
-              "centralized %.4g m\n",
-              d["rounds"].get<int>(), d["rounds_to_1pct"].get<int>(), d["distributed_objective"].get<double>(),
-              d["gap_to_centralized"].get<double>(), d["ate_to_centralized_m"].get<double>());
+  std::printf(
+      "distributed      %d rounds (1%% of centralized after %d), objective %.6g, gap %.2e, ATE to "
+      "centralized %.4g m\n",
+      d["rounds"].get<int>(), d["rounds_to_1pct"].get<int>(), d["distributed_objective"].get<double>(),
+      d["gap_to_centralized"].get<double>(), d["ate_to_centralized_m"].get<double>());
   for (const auto& [robot, b] : d["bytes_per_robot"].items()) {
     std::printf("  robot %s sent %llu bytes of separator poses\n", robot.c_str(),
                 static_cast<unsigned long long>(b.get<uint64_t>()));
@@ -221,8 +229,8 @@ void print_distributed_text(const nlohmann::json& d) {
 }
 
 void print_text(const Options& o, const graph::PoseGraph& g, const Summary& s) {
-  std::printf("%s: %zu poses, %zu factors (init %s, objective %s)\n", o.input.c_str(), g.poses.size(),
-              g.factors.size(), o.init.c_str(), o.sesync_weights ? "SE-Sync" : "full information");
+  std::printf("%s: %zu poses, %zu factors (init %s, objective %s)\n", o.input.c_str(), g.poses.size(), g.factors.size(),
+              o.init.c_str(), o.sesync_weights ? "SE-Sync" : "full information");
   std::printf("iterations       %d (%s)\n", s.solve.iterations, s.solve.message.c_str());
   std::printf("time             %.3f s (init %.3f s, solve %.3f s)\n", s.total_s, s.init_s, s.solve.time_s);
   std::printf("cost             %.6g (full information, no 1/2)\n", s.full);

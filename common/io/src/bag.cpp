@@ -37,9 +37,8 @@ bool starts_with(std::span<const uint8_t> head, const std::array<uint8_t, N>& ma
   return head.size() >= N && std::equal(magic.begin(), magic.end(), head.begin());
 }
 bool starts_with(std::span<const uint8_t> head, std::string_view magic) {
-  return head.size() >= magic.size() &&
-         std::equal(magic.begin(), magic.end(), head.begin(),
-                    [](char a, uint8_t b) { return static_cast<uint8_t>(a) == b; });
+  return head.size() >= magic.size() && std::equal(magic.begin(), magic.end(), head.begin(),
+                                                   [](char a, uint8_t b) { return static_cast<uint8_t>(a) == b; });
 }
 
 Kind kind_of(std::span<const uint8_t> head) {
@@ -81,9 +80,12 @@ std::string printable_head(std::span<const uint8_t> head) {
 std::unique_ptr<BagReader> open_bytes(std::vector<uint8_t> bytes, const std::string& name,
                                       MessageCompression compression) {
   switch (kind_of(bytes)) {
-    case Kind::kSqlite: return detail::open_sqlite_bag_bytes(std::move(bytes), name, compression);
-    case Kind::kMcap: return detail::open_mcap_bag_bytes(std::move(bytes), name);
-    default: unknown_format(name + " (decompressed)", bytes);
+    case Kind::kSqlite:
+      return detail::open_sqlite_bag_bytes(std::move(bytes), name, compression);
+    case Kind::kMcap:
+      return detail::open_mcap_bag_bytes(std::move(bytes), name);
+    default:
+      unknown_format(name + " (decompressed)", bytes);
   }
 }
 
@@ -96,12 +98,15 @@ std::unique_ptr<BagReader> open_file(const fs::path& path, MessageCompression co
         throw FormatError(path.string() + ": ROS 1 bag of an unsupported version (byte 0), only V2.0 is read");
       }
       return open_ros1_bag(path);
-    case Kind::kSqlite: return detail::open_sqlite_bag(path, compression);
-    case Kind::kMcap: return detail::open_mcap_bag(path);
+    case Kind::kSqlite:
+      return detail::open_sqlite_bag(path, compression);
+    case Kind::kMcap:
+      return detail::open_mcap_bag(path);
     case Kind::kZstd:
       return open_bytes(detail::zstd_decompress(read_all(path), std::nullopt, path.string() + " (zstd file)"),
                         path.string(), compression);
-    case Kind::kUnknown: break;
+    case Kind::kUnknown:
+      break;
   }
   unknown_format(path.string(), head);
 }
@@ -256,8 +261,8 @@ std::unique_ptr<BagReader> open_ros2_folder(const fs::path& dir) {
   std::vector<std::unique_ptr<BagReader>> parts;
   for (const auto& f : files) parts.push_back(open_file(f, compression));
   const std::string description = "rosbag2 folder " + dir.string() + " (" + std::to_string(parts.size()) + " " +
-                                  (storage.empty() ? "storage" : storage) + " file" +
-                                  (parts.size() == 1 ? "" : "s") + ")";
+                                  (storage.empty() ? "storage" : storage) + " file" + (parts.size() == 1 ? "" : "s") +
+                                  ")";
   return detail::merge_bags(std::move(parts), description);
 }
 

@@ -28,7 +28,9 @@ Sweep read_cloud_file(const fs::path& path) {
   if (!fs::is_regular_file(path)) throw FormatError(path.string() + ": cannot open");
   pcl::PCLPointCloud2 blob;
   const int rc = ext == ".pcd" ? pcl::io::loadPCDFile(path.string(), blob) : pcl::io::loadPLYFile(path.string(), blob);
-  if (rc < 0) throw FormatError(path.string() + ": PCL cannot read it as " + ext.substr(1) + " (code " + std::to_string(rc) + ")");
+  if (rc < 0)
+    throw FormatError(path.string() + ": PCL cannot read it as " + ext.substr(1) + " (code " + std::to_string(rc) +
+                      ")");
   PointCloud2Msg m;
   m.header.stamp_ns = static_cast<int64_t>(blob.header.stamp) * 1000;  // PCL stamps are microseconds
   m.header.frame_id = blob.header.frame_id;

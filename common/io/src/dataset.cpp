@@ -33,9 +33,12 @@ void write_text(const fs::path& p, const std::string& text) {
 
 const char* to_string(PointTimes t) {
   switch (t) {
-    case PointTimes::kSensor: return "sensor";
-    case PointTimes::kAzimuth: return "azimuth";
-    case PointTimes::kNone: return "none";
+    case PointTimes::kSensor:
+      return "sensor";
+    case PointTimes::kAzimuth:
+      return "azimuth";
+    case PointTimes::kNone:
+      return "none";
   }
   return "sensor";
 }
@@ -105,7 +108,8 @@ std::vector<DatasetImu> read_dataset_imu(const fs::path& p) {
     if (std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf,%lf", &t, a, a + 1, a + 2, g, g + 1, g + 2) != 7) {
       throw FormatError(p.string() + ":" + std::to_string(n) + ": expected t,ax,ay,az,gx,gy,gz");
     }
-    out.push_back({static_cast<int64_t>(std::llround(t * 1e9)), Eigen::Vector3d(a[0], a[1], a[2]), Eigen::Vector3d(g[0], g[1], g[2])});
+    out.push_back({static_cast<int64_t>(std::llround(t * 1e9)), Eigen::Vector3d(a[0], a[1], a[2]),
+                   Eigen::Vector3d(g[0], g[1], g[2])});
     if (out.size() > 1 && out.back().stamp_ns <= out[out.size() - 2].stamp_ns) {
       throw FormatError(p.string() + ":" + std::to_string(n) + ": time does not increase");
     }
@@ -129,10 +133,12 @@ Eigen::Isometry3d read_dataset_calib(const fs::path& p) {
     if (a == std::string::npos || b == std::string::npos ||
         std::sscanf(line.c_str() + a, "position: [%lf, %lf, %lf]", t, t + 1, t + 2) != 3 ||
         std::sscanf(line.c_str() + b, "orientation: [%lf, %lf, %lf, %lf]", q, q + 1, q + 2, q + 3) != 4) {
-      throw FormatError(p.string() + ":" + std::to_string(n) + ": T_lidar_imu needs position: [x, y, z] and orientation: [x, y, z, w]");
+      throw FormatError(p.string() + ":" + std::to_string(n) +
+                        ": T_lidar_imu needs position: [x, y, z] and orientation: [x, y, z, w]");
     }
     const Eigen::Quaterniond quat(q[3], q[0], q[1], q[2]);
-    if (std::abs(quat.norm() - 1.0) > 1e-3) throw FormatError(p.string() + ":" + std::to_string(n) + ": orientation is not a unit quaternion");
+    if (std::abs(quat.norm() - 1.0) > 1e-3)
+      throw FormatError(p.string() + ":" + std::to_string(n) + ": orientation is not a unit quaternion");
     T.linear() = quat.normalized().toRotationMatrix();
     T.translation() = Eigen::Vector3d(t[0], t[1], t[2]);
     return T;
@@ -155,14 +161,18 @@ std::vector<DatasetScan> list_dataset_scans(const std::string& dir, size_t max_s
     const bool has_meta = fs::is_directory(rd / "velodyne_meta");
     for (size_t k = 0; k < times.size() && (max_scans == 0 || k < max_scans); ++k) {
       const std::string name = sweep_name(k);
-      DatasetScan s{times[k], r, k, rd / "velodyne" / name, has_meta ? rd / "velodyne_meta" / name : fs::path(), std::nullopt};
-      if (!fs::exists(s.bin)) throw std::runtime_error(s.bin.string() + ": missing (times.txt lists " + std::to_string(times.size()) + " sweeps)");
+      DatasetScan s{times[k],    r, k, rd / "velodyne" / name, has_meta ? rd / "velodyne_meta" / name : fs::path(),
+                    std::nullopt};
+      if (!fs::exists(s.bin))
+        throw std::runtime_error(s.bin.string() + ": missing (times.txt lists " + std::to_string(times.size()) +
+                                 " sweeps)");
       if (k < gt.size()) s.truth = gt[k].pose;
       scans.push_back(std::move(s));
     }
     if (groundtruth != nullptr) (*groundtruth)[r] = gt;
   }
-  std::stable_sort(scans.begin(), scans.end(), [](const DatasetScan& a, const DatasetScan& b) { return a.stamp_ns < b.stamp_ns; });
+  std::stable_sort(scans.begin(), scans.end(),
+                   [](const DatasetScan& a, const DatasetScan& b) { return a.stamp_ns < b.stamp_ns; });
   return scans;
 }
 
@@ -203,7 +213,9 @@ size_t DatasetWriter::sweeps(uint32_t robot) const {
 }
 
 void DatasetWriter::add_sweep(uint32_t robot, int64_t stamp_ns, const Sweep& sweep) {
-  if (stamp_ns < 0) throw std::runtime_error("robot " + std::to_string(robot) + ": negative sweep time " + std::to_string(stamp_ns) + " ns");
+  if (stamp_ns < 0)
+    throw std::runtime_error("robot " + std::to_string(robot) + ": negative sweep time " + std::to_string(stamp_ns) +
+                             " ns");
   std::vector<int64_t>& stamps = stamps_[robot];
   if (!stamps.empty() && stamp_ns <= stamps.back()) {
     throw std::runtime_error("robot " + std::to_string(robot) + ": sweep at " + std::to_string(stamp_ns) +
@@ -268,7 +280,8 @@ DatasetInfo DatasetWriter::commit(DatasetInfo info) {
   uint32_t expected = 0;
   info.scans = 0;
   for (const auto& [robot, stamps] : stamps_) {
-    if (robot != expected++) throw std::runtime_error(dir_.string() + ": robot " + std::to_string(expected - 1) + " has no sweeps");
+    if (robot != expected++)
+      throw std::runtime_error(dir_.string() + ": robot " + std::to_string(expected - 1) + " has no sweeps");
     std::string times;
     for (const int64_t t : stamps) {
       char line[40];

@@ -13,14 +13,12 @@
 namespace cdc::io::detail {
 namespace {
 
-[[noreturn]] void fail(const std::string& where, const std::string& what) {
-  throw FormatError(where + ": " + what);
-}
+[[noreturn]] void fail(const std::string& where, const std::string& what) { throw FormatError(where + ": " + what); }
 
 void check_size(uint64_t size, uint64_t max_size, const std::string& where) {
   if (size > max_size || size > std::numeric_limits<size_t>::max()) {
-    fail(where, "claims " + std::to_string(size) + " decompressed bytes, more than the limit of " +
-                    std::to_string(max_size));
+    fail(where,
+         "claims " + std::to_string(size) + " decompressed bytes, more than the limit of " + std::to_string(max_size));
   }
 }
 
@@ -66,8 +64,8 @@ std::vector<uint8_t> zstd_decompress(std::span<const uint8_t> in, std::optional<
     }
   }
   if (expected_size && dst.pos != *expected_size) {
-    fail(where, "zstd data decode to " + std::to_string(dst.pos) + " bytes, expected " +
-                    std::to_string(*expected_size));
+    fail(where,
+         "zstd data decode to " + std::to_string(dst.pos) + " bytes, expected " + std::to_string(*expected_size));
   }
   out.resize(dst.pos);
   return out;
@@ -81,8 +79,7 @@ std::vector<uint8_t> lz4_decompress(std::span<const uint8_t> in, std::optional<u
   if (LZ4F_isError(LZ4F_createDecompressionContext(&raw_ctx, LZ4F_VERSION))) {
     fail(where, "cannot create an LZ4 decoder");
   }
-  std::unique_ptr<LZ4F_dctx, decltype(&LZ4F_freeDecompressionContext)> ctx(
-      raw_ctx, LZ4F_freeDecompressionContext);
+  std::unique_ptr<LZ4F_dctx, decltype(&LZ4F_freeDecompressionContext)> ctx(raw_ctx, LZ4F_freeDecompressionContext);
   const uint64_t cap = expected_size ? *expected_size : max_size;
   std::vector<uint8_t> out(initial_capacity(in.size(), cap));
   size_t src_pos = 0, dst_pos = 0;
@@ -92,8 +89,7 @@ std::vector<uint8_t> lz4_decompress(std::span<const uint8_t> in, std::optional<u
       out.resize(grow(out.size(), cap));
     }
     size_t src_size = in.size() - src_pos, dst_size = out.size() - dst_pos;
-    hint = LZ4F_decompress(ctx.get(), out.data() + dst_pos, &dst_size, in.data() + src_pos,
-                           &src_size, nullptr);
+    hint = LZ4F_decompress(ctx.get(), out.data() + dst_pos, &dst_size, in.data() + src_pos, &src_size, nullptr);
     if (LZ4F_isError(hint)) fail(where, std::string("LZ4: ") + LZ4F_getErrorName(hint));
     src_pos += src_size;
     dst_pos += dst_size;
@@ -105,8 +101,7 @@ std::vector<uint8_t> lz4_decompress(std::span<const uint8_t> in, std::optional<u
     }
   }
   if (expected_size && dst_pos != *expected_size) {
-    fail(where, "LZ4 data decode to " + std::to_string(dst_pos) + " bytes, expected " +
-                    std::to_string(*expected_size));
+    fail(where, "LZ4 data decode to " + std::to_string(dst_pos) + " bytes, expected " + std::to_string(*expected_size));
   }
   out.resize(dst_pos);
   return out;

@@ -17,13 +17,11 @@ constexpr uint64_t kMaxDecompressedBytes = uint64_t{4} << 30;  // 4 GiB
 // Decodes one or more concatenated zstd frames. With expected_size the output must have exactly that
 // size; without it the output may grow up to max_size.
 std::vector<uint8_t> zstd_decompress(std::span<const uint8_t> in, std::optional<uint64_t> expected_size,
-                                     const std::string& where,
-                                     uint64_t max_size = kMaxDecompressedBytes);
+                                     const std::string& where, uint64_t max_size = kMaxDecompressedBytes);
 
 // Decodes one or more concatenated LZ4 frames (the LZ4 frame format, not raw blocks).
 std::vector<uint8_t> lz4_decompress(std::span<const uint8_t> in, std::optional<uint64_t> expected_size,
-                                    const std::string& where,
-                                    uint64_t max_size = kMaxDecompressedBytes);
+                                    const std::string& where, uint64_t max_size = kMaxDecompressedBytes);
 
 // CRC-32 (IEEE 802.3, as zlib computes it).
 uint32_t crc32(std::span<const uint8_t> bytes);

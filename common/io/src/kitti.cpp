@@ -79,7 +79,8 @@ std::vector<geometry::Trajectory> split_robots(const geometry::Trajectory& seq, 
   std::vector<geometry::Trajectory> out;
   int k = 0;
   for (const IndexRange& r : split_ranges(seq.size(), o)) {
-    geometry::Trajectory t(seq.begin() + static_cast<std::ptrdiff_t>(r.first), seq.begin() + static_cast<std::ptrdiff_t>(r.last));
+    geometry::Trajectory t(seq.begin() + static_cast<std::ptrdiff_t>(r.first),
+                           seq.begin() + static_cast<std::ptrdiff_t>(r.last));
     const int64_t base = t.front().stamp_ns;
     const int64_t shift = static_cast<int64_t>(std::llround(k++ * o.time_shift_s * 1e9));
     for (auto& sp : t) {

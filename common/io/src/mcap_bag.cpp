@@ -49,22 +49,38 @@ enum Opcode : uint8_t {
 
 const char* opcode_name(uint8_t op) {
   switch (op) {
-    case 0x01: return "Header";
-    case 0x02: return "Footer";
-    case 0x03: return "Schema";
-    case 0x04: return "Channel";
-    case 0x05: return "Message";
-    case 0x06: return "Chunk";
-    case 0x07: return "Message Index";
-    case 0x08: return "Chunk Index";
-    case 0x09: return "Attachment";
-    case 0x0A: return "Attachment Index";
-    case 0x0B: return "Statistics";
-    case 0x0C: return "Metadata";
-    case 0x0D: return "Metadata Index";
-    case 0x0E: return "Summary Offset";
-    case 0x0F: return "Data End";
-    default: return "unknown";
+    case 0x01:
+      return "Header";
+    case 0x02:
+      return "Footer";
+    case 0x03:
+      return "Schema";
+    case 0x04:
+      return "Channel";
+    case 0x05:
+      return "Message";
+    case 0x06:
+      return "Chunk";
+    case 0x07:
+      return "Message Index";
+    case 0x08:
+      return "Chunk Index";
+    case 0x09:
+      return "Attachment";
+    case 0x0A:
+      return "Attachment Index";
+    case 0x0B:
+      return "Statistics";
+    case 0x0C:
+      return "Metadata";
+    case 0x0D:
+      return "Metadata Index";
+    case 0x0E:
+      return "Summary Offset";
+    case 0x0F:
+      return "Data End";
+    default:
+      return "unknown";
   }
 }
 
@@ -282,9 +298,9 @@ class McapBag final : public BagReader {
     const uint8_t op = bytes[static_cast<size_t>(pos)];
     const uint64_t len = read_le64(bytes.data() + pos + 1);
     if (len > limit - pos - kRecordHeaderBytes) {
-      fail(std::string("MCAP ") + opcode_name(op) + " record (opcode " + hex(op) + ") at " + where() +
-           " claims " + std::to_string(len) + " content bytes, only " +
-           std::to_string(limit - pos - kRecordHeaderBytes) + " remain (truncated or damaged)");
+      fail(std::string("MCAP ") + opcode_name(op) + " record (opcode " + hex(op) + ") at " + where() + " claims " +
+           std::to_string(len) + " content bytes, only " + std::to_string(limit - pos - kRecordHeaderBytes) +
+           " remain (truncated or damaged)");
     }
     const uint64_t start = pos + kRecordHeaderBytes;
     return {op, bytes.subspan(static_cast<size_t>(start), static_cast<size_t>(len)), start + len};
@@ -310,8 +326,8 @@ class McapBag final : public BagReader {
       const Framed r = frame(file_, pos, end, std::nullopt);
       const Place place{r.opcode, pos, std::nullopt};
       if (first && r.opcode != kHeader) {
-        fail(std::string("the first record (byte ") + std::to_string(pos) + ") is " +
-             opcode_name(r.opcode) + ", not Header");
+        fail(std::string("the first record (byte ") + std::to_string(pos) + ") is " + opcode_name(r.opcode) +
+             ", not Header");
       }
       first = false;
       switch (r.opcode) {
@@ -327,16 +343,25 @@ class McapBag final : public BagReader {
                  std::to_string(r.end) + ", the closing magic is at byte " + std::to_string(end) + ")");
           }
           if (r.content.size() < kFooterContentBytes) {
-            Cursor(r.content, name_, place).fail("Footer content has " + std::to_string(r.content.size()) +
-                                                 " bytes, 20 expected");
+            Cursor(r.content, name_, place)
+                .fail("Footer content has " + std::to_string(r.content.size()) + " bytes, 20 expected");
           }
           footer = true;
           break;
-        case kSchema: on_schema(r.content, place); break;
-        case kChannel: on_channel(r.content, place); break;
-        case kMessage: on_message(r.content, place, kNoChunk, pos + kRecordHeaderBytes); break;
-        case kChunk: on_chunk(r.content, place, pos); break;
-        default: break;  // indexes, attachments, metadata, statistics, summary offsets, data end
+        case kSchema:
+          on_schema(r.content, place);
+          break;
+        case kChannel:
+          on_channel(r.content, place);
+          break;
+        case kMessage:
+          on_message(r.content, place, kNoChunk, pos + kRecordHeaderBytes);
+          break;
+        case kChunk:
+          on_chunk(r.content, place, pos);
+          break;
+        default:
+          break;  // indexes, attachments, metadata, statistics, summary offsets, data end
       }
       pos = r.end;
     }
@@ -376,8 +401,8 @@ class McapBag final : public BagReader {
     ch.supported = ch.encoding == "cdr" || ch.encoding == "ros1";
     ch.serialization = ch.encoding == "ros1" ? Serialization::kRos1 : Serialization::kCdr;
     auto [it, inserted] = channels_.emplace(id, ch);
-    if (!inserted && (it->second.topic != ch.topic || it->second.schema_id != ch.schema_id ||
-                      it->second.encoding != ch.encoding)) {
+    if (!inserted &&
+        (it->second.topic != ch.topic || it->second.schema_id != ch.schema_id || it->second.encoding != ch.encoding)) {
       c.fail("channel " + std::to_string(id) + " redefined as " + ch.topic + " (was " + it->second.topic + ")");
     }
   }
@@ -450,10 +475,17 @@ class McapBag final : public BagReader {
       const Framed r = frame(plain, pos, plain.size(), record_offset);
       const Place inner{r.opcode, pos, record_offset};
       switch (r.opcode) {
-        case kSchema: on_schema(r.content, inner); break;
-        case kChannel: on_channel(r.content, inner); break;
-        case kMessage: on_message(r.content, inner, chunk_index, pos + kRecordHeaderBytes); break;
-        default: break;  // the specification allows only the three above; others are skipped
+        case kSchema:
+          on_schema(r.content, inner);
+          break;
+        case kChannel:
+          on_channel(r.content, inner);
+          break;
+        case kMessage:
+          on_message(r.content, inner, chunk_index, pos + kRecordHeaderBytes);
+          break;
+        default:
+          break;  // the specification allows only the three above; others are skipped
       }
       pos = r.end;
     }

@@ -10,10 +10,10 @@
 namespace cdc::io {
 namespace {
 
-constexpr int kLinkEthernet = 1;      // DLT_EN10MB
-constexpr int kLinkRaw = 101;         // LINKTYPE_RAW (libpcap reports DLT_RAW = 12 or 14 on some systems)
-constexpr int kLinkSll = 113;         // DLT_LINUX_SLL
-constexpr int kLinkSll2 = 276;        // DLT_LINUX_SLL2
+constexpr int kLinkEthernet = 1;  // DLT_EN10MB
+constexpr int kLinkRaw = 101;     // LINKTYPE_RAW (libpcap reports DLT_RAW = 12 or 14 on some systems)
+constexpr int kLinkSll = 113;     // DLT_LINUX_SLL
+constexpr int kLinkSll2 = 276;    // DLT_LINUX_SLL2
 constexpr uint16_t kEtherIpv4 = 0x0800, kEtherVlan = 0x8100, kEtherQinq = 0x88A8;
 constexpr std::size_t kMaxPendingDatagrams = 256;  // fragment sets kept before the oldest is dropped
 
@@ -183,7 +183,8 @@ void PcapReader::drop_oldest_fragments() {
   fragments_.erase(oldest);
 }
 
-bool PcapReader::emit_udp(std::span<const uint8_t> udp, uint32_t src, uint32_t dst, int64_t stamp_ns, UdpDatagram& out) {
+bool PcapReader::emit_udp(std::span<const uint8_t> udp, uint32_t src, uint32_t dst, int64_t stamp_ns,
+                          UdpDatagram& out) {
   if (udp.size() < 8) {
     ++stats_.malformed;
     return false;
@@ -276,7 +277,8 @@ void PcapWriter::write(const UdpDatagram& d) {
     put32(frame, d.src_ip);
     put32(frame, d.dst_ip);
     uint32_t sum = 0;
-    for (std::size_t i = 0; i < 20; i += 2) sum += static_cast<uint32_t>((frame[ip_at + i] << 8) | frame[ip_at + i + 1]);
+    for (std::size_t i = 0; i < 20; i += 2)
+      sum += static_cast<uint32_t>((frame[ip_at + i] << 8) | frame[ip_at + i + 1]);
     while ((sum >> 16) != 0) sum = (sum & 0xFFFF) + (sum >> 16);
     const auto checksum = static_cast<uint16_t>(~sum & 0xFFFF);
     frame[ip_at + 10] = static_cast<uint8_t>(checksum >> 8);

@@ -46,14 +46,14 @@ constexpr uint8_t kOpChunkInfo = 0x06;
 constexpr uint8_t kOpConnection = 0x07;
 constexpr uint32_t kIndexDataVersion = 1;
 constexpr uint32_t kChunkInfoVersion = 1;
-constexpr uint64_t kIndexEntryBytes = 12;     // time (uint32 sec, uint32 nsec) + uint32 offset
-constexpr uint64_t kChunkInfoEntryBytes = 8;  // uint32 conn + uint32 count
+constexpr uint64_t kIndexEntryBytes = 12;        // time (uint32 sec, uint32 nsec) + uint32 offset
+constexpr uint64_t kChunkInfoEntryBytes = 8;     // uint32 conn + uint32 count
 constexpr uint32_t kMaxHeaderBytes = 16u << 20;  // record headers hold a few short fields
 constexpr uint32_t kLooseMessage = UINT32_MAX;   // Entry::chunk of a message outside any chunk
 
 uint32_t load_u32(const uint8_t* p) {
-  return static_cast<uint32_t>(p[0]) | (static_cast<uint32_t>(p[1]) << 8u) |
-         (static_cast<uint32_t>(p[2]) << 16u) | (static_cast<uint32_t>(p[3]) << 24u);
+  return static_cast<uint32_t>(p[0]) | (static_cast<uint32_t>(p[1]) << 8u) | (static_cast<uint32_t>(p[2]) << 16u) |
+         (static_cast<uint32_t>(p[3]) << 24u);
 }
 
 uint64_t load_u64(const uint8_t* p) {
@@ -91,8 +91,8 @@ class Fields {
     size_t i = 0;
     while (i < bytes.size()) {
       if (bytes.size() - i < 4) {
-        loc.fail(pos + i, "header field length needs 4 bytes, " + std::to_string(bytes.size() - i) +
-                              " remain in the header");
+        loc.fail(pos + i,
+                 "header field length needs 4 bytes, " + std::to_string(bytes.size() - i) + " remain in the header");
       }
       const uint32_t len = load_u32(bytes.data() + i);
       i += 4;
@@ -268,11 +268,16 @@ class Inflated {
 
 std::string bz2_error_name(int rc) {
   switch (rc) {
-    case BZ_DATA_ERROR: return "data integrity error (BZ_DATA_ERROR)";
-    case BZ_DATA_ERROR_MAGIC: return "no bz2 stream magic (BZ_DATA_ERROR_MAGIC)";
-    case BZ_MEM_ERROR: return "out of memory (BZ_MEM_ERROR)";
-    case BZ_PARAM_ERROR: return "parameter error (BZ_PARAM_ERROR)";
-    default: return "error code " + std::to_string(rc);
+    case BZ_DATA_ERROR:
+      return "data integrity error (BZ_DATA_ERROR)";
+    case BZ_DATA_ERROR_MAGIC:
+      return "no bz2 stream magic (BZ_DATA_ERROR_MAGIC)";
+    case BZ_MEM_ERROR:
+      return "out of memory (BZ_MEM_ERROR)";
+    case BZ_PARAM_ERROR:
+      return "parameter error (BZ_PARAM_ERROR)";
+    default:
+      return "error code " + std::to_string(rc);
   }
 }
 
@@ -293,8 +298,8 @@ std::vector<uint8_t> inflate_bz2(std::span<const uint8_t> data, uint32_t declare
   for (;;) {
     const std::span<uint8_t> space = out.space();
     if (space.empty()) {
-      loc.fail(data_pos, "bz2 chunk decompresses to more than the " + std::to_string(declared) +
-                             " bytes its header declares");
+      loc.fail(data_pos,
+               "bz2 chunk decompresses to more than the " + std::to_string(declared) + " bytes its header declares");
     }
     s.next_out = reinterpret_cast<char*>(space.data());
     s.avail_out = static_cast<unsigned int>(std::min<size_t>(space.size(), UINT32_MAX));
@@ -314,8 +319,8 @@ std::vector<uint8_t> inflate_bz2(std::span<const uint8_t> data, uint32_t declare
              std::to_string(s.avail_in) + " bytes follow the end of the bz2 stream in the chunk");
   }
   if (out.used() != declared) {
-    loc.fail(data_pos, "bz2 chunk decompresses to " + std::to_string(out.used()) +
-                           " bytes, its header declares " + std::to_string(declared));
+    loc.fail(data_pos, "bz2 chunk decompresses to " + std::to_string(out.used()) + " bytes, its header declares " +
+                           std::to_string(declared));
   }
   return out.take();
 }
@@ -418,7 +423,7 @@ class Ros1BagReader final : public BagReader {
   struct LoadedChunk {
     std::vector<uint8_t> data;
     std::unordered_map<uint64_t, ChunkMessage> messages;  // by offset of the message record
-    uint64_t remaining = 0;                              // messages not yet yielded
+    uint64_t remaining = 0;                               // messages not yet yielded
   };
 
   void read_bag_header() {
@@ -455,22 +460,31 @@ class Ros1BagReader final : public BagReader {
       if (pos == index_pos_) index_pos_is_record_ = true;
       const Record r = read_record(FileBytes{file_}, pos, loc_);
       switch (r.op) {
-        case kOpChunk: add_chunk(r); break;
-        case kOpIndexData: add_index_data(r); break;
+        case kOpChunk:
+          add_chunk(r);
+          break;
+        case kOpIndexData:
+          add_index_data(r);
+          break;
         case kOpConnection: {
           const std::vector<uint8_t> data = file_.read(r.data_pos, r.data_len, loc_);
           add_connection(*r.header, data, r.pos, r.data_pos, loc_);
           if (index_pos_ != 0 && r.pos >= index_pos_) ++index_connections_;
           break;
         }
-        case kOpChunkInfo: add_chunk_info(r); break;
+        case kOpChunkInfo:
+          add_chunk_info(r);
+          break;
         case kOpMessageData:
           // An uncompressed chunk that was never closed: its records follow a chunk header of
           // size 0, so they appear at the top level.
           add_loose_message(r);
           break;
-        case kOpBagHeader: loc_.fail(r.pos, "a second bag header record"); break;
-        default: loc_.fail(r.pos, "unknown record op " + std::to_string(r.op));
+        case kOpBagHeader:
+          loc_.fail(r.pos, "a second bag header record");
+          break;
+        default:
+          loc_.fail(r.pos, "unknown record op " + std::to_string(r.op));
       }
       pos = r.end;
     }
@@ -494,8 +508,8 @@ class Ros1BagReader final : public BagReader {
   void check_version(const Record& r, uint32_t expected, const char* record) const {
     const uint32_t version = r.header->u32("ver");
     if (version != expected) {
-      loc_.fail(r.pos, std::string(record) + " version " + std::to_string(version) + ", expected " +
-                           std::to_string(expected));
+      loc_.fail(r.pos,
+                std::string(record) + " version " + std::to_string(version) + ", expected " + std::to_string(expected));
     }
   }
 
@@ -504,9 +518,8 @@ class Ros1BagReader final : public BagReader {
   uint32_t entry_count(const Record& r, uint64_t entry_bytes, const char* data, const char* entries) const {
     const uint32_t count = r.header->u32("count");
     if (r.data_len != uint64_t{count} * entry_bytes) {
-      loc_.fail(r.pos, std::string(data) + " of " + std::to_string(r.data_len) + " bytes for " +
-                           std::to_string(count) + " " + entries + ", expected " +
-                           std::to_string(uint64_t{count} * entry_bytes));
+      loc_.fail(r.pos, std::string(data) + " of " + std::to_string(r.data_len) + " bytes for " + std::to_string(count) +
+                           " " + entries + ", expected " + std::to_string(uint64_t{count} * entry_bytes));
     }
     return count;
   }
@@ -547,8 +560,8 @@ class Ros1BagReader final : public BagReader {
     Connection c{header.str("topic"), detail::ros2_type_name(fields.str("type"))};
     const auto [it, inserted] = connections_.try_emplace(id, c);
     if (!inserted && (it->second.topic != c.topic || it->second.type != c.type)) {
-      loc.fail(record_pos, "connection " + std::to_string(id) + " is " + c.topic + " (" + c.type +
-                               ") here but " + it->second.topic + " (" + it->second.type + ") before");
+      loc.fail(record_pos, "connection " + std::to_string(id) + " is " + c.topic + " (" + c.type + ") here but " +
+                               it->second.topic + " (" + it->second.type + ") before");
     }
   }
 
@@ -576,12 +589,14 @@ class Ros1BagReader final : public BagReader {
     for (size_t i = 0; i < chunks_.size(); ++i) {
       const ChunkInfo& info = chunk_infos_[i];
       if (info.chunk_pos != chunks_[i].pos) {
-        loc_.fail(info.pos, "chunk info points at byte " + std::to_string(info.chunk_pos) +
-                                ", the chunk is at byte " + std::to_string(chunks_[i].pos));
+        loc_.fail(info.pos, "chunk info points at byte " + std::to_string(info.chunk_pos) + ", the chunk is at byte " +
+                                std::to_string(chunks_[i].pos));
       }
       if (chunks_[i].indexed && info.messages != chunks_[i].index.size()) {
-        loc_.fail(info.pos, "chunk info counts " + std::to_string(info.messages) + " messages, the index data "
-                                "after the chunk lists " + std::to_string(chunks_[i].index.size()));
+        loc_.fail(info.pos, "chunk info counts " + std::to_string(info.messages) +
+                                " messages, the index data "
+                                "after the chunk lists " +
+                                std::to_string(chunks_[i].index.size()));
       }
     }
   }
@@ -592,10 +607,9 @@ class Ros1BagReader final : public BagReader {
     for (size_t c = 0; c < chunks_.size(); ++c) {
       Chunk& chunk = chunks_[c];
       const bool last_before_damage = damage_.has_value() && c + 1 == chunks_.size();
-      const bool index_usable =
-          chunk.indexed && !last_before_damage &&
-          std::all_of(chunk.index.begin(), chunk.index.end(),
-                      [&](const IndexEntry& e) { return connections_.contains(e.conn); });
+      const bool index_usable = chunk.indexed && !last_before_damage &&
+                                std::all_of(chunk.index.begin(), chunk.index.end(),
+                                            [&](const IndexEntry& e) { return connections_.contains(e.conn); });
       const auto chunk_id = static_cast<uint32_t>(c);
       if (index_usable) {
         for (const IndexEntry& e : chunk.index) entries_.push_back({e.time_ns, chunk.pos, e.offset, e.conn, chunk_id});

@@ -22,8 +22,7 @@ class Ros1Cursor {
  public:
   Ros1Cursor(const BagMessage& m, std::string_view expected_type) : m_(m), type_(expected_type) {
     if (m.serialization != Serialization::kRos1) {
-      throw FormatError("ROS 1 decoder for " + type_ + ": message on " + m.topic +
-                        " is not in ROS 1 serialisation");
+      throw FormatError("ROS 1 decoder for " + type_ + ": message on " + m.topic + " is not in ROS 1 serialisation");
     }
     if (m.type != expected_type) {
       throw FormatError("ROS 1 decoder for " + type_ + ": message on " + m.topic + " has type '" + m.type + "'");
@@ -40,8 +39,8 @@ class Ros1Cursor {
   bool boolean(const char* field) { return u8(field) != 0; }
   uint32_t u32(const char* field) {
     const std::span<const uint8_t> b = take(field, 4);
-    return static_cast<uint32_t>(b[0]) | (static_cast<uint32_t>(b[1]) << 8u) |
-           (static_cast<uint32_t>(b[2]) << 16u) | (static_cast<uint32_t>(b[3]) << 24u);
+    return static_cast<uint32_t>(b[0]) | (static_cast<uint32_t>(b[1]) << 8u) | (static_cast<uint32_t>(b[2]) << 16u) |
+           (static_cast<uint32_t>(b[3]) << 24u);
   }
   double f64(const char* field) {
     const std::span<const uint8_t> b = take(field, 8);
@@ -115,7 +114,8 @@ uint32_t point_field_size(uint8_t datatype) {
       return 4;
     case 8:  // FLOAT64
       return 8;
-    default: return 0;
+    default:
+      return 0;
   }
 }
 
@@ -145,9 +145,9 @@ PointCloud2Msg decode_point_cloud2_ros1(const BagMessage& m) {
   in.finish();
 
   if (uint64_t{msg.row_step} * msg.height != msg.data.size()) {
-    in.invalid("data holds " + std::to_string(msg.data.size()) + " bytes, row_step * height = " +
-               std::to_string(msg.row_step) + " * " + std::to_string(msg.height) + " = " +
-               std::to_string(uint64_t{msg.row_step} * msg.height));
+    in.invalid("data holds " + std::to_string(msg.data.size()) +
+               " bytes, row_step * height = " + std::to_string(msg.row_step) + " * " + std::to_string(msg.height) +
+               " = " + std::to_string(uint64_t{msg.row_step} * msg.height));
   }
   if (uint64_t{msg.point_step} * msg.width > msg.row_step) {
     in.invalid("point_step * width = " + std::to_string(msg.point_step) + " * " + std::to_string(msg.width) +

@@ -30,8 +30,7 @@ std::unique_ptr<BagReader> open_mcap_bag_bytes(std::vector<uint8_t> bytes, const
 
 // Yields the messages of all parts in log-time order (ties: the earlier part first); topics() sums the
 // parts' counts per topic and type.
-std::unique_ptr<BagReader> merge_bags(std::vector<std::unique_ptr<BagReader>> parts,
-                                      std::string description);
+std::unique_ptr<BagReader> merge_bags(std::vector<std::unique_ptr<BagReader>> parts, std::string description);
 
 // The ROS 2 spelling of a message type: "pkg/Type" -> "pkg/msg/Type"; other names unchanged.
 std::string ros2_type_name(std::string_view type);

@@ -56,8 +56,8 @@ void check_sqlite_header(const uint8_t* header, size_t header_size, uint64_t fil
   if (pages != 0 && be32(header + 24) == be32(header + 92) && uint64_t{pages} * page_size > file_size) {
     throw FormatError(name + ": truncated: the SQLite header (byte 28) declares " + std::to_string(pages) +
                       " pages of " + std::to_string(page_size) + " bytes (" +
-                      std::to_string(uint64_t{pages} * page_size) +
-                      " bytes), the file has " + std::to_string(file_size));
+                      std::to_string(uint64_t{pages} * page_size) + " bytes), the file has " +
+                      std::to_string(file_size));
   }
 }
 
@@ -115,8 +115,8 @@ class SqliteBag final : public BagReader {
       }
       if (rc != SQLITE_ROW) {
         done_ = true;
-        fail("SQLite error reading message row " + std::to_string(row_) + " (in timestamp order): " +
-             sqlite3_errmsg(db_.get()));
+        fail("SQLite error reading message row " + std::to_string(row_) +
+             " (in timestamp order): " + sqlite3_errmsg(db_.get()));
       }
       const int64_t timestamp = sqlite3_column_int64(stmt_.get(), 0);
       const int64_t topic_id = sqlite3_column_int64(stmt_.get(), 1);

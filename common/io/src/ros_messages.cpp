@@ -162,14 +162,19 @@ enum PointFieldType : uint8_t { kInt8 = 1, kUint8, kInt16, kUint16, kInt32, kUin
 size_t datatype_size(uint8_t t) {
   switch (t) {
     case kInt8:
-    case kUint8: return 1;
+    case kUint8:
+      return 1;
     case kInt16:
-    case kUint16: return 2;
+    case kUint16:
+      return 2;
     case kInt32:
     case kUint32:
-    case kFloat32: return 4;
-    case kFloat64: return 8;
-    default: return 0;
+    case kFloat32:
+      return 4;
+    case kFloat64:
+      return 8;
+    default:
+      return 0;
   }
 }
 
@@ -182,14 +187,22 @@ bool is_float(uint8_t t) { return t == kFloat32 || t == kFloat64; }
 
 double read_value(const uint8_t* p, uint8_t t, bool big) {
   switch (t) {
-    case kInt8: return load<int8_t>(p, big);
-    case kUint8: return load<uint8_t>(p, big);
-    case kInt16: return load<int16_t>(p, big);
-    case kUint16: return load<uint16_t>(p, big);
-    case kInt32: return load<int32_t>(p, big);
-    case kUint32: return load<uint32_t>(p, big);
-    case kFloat32: return load<float>(p, big);
-    default: return load<double>(p, big);
+    case kInt8:
+      return load<int8_t>(p, big);
+    case kUint8:
+      return load<uint8_t>(p, big);
+    case kInt16:
+      return load<int16_t>(p, big);
+    case kUint16:
+      return load<uint16_t>(p, big);
+    case kInt32:
+      return load<int32_t>(p, big);
+    case kUint32:
+      return load<uint32_t>(p, big);
+    case kFloat32:
+      return load<float>(p, big);
+    default:
+      return load<double>(p, big);
   }
 }
 
@@ -319,9 +332,8 @@ class PointReader {
   TimeKind absolute_time_kind() const {
     const double v = value(at(0), *l_.time);
     const double stamp_s = static_cast<double>(c_.header.stamp_ns) * 1e-9;
-    return std::abs(v - stamp_s) < 86400.0 || std::abs(v * 1e-9 - stamp_s) >= 86400.0
-               ? TimeKind::kAbsoluteSeconds
-               : TimeKind::kAbsoluteNanoseconds;
+    return std::abs(v - stamp_s) < 86400.0 || std::abs(v * 1e-9 - stamp_s) >= 86400.0 ? TimeKind::kAbsoluteSeconds
+                                                                                      : TimeKind::kAbsoluteNanoseconds;
   }
 
   // Point k; nothing when a coordinate is not finite.
@@ -356,10 +368,14 @@ class PointReader {
   double time_offset(double v, TimeKind kind) const {
     const double sec = static_cast<double>(stamp_.sec), rem = static_cast<double>(stamp_.rem_ns);
     switch (kind) {
-      case TimeKind::kRelativeSeconds: return v;
-      case TimeKind::kRelativeNanoseconds: return v * 1e-9;
-      case TimeKind::kAbsoluteSeconds: return (v - sec) - rem * 1e-9;
-      case TimeKind::kAbsoluteNanoseconds: return (v - sec * 1e9 - rem) * 1e-9;
+      case TimeKind::kRelativeSeconds:
+        return v;
+      case TimeKind::kRelativeNanoseconds:
+        return v * 1e-9;
+      case TimeKind::kAbsoluteSeconds:
+        return (v - sec) - rem * 1e-9;
+      case TimeKind::kAbsoluteNanoseconds:
+        return (v - sec * 1e9 - rem) * 1e-9;
     }
     return 0;
   }

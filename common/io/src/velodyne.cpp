@@ -32,30 +32,29 @@ uint16_t read_u16(std::span<const uint8_t> b, std::size_t at) {
 
 constexpr std::array<double, 16> kVlp16Elevation = {-15, 1, -13, 3, -11, 5, -9, 7, -7, 9, -5, 11, -3, 13, -1, 15};
 
-constexpr std::array<double, 32> kHdl32Elevation = {
-    -30.67, -9.33, -29.33, -8.00, -28.00, -6.67, -26.67, -5.33, -25.33, -4.00, -24.00,
-    -2.67,  -22.67, -1.33, -21.33, 0.00,  -20.00, 1.33,  -18.67, 2.67,  -17.33, 4.00,
-    -16.00, 5.33,  -14.67, 6.67,  -13.33, 8.00,  -12.00, 9.33,  -10.67, 10.67};
+constexpr std::array<double, 32> kHdl32Elevation = {-30.67, -9.33, -29.33, -8.00, -28.00, -6.67, -26.67, -5.33,
+                                                    -25.33, -4.00, -24.00, -2.67, -22.67, -1.33, -21.33, 0.00,
+                                                    -20.00, 1.33,  -18.67, 2.67,  -17.33, 4.00,  -16.00, 5.33,
+                                                    -14.67, 6.67,  -13.33, 8.00,  -12.00, 9.33,  -10.67, 10.67};
 
-constexpr std::array<double, 32> kVlp32cElevation = {
-    -25,   -1,    -1.667, -15.639, -11.31, 0,     -0.667, -8.843, -7.254, 0.333, -0.333,
-    -6.148, -5.333, 1.333, 0.667,  -4,     -4.667, 1.667, 1,      -3.667, -3.333, 3.333,
-    2.333, -2.667, -3,     7,       4.667,  -2.333, -2,    15,     10.333, -1.333};
-constexpr std::array<double, 32> kVlp32cRotation = {
-    -1.4, 4.2, -1.4, 1.4, -1.4, 1.4, -4.2, 1.4, -1.4, 4.2,  -1.4, 1.4, -4.2, 1.4,  -4.2, 1.4,
-    -1.4, 4.2, -1.4, 4.2, -4.2, 1.4, -1.4, 1.4, -1.4, 1.4, -1.4, 4.2, -4.2, 1.4, -1.4, 1.4};
+constexpr std::array<double, 32> kVlp32cElevation = {-25,    -1,    -1.667, -15.639, -11.31, 0,     -0.667, -8.843,
+                                                     -7.254, 0.333, -0.333, -6.148,  -5.333, 1.333, 0.667,  -4,
+                                                     -4.667, 1.667, 1,      -3.667,  -3.333, 3.333, 2.333,  -2.667,
+                                                     -3,     7,     4.667,  -2.333,  -2,     15,    10.333, -1.333};
+constexpr std::array<double, 32> kVlp32cRotation = {-1.4, 4.2,  -1.4, 1.4,  -1.4, 1.4,  -4.2, 1.4,  -1.4, 4.2,  -1.4,
+                                                    1.4,  -4.2, 1.4,  -4.2, 1.4,  -1.4, 4.2,  -1.4, 4.2,  -4.2, 1.4,
+                                                    -1.4, 1.4,  -1.4, 1.4,  -1.4, 4.2,  -4.2, 1.4,  -1.4, 1.4};
 
 constexpr std::array<double, 128> kVls128Elevation = {
-    -11.742, -1.99,  3.4,    -5.29,  -0.78, 4.61,    -4.08, 1.31,  -6.5,  -1.11, 4.28,    -4.41, 0.1,
-    6.48,    -3.2,   2.19,   -3.86,  1.53,  -9.244,  -1.77, 2.74,  -5.95, -0.56, 4.83,    -2.98, 2.41,
-    -6.28,   -0.89,  3.62,   -5.07,  0.32,  7.58,    -0.34, 5.18,  -3.64, 1.75,  -25,     -2.43, 2.96,
-    -5.73,   0.54,   9.7,    -2.76,  2.63,  -7.65,   -1.55, 3.84,  -4.85, 3.18,  -5.51,   -0.12, 5.73,
-    -4.3,    1.09,   -16.042, -2.21, 4.06,  -4.63,   0.76,  15,    -3.42, 1.97,  -6.85,   -1.33, -5.62,
-    -0.23,   5.43,   -3.53,  0.98,   -19.582, -2.32, 3.07,  -4.74, 0.65,  11.75, -2.65,   1.86,  -7.15,
-    -1.44,   3.95,   -2.1,   3.29,   -5.4,  -0.01,   4.5,   -4.19, 1.2,   -13.565, -1.22, 4.17,  -4.52,
-    0.87,    6.08,   -3.31,  2.08,   -6.65, 1.42,    -10.346, -1.88, 3.51, -6.06, -0.67,   4.72,  -3.97,
-    2.3,     -6.39,  -1,     4.39,   -5.18, 0.21,    6.98,  -3.09, 4.98,  -3.75, 1.64,    -8.352, -2.54,
-    2.85,    -5.84,  -0.45,  8.43,   -2.87, 2.52,    -6.17, -1.66, 3.73,  -4.96, 0.43};
+    -11.742, -1.99, 3.4,   -5.29,  -0.78, 4.61,  -4.08, 1.31,    -6.5,  -1.11,   4.28,   -4.41, 0.1,     6.48,  -3.2,
+    2.19,    -3.86, 1.53,  -9.244, -1.77, 2.74,  -5.95, -0.56,   4.83,  -2.98,   2.41,   -6.28, -0.89,   3.62,  -5.07,
+    0.32,    7.58,  -0.34, 5.18,   -3.64, 1.75,  -25,   -2.43,   2.96,  -5.73,   0.54,   9.7,   -2.76,   2.63,  -7.65,
+    -1.55,   3.84,  -4.85, 3.18,   -5.51, -0.12, 5.73,  -4.3,    1.09,  -16.042, -2.21,  4.06,  -4.63,   0.76,  15,
+    -3.42,   1.97,  -6.85, -1.33,  -5.62, -0.23, 5.43,  -3.53,   0.98,  -19.582, -2.32,  3.07,  -4.74,   0.65,  11.75,
+    -2.65,   1.86,  -7.15, -1.44,  3.95,  -2.1,  3.29,  -5.4,    -0.01, 4.5,     -4.19,  1.2,   -13.565, -1.22, 4.17,
+    -4.52,   0.87,  6.08,  -3.31,  2.08,  -6.65, 1.42,  -10.346, -1.88, 3.51,    -6.06,  -0.67, 4.72,    -3.97, 2.3,
+    -6.39,   -1,    4.39,  -5.18,  0.21,  6.98,  -3.09, 4.98,    -3.75, 1.64,    -8.352, -2.54, 2.85,    -5.84, -0.45,
+    8.43,    -2.87, 2.52,  -6.17,  -1.66, 3.73,  -4.96, 0.43};
 // The VLS-128 fires 8 lasers at once, each in its own azimuth column (laser id mod 8).
 constexpr std::array<double, 8> kVls128Rotation = {-6.354, -4.548, -2.732, -0.911, 0.911, 2.732, 4.548, 6.354};
 
@@ -79,9 +78,9 @@ struct Firing {
   double block_us = 0;  // time at which the block's azimuth was sampled (its firing sequence's start)
 };
 
-constexpr double kVlp16Sequence = 55.296, kVlp16Firing = 2.304;   // 16 firings + recharge
-constexpr double kVlp32Sequence = 55.296, kVlp32Firing = 2.304;   // 16 pairs of lasers + recharge
-constexpr double kHdl32Block = 46.08, kHdl32Firing = 1.152;       // 32 firings + 8 recharge slots
+constexpr double kVlp16Sequence = 55.296, kVlp16Firing = 2.304;  // 16 firings + recharge
+constexpr double kVlp32Sequence = 55.296, kVlp32Firing = 2.304;  // 16 pairs of lasers + recharge
+constexpr double kHdl32Block = 46.08, kHdl32Firing = 1.152;      // 32 firings + 8 recharge slots
 
 // HDL-64E "laser firing time table": a firing of an upper and a lower block (one laser of each at a time)
 // takes `cycle_us`; each block's 32 lasers fire in 8 groups of 4, a group every `group_us`, the lasers
@@ -142,7 +141,8 @@ Firing firing(VelodyneModel model, bool dual, std::size_t block, std::size_t cha
       const double sequence = dual ? 0.0 : static_cast<double>(block / 4);
       f.laser = bank * 32 + static_cast<int>(channel);
       const int group = f.laser / 8;
-      f.time_us = sequence * kVls128Sequence + static_cast<double>(group + group / 8) * kVls128Firing + kVls128PacketOffset;
+      f.time_us =
+          sequence * kVls128Sequence + static_cast<double>(group + group / 8) * kVls128Firing + kVls128PacketOffset;
       f.block_us = sequence * kVls128Sequence + kVls128PacketOffset;
       break;
     }
@@ -158,11 +158,16 @@ int bank_of(VelodyneModel model, uint16_t block_id) {
       return block_id == 0xEEFF ? 0 : block_id == 0xDDFF ? 1 : -1;
     case VelodyneModel::kVLS128:
       switch (block_id) {
-        case 0xEEFF: return 0;
-        case 0xDDFF: return 1;
-        case 0xCCFF: return 2;
-        case 0xBBFF: return 3;
-        default: return -1;
+        case 0xEEFF:
+          return 0;
+        case 0xDDFF:
+          return 1;
+        case 0xCCFF:
+          return 2;
+        case 0xBBFF:
+          return 3;
+        default:
+          return -1;
       }
     default:
       return block_id == 0xEEFF ? 0 : -1;
@@ -219,8 +224,10 @@ SensorXyz sensor_xyz(const VelodyneLaserCalibration& l, double distance, double 
   if (l.two_pt_correction) {
     const double xy0 = distance * cv - vo * sv;
     const double xx = std::abs(xy0 * sa - ho * ca), yy = std::abs(xy0 * ca + ho * sa);
-    dx = (l.dist_correction - l.dist_correction_x) * (xx - 2.4) / (25.04 - 2.4) + l.dist_correction_x - l.dist_correction;
-    dy = (l.dist_correction - l.dist_correction_y) * (yy - 1.93) / (25.04 - 1.93) + l.dist_correction_y - l.dist_correction;
+    dx = (l.dist_correction - l.dist_correction_x) * (xx - 2.4) / (25.04 - 2.4) + l.dist_correction_x -
+         l.dist_correction;
+    dy = (l.dist_correction - l.dist_correction_y) * (yy - 1.93) / (25.04 - 1.93) + l.dist_correction_y -
+         l.dist_correction;
   }
   SensorXyz s;
   s.x = ((distance + dx) * cv - vo * sv) * sa - ho * ca;
@@ -243,7 +250,8 @@ double corrected_intensity(const VelodyneLaserCalibration& l, uint16_t raw, uint
 std::string upper_alnum(std::string_view s) {
   std::string out;
   for (const char ch : s) {
-    if (std::isalnum(static_cast<unsigned char>(ch)) != 0) out.push_back(static_cast<char>(std::toupper(static_cast<unsigned char>(ch))));
+    if (std::isalnum(static_cast<unsigned char>(ch)) != 0)
+      out.push_back(static_cast<char>(std::toupper(static_cast<unsigned char>(ch))));
   }
   return out;
 }
@@ -310,12 +318,18 @@ struct CalibrationFile {
 
 std::string_view to_string(VelodyneModel model) {
   switch (model) {
-    case VelodyneModel::kVLP16: return "VLP16";
-    case VelodyneModel::kVLP32C: return "VLP32C";
-    case VelodyneModel::kHDL32E: return "HDL32E";
-    case VelodyneModel::kHDL64E: return "HDL64E";
-    case VelodyneModel::kHDL64ES3: return "HDL64E_S3";
-    case VelodyneModel::kVLS128: return "VLS128";
+    case VelodyneModel::kVLP16:
+      return "VLP16";
+    case VelodyneModel::kVLP32C:
+      return "VLP32C";
+    case VelodyneModel::kHDL32E:
+      return "HDL32E";
+    case VelodyneModel::kHDL64E:
+      return "HDL64E";
+    case VelodyneModel::kHDL64ES3:
+      return "HDL64E_S3";
+    case VelodyneModel::kVLS128:
+      return "VLS128";
   }
   return "unknown";
 }
@@ -334,34 +348,48 @@ VelodyneModel velodyne_model_from_string(std::string_view name) {
 
 std::optional<VelodyneModel> velodyne_model_from_product_id(uint8_t product_id) {
   switch (product_id) {
-    case 0x21: return VelodyneModel::kHDL32E;
+    case 0x21:
+      return VelodyneModel::kHDL32E;
     case 0x22:
-    case 0x24: return VelodyneModel::kVLP16;
-    case 0x28: return VelodyneModel::kVLP32C;
-    case 0xA1: return VelodyneModel::kVLS128;
-    default: return std::nullopt;
+    case 0x24:
+      return VelodyneModel::kVLP16;
+    case 0x28:
+      return VelodyneModel::kVLP32C;
+    case 0xA1:
+      return VelodyneModel::kVLS128;
+    default:
+      return std::nullopt;
   }
 }
 
 int velodyne_laser_count(VelodyneModel model) {
   switch (model) {
-    case VelodyneModel::kVLP16: return 16;
+    case VelodyneModel::kVLP16:
+      return 16;
     case VelodyneModel::kVLP32C:
-    case VelodyneModel::kHDL32E: return 32;
+    case VelodyneModel::kHDL32E:
+      return 32;
     case VelodyneModel::kHDL64E:
-    case VelodyneModel::kHDL64ES3: return 64;
-    case VelodyneModel::kVLS128: return 128;
+    case VelodyneModel::kHDL64ES3:
+      return 64;
+    case VelodyneModel::kVLS128:
+      return 128;
   }
   return 0;
 }
 
 std::string_view to_string(VelodynePacketStatus status) {
   switch (status) {
-    case VelodynePacketStatus::kOk: return "ok";
-    case VelodynePacketStatus::kTruncated: return "truncated";
-    case VelodynePacketStatus::kMalformed: return "malformed";
-    case VelodynePacketStatus::kWrongModel: return "wrong model";
-    case VelodynePacketStatus::kOutOfOrder: return "out of order";
+    case VelodynePacketStatus::kOk:
+      return "ok";
+    case VelodynePacketStatus::kTruncated:
+      return "truncated";
+    case VelodynePacketStatus::kMalformed:
+      return "malformed";
+    case VelodynePacketStatus::kWrongModel:
+      return "wrong model";
+    case VelodynePacketStatus::kOutOfOrder:
+      return "out of order";
   }
   return "unknown";
 }
@@ -405,7 +433,8 @@ VelodyneCalibration read_velodyne_calibration(const std::filesystem::path& path,
     if (!e.IsMap()) throw FormatError(file + ": " + where + " is not a map");
     const double id = f.number(e, "laser_id", where);
     if (id < 0 || id >= static_cast<double>(n) || id != std::floor(id)) {
-      throw FormatError(file + ": " + where + ": laser_id " + std::to_string(id) + " is not in 0.." + std::to_string(n - 1));
+      throw FormatError(file + ": " + where + ": laser_id " + std::to_string(id) + " is not in 0.." +
+                        std::to_string(n - 1));
     }
     const auto k = static_cast<std::size_t>(id);
     if (seen[k]) throw FormatError(file + ": " + where + ": laser_id " + std::to_string(k) + " appears twice");
@@ -428,8 +457,12 @@ VelodyneCalibration default_velodyne_calibration(VelodyneModel model) {
     l.laser_id = static_cast<int>(i);
     double elevation = 0, rotation = 0;
     switch (model) {
-      case VelodyneModel::kVLP16: elevation = kVlp16Elevation[i]; break;
-      case VelodyneModel::kHDL32E: elevation = kHdl32Elevation[i]; break;
+      case VelodyneModel::kVLP16:
+        elevation = kVlp16Elevation[i];
+        break;
+      case VelodyneModel::kHDL32E:
+        elevation = kHdl32Elevation[i];
+        break;
       case VelodyneModel::kVLP32C:
         elevation = kVlp32cElevation[i];
         rotation = kVlp32cRotation[i];
@@ -505,7 +538,8 @@ struct VelodyneDecoder::Packet {
   long sector_min_h = 0, sector_max_h = 0;  // [0.01 deg]
 
   bool in_sector(long a) const {
-    return sector_min_h <= sector_max_h ? (a >= sector_min_h && a <= sector_max_h) : (a >= sector_min_h || a <= sector_max_h);
+    return sector_min_h <= sector_max_h ? (a >= sector_min_h && a <= sector_max_h)
+                                        : (a >= sector_min_h || a <= sector_max_h);
   }
 };
 
@@ -535,7 +569,8 @@ VelodynePacketStatus VelodyneDecoder::identify(std::span<const uint8_t> packet, 
     if (!named) return VelodynePacketStatus::kMalformed;
     p.model = *named;
   }
-  if (static_cast<int>(calibration_.lasers.size()) != velodyne_laser_count(p.model)) return VelodynePacketStatus::kWrongModel;
+  if (static_cast<int>(calibration_.lasers.size()) != velodyne_laser_count(p.model))
+    return VelodynePacketStatus::kWrongModel;
   model_ = p.model;
 
   if (options_.return_mode) {
@@ -572,7 +607,8 @@ void VelodyneDecoder::rotation_rates(Packet& p) {
     p.rate[b] = -1.0;
     for (std::size_t n = b + 1; n < p.used_blocks; ++n) {
       if (p.block_us[n] > p.block_us[b]) {
-        const int diff = (static_cast<int>(p.azimuth[n]) - static_cast<int>(p.azimuth[b]) + kAzimuthUnits) % kAzimuthUnits;
+        const int diff =
+            (static_cast<int>(p.azimuth[n]) - static_cast<int>(p.azimuth[b]) + kAzimuthUnits) % kAzimuthUnits;
         const double r = static_cast<double>(diff) / (p.block_us[n] - p.block_us[b]);
         if (r > 0.0 && r <= kMaxRate) {
           p.rate[b] = r;
@@ -660,7 +696,8 @@ VelodyneSweepAssembler::VelodyneSweepAssembler(VelodyneCalibration calibration, 
 }
 
 uint32_t VelodyneSweepAssembler::phased(uint16_t azimuth) const {
-  return (static_cast<uint32_t>(azimuth) + static_cast<uint32_t>(kAzimuthUnits) - phase_h_) % static_cast<uint32_t>(kAzimuthUnits);
+  return (static_cast<uint32_t>(azimuth) + static_cast<uint32_t>(kAzimuthUnits) - phase_h_) %
+         static_cast<uint32_t>(kAzimuthUnits);
 }
 
 void VelodyneSweepAssembler::finish(bool complete, uint32_t last_gps_time_us) {
@@ -669,7 +706,8 @@ void VelodyneSweepAssembler::finish(bool complete, uint32_t last_gps_time_us) {
     // Points at the end already past the cut (within a quarter turn) open the next sweep.
     std::size_t keep = current_.points.size();
     while (keep > 0) {
-      const auto az = static_cast<uint32_t>(std::lround(static_cast<double>(current_.points[keep - 1].azimuth) / kDegToRad * 100.0)) %
+      const auto az = static_cast<uint32_t>(
+                          std::lround(static_cast<double>(current_.points[keep - 1].azimuth) / kDegToRad * 100.0)) %
                       static_cast<uint32_t>(kAzimuthUnits);
       if (phased(static_cast<uint16_t>(az)) >= static_cast<uint32_t>(kAzimuthUnits / 4)) break;
       --keep;
@@ -678,7 +716,8 @@ void VelodyneSweepAssembler::finish(bool complete, uint32_t last_gps_time_us) {
     current_.points.resize(keep);
   }
   current_.complete = complete;
-  const bool emit = current_.packets > 0 && (complete || options_.emit_incomplete) && (!first_sweep_ || options_.emit_first);
+  const bool emit =
+      current_.packets > 0 && (complete || options_.emit_incomplete) && (!first_sweep_ || options_.emit_first);
   if (emit) {
     ++stats_.sweeps;
     if (!complete) ++stats_.incomplete_sweeps;
@@ -774,7 +813,8 @@ Sweep to_sweep(const VelodyneSweep& v, int64_t& stamp_ns) {
   for (const VelodynePoint& p : v.points) stamp_ns = std::min(stamp_ns, p.time_ns);
   s.points.reserve(v.points.size());
   for (const VelodynePoint& p : v.points) {
-    s.points.push_back({p.x, p.y, p.z, p.intensity / 255.0f, static_cast<float>(1e-9 * static_cast<double>(p.time_ns - stamp_ns)), p.ring});
+    s.points.push_back({p.x, p.y, p.z, p.intensity / 255.0f,
+                        static_cast<float>(1e-9 * static_cast<double>(p.time_ns - stamp_ns)), p.ring});
   }
   return s;
 }

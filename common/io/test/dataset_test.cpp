@@ -1,15 +1,15 @@
-#include "cdc/io/error.hpp"
-#include "cdc/io/cloud.hpp"
 #include "cdc/io/dataset.hpp"
+#include "cdc/io/cloud.hpp"
+#include "cdc/io/error.hpp"
 #include "cdc/io/kitti.hpp"
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
-#include <unistd.h>
 
 namespace cdc::io {
 namespace {
@@ -49,7 +49,8 @@ TEST(Dataset, WriterAndReaderRoundTripSweepsTimesPosesImuAndInfo) {
     w.add_sweep(0, 1'000'000'000, make_sweep(5, 1, true));
     w.add_sweep(0, 1'100'000'001, make_sweep(7, 2, true));
     w.add_sweep(1, 1'050'000'000, make_sweep(3, 3, false));
-    geometry::Trajectory gt{{1'000'000'000, Eigen::Isometry3d::Identity()}, {1'100'000'001, Eigen::Isometry3d::Identity()}};
+    geometry::Trajectory gt{{1'000'000'000, Eigen::Isometry3d::Identity()},
+                            {1'100'000'001, Eigen::Isometry3d::Identity()}};
     gt[1].pose.translation() = Eigen::Vector3d(1, 2, 3);
     w.set_groundtruth(0, gt);
     w.set_imu(0, {{1'000'000'000, Eigen::Vector3d(0, 0, 9.81), Eigen::Vector3d(0.1, 0, 0)},
@@ -158,7 +159,8 @@ TEST(Dataset, ReaderNamesWhatIsWrong) {
 TEST(KittiSequence, AMissingSweepATooShortTimesFileAndPosesAreNamed) {
   const fs::path root = temp_dir("kitti");
   fs::create_directories(root / "velodyne");
-  for (const char* n : {"000000.bin", "000001.bin", "000003.bin"}) write_kitti_bin(root / "velodyne" / n, make_sweep(3, 0, false).points);
+  for (const char* n : {"000000.bin", "000001.bin", "000003.bin"})
+    write_kitti_bin(root / "velodyne" / n, make_sweep(3, 0, false).points);
   try {
     read_kitti_sequence(root);
     FAIL() << "a missing sweep was accepted";
@@ -191,7 +193,8 @@ TEST(KittiSequence, AMissingSweepATooShortTimesFileAndPosesAreNamed) {
 TEST(KittiSequence, RealSweepsOfSequence00TakeTheirGroundTruthInTheLidarFrame) {
   const char* env = std::getenv("CDC_DATA_DIR");
   const fs::path data = env != nullptr ? env : "../shared/data";
-  if (!fs::exists(data / "kitti/scans/seq00")) GTEST_SKIP() << "reference data not found at " << data << " (set CDC_DATA_DIR)";
+  if (!fs::exists(data / "kitti/scans/seq00"))
+    GTEST_SKIP() << "reference data not found at " << data << " (set CDC_DATA_DIR)";
   KittiSequenceOptions o;
   o.allow_gaps = true;
   o.poses = data / "kitti/poses/00.txt";

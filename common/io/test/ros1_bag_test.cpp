@@ -114,8 +114,7 @@ void write_bytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
 
 // Offset of the first occurrence of `needle` at or after `from`, or npos.
 size_t find_bytes(const std::vector<uint8_t>& hay, std::string_view needle, size_t from) {
-  const auto it = std::search(hay.begin() + static_cast<std::ptrdiff_t>(from), hay.end(), needle.begin(),
-                              needle.end());
+  const auto it = std::search(hay.begin() + static_cast<std::ptrdiff_t>(from), hay.end(), needle.begin(), needle.end());
   return it == hay.end() ? std::string::npos : static_cast<size_t>(it - hay.begin());
 }
 

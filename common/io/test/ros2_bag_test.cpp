@@ -76,8 +76,8 @@ class Ros2Bags : public ::testing::Test {
     dir_ = new fs::path(fs::temp_directory_path() / ("cdc_ros2_bag_test_" + std::to_string(::getpid())));
     fs::remove_all(*dir_);
     fs::create_directories(*dir_);
-    const std::string cmd = std::string("\"") + CDC_PYTHON3 + "\" \"" + CDC_ROS2_FIXTURE_SCRIPT + "\" \"" +
-                            dir_->string() + "\"";
+    const std::string cmd =
+        std::string("\"") + CDC_PYTHON3 + "\" \"" + CDC_ROS2_FIXTURE_SCRIPT + "\" \"" + dir_->string() + "\"";
     fixtures_ok_ = std::system(cmd.c_str()) == 0;
     if (fixtures_ok_) {
       std::ifstream in(*dir_ / "fixtures.json");
@@ -632,7 +632,7 @@ TEST_P(RealVelodyneBag, MatchesSummary) {
     EXPECT_EQ(msgs[i].log_time_ns, e.log_times[i]);
     const VelodyneScanMsg scan = decode_velodyne_scan(msgs[i]);
     EXPECT_EQ(scan.header.frame_id, e.frame);
-    EXPECT_NEAR(static_cast<double>(scan.header.stamp_ns - static_cast<int64_t>(e.header_stamps[i])* kNs) * 1e-9,
+    EXPECT_NEAR(static_cast<double>(scan.header.stamp_ns - static_cast<int64_t>(e.header_stamps[i]) * kNs) * 1e-9,
                 e.header_stamps[i] - std::floor(e.header_stamps[i]), 1e-6);
     ASSERT_EQ(scan.packets.size(), e.packets[i]);
     total += scan.packets.size();
@@ -651,20 +651,32 @@ TEST_P(RealVelodyneBag, MatchesSummary) {
 
 INSTANTIATE_TEST_SUITE_P(
     Nebula, RealVelodyneBag,
-    ::testing::Values(
-        RealBag{"vlp16/1673400471837873222", "/velodyne_packets", "velodyne",
-                {1673400471837873222, 1673400471937957440, 1673400472038371929, 1673400472138016708},
-                {1673400471.737763, 1673400471.837961, 1673400471.938157, 1673400472.038354},
-                {151, 151, 151, 150}, 0x39, 0x22},
-        RealBag{"vlp32/1713492677464078412", "/sensing/lidar/front/velodyne_packets", "velodyne_front",
-                {1713492677464078412, 1713492677545368298, 1713492677630748420, 1713492677730768896,
-                 1713492677841065510},
-                {1713492677.327772, 1713492677.427865, 1713492677.528578, 1713492677.628081, 1713492677.727441},
-                {76, 76, 76, 75, 76}, 0x37, 0x28},
-        RealBag{"vls128/1614315746471294674", "/velodyne_packets", "velodyne_top",
-                {1585897255313147068, 1585897255376374245, 1585897255476339817, 1585897255576312065},
-                {1585897255.313147, 1585897255.376374, 1585897255.476340, 1585897255.576312},
-                {383, 603, 603, 604}, 0x37, 0xa1}),
+    ::testing::Values(RealBag{"vlp16/1673400471837873222",
+                              "/velodyne_packets",
+                              "velodyne",
+                              {1673400471837873222, 1673400471937957440, 1673400472038371929, 1673400472138016708},
+                              {1673400471.737763, 1673400471.837961, 1673400471.938157, 1673400472.038354},
+                              {151, 151, 151, 150},
+                              0x39,
+                              0x22},
+                      RealBag{"vlp32/1713492677464078412",
+                              "/sensing/lidar/front/velodyne_packets",
+                              "velodyne_front",
+                              {1713492677464078412, 1713492677545368298, 1713492677630748420, 1713492677730768896,
+                               1713492677841065510},
+                              {1713492677.327772, 1713492677.427865, 1713492677.528578, 1713492677.628081,
+                               1713492677.727441},
+                              {76, 76, 76, 75, 76},
+                              0x37,
+                              0x28},
+                      RealBag{"vls128/1614315746471294674",
+                              "/velodyne_packets",
+                              "velodyne_top",
+                              {1585897255313147068, 1585897255376374245, 1585897255476339817, 1585897255576312065},
+                              {1585897255.313147, 1585897255.376374, 1585897255.476340, 1585897255.576312},
+                              {383, 603, 603, 604},
+                              0x37,
+                              0xa1}),
     [](const ::testing::TestParamInfo<RealBag>& i) {
       return std::string(i.param.folder).substr(0, std::string(i.param.folder).find('/'));
     });

@@ -41,8 +41,8 @@ std::filesystem::path data_dir() {
 }
 
 struct RawPacket {
-  int64_t bag_ns = 0;   // log time of the message that carried it
-  int32_t sec = 0;      // the packet's stamp
+  int64_t bag_ns = 0;  // log time of the message that carried it
+  int32_t sec = 0;     // the packet's stamp
   uint32_t nanosec = 0;
   std::array<uint8_t, kVelodynePacketSize> data{};
 };
@@ -131,13 +131,20 @@ uint16_t u16(const uint8_t* p) { return static_cast<uint16_t>(p[0] | (p[1] << 8)
 
 uint8_t nebula_type(VelodyneReturnType t) {
   switch (t) {
-    case VelodyneReturnType::kStrongest: return 3;
-    case VelodyneReturnType::kLast: return 1;
-    case VelodyneReturnType::kDualOnly: return 6;
-    case VelodyneReturnType::kDualFirstStrongest: return 9;
-    case VelodyneReturnType::kDualFirstWeak: return 4;
-    case VelodyneReturnType::kDualLastStrongest: return 10;
-    case VelodyneReturnType::kDualLastWeak: return 5;
+    case VelodyneReturnType::kStrongest:
+      return 3;
+    case VelodyneReturnType::kLast:
+      return 1;
+    case VelodyneReturnType::kDualOnly:
+      return 6;
+    case VelodyneReturnType::kDualFirstStrongest:
+      return 9;
+    case VelodyneReturnType::kDualFirstWeak:
+      return 4;
+    case VelodyneReturnType::kDualLastStrongest:
+      return 10;
+    case VelodyneReturnType::kDualLastWeak:
+      return 5;
   }
   return 0;
 }
@@ -196,7 +203,8 @@ class RuleDecoder {
     // Points at the end past the cut (within a quarter turn) go to the next cloud.
     const double ph = s_.phase_deg * kPi / 180;
     auto past = [&](const RefPoint& p) {
-      if (rules_ == Rules::kNebula && s_.model == VelodyneModel::kVLP32C) return 2 * kPi + p.azimuth - ph < kPi / 2;  // N7
+      if (rules_ == Rules::kNebula && s_.model == VelodyneModel::kVLP32C)
+        return 2 * kPi + p.azimuth - ph < kPi / 2;  // N7
       return static_cast<std::size_t>((2 * kPi + p.azimuth - ph) * 180 / kPi) % 360 < 90;
     };
     while (!scan_.empty() && past(scan_.back())) {
@@ -320,7 +328,8 @@ class RuleDecoder {
       }
       // N4: VLP-16 and VLS-128 also check the block's (interpolation base) azimuth; VLP-32C below.
       const bool vlp32 = s_.model == VelodyneModel::kVLP32C;
-      if (nebula && !vlp32 && s_.min_angle < s_.max_angle && !(az >= s_.min_angle * 100 && az <= s_.max_angle * 100)) continue;
+      if (nebula && !vlp32 && s_.min_angle < s_.max_angle && !(az >= s_.min_angle * 100 && az <= s_.max_angle * 100))
+        continue;
       for (std::size_t j = 0; j < 32; ++j) {
         const uint8_t* c = blk + 4 + 3 * j;
         const uint16_t raw = u16(c);
@@ -347,12 +356,14 @@ class RuleDecoder {
         timing(b, j, laser, nebula ? (vls ? false : s_.dual_config) : dual, t, tb);
         long azc = 0;
         // nebula keeps the corrections in single precision.
-        const double rot_h = (nebula ? static_cast<double>(static_cast<float>(l.rot_correction)) : l.rot_correction) * 180.0 / kPi * 100;
+        const double rot_h =
+            (nebula ? static_cast<double>(static_cast<float>(l.rot_correction)) : l.rot_correction) * 180.0 / kPi * 100;
         if (nebula) {  // N3, N5: single precision as nebula computes it
           float f = 0;
           if (vlp16) {
             const auto fi = static_cast<float>(j / 16), dsr = static_cast<float>(j % 16);
-            f = static_cast<float>(az + (static_cast<float>(diff) * ((dsr * 2.304f) + (fi * 55.296f)) / 110.592f) - rot_h);
+            f = static_cast<float>(az + (static_cast<float>(diff) * ((dsr * 2.304f) + (fi * 55.296f)) / 110.592f) -
+                                   rot_h);
           } else if (vls) {
             const int g = laser / 8;
             const float cache = (2.665f / 53.3f) * static_cast<float>(g + g / 8);
@@ -375,7 +386,8 @@ class RuleDecoder {
         p.z = static_cast<float>(dist * std::sin(e));
         p.intensity = c[2];
         p.channel = static_cast<uint16_t>(l.ring);
-        p.azimuth = static_cast<float>(nebula && s_.model == VelodyneModel::kVLP32C ? rot * 0.01 * kPi / 180 : a);  // N7
+        p.azimuth =
+            static_cast<float>(nebula && s_.model == VelodyneModel::kVLP32C ? rot * 0.01 * kPi / 180 : a);  // N7
         if (!dual) {
           p.return_type = pkt[1204] == 0x38 ? 1 : 3;
         } else if (other == 0 || other == raw) {
@@ -392,7 +404,8 @@ class RuleDecoder {
           double offset = 0;
           if (vlp16) {
             const auto x = static_cast<double>(b);
-            const double block_index = s_.dual_config ? (x - static_cast<double>(b % 2)) + static_cast<double>(j / 16) : (x * 2) + static_cast<double>(j / 16);
+            const double block_index = s_.dual_config ? (x - static_cast<double>(b % 2)) + static_cast<double>(j / 16)
+                                                      : (x * 2) + static_cast<double>(j / 16);
             offset = cycle * block_index + firing * static_cast<double>(j % 16);
           } else if (vls) {
             const int g = laser / 8;
@@ -446,9 +459,7 @@ Fixture fixture(const std::string& name) {
   return f;
 }
 
-int64_t reference_bag_ns(const Fixture& f) {
-  return std::stoll(std::filesystem::path(f.reference).stem().string());
-}
+int64_t reference_bag_ns(const Fixture& f) { return std::stoll(std::filesystem::path(f.reference).stem().string()); }
 
 struct Clouds {
   std::vector<VelodynePoint> ours;
@@ -493,7 +504,8 @@ Clouds run_fixture(const Fixture& f, const std::vector<RawPacket>& packets) {
       out.manual = cloud;
       got_manual = true;
     }
-    if (nebula.feed(p.data.data(), static_cast<int64_t>(p.sec) * 1000000000, cloud) && p.bag_ns == target && !got_nebula) {
+    if (nebula.feed(p.data.data(), static_cast<int64_t>(p.sec) * 1000000000, cloud) && p.bag_ns == target &&
+        !got_nebula) {
       out.nebula = cloud;
       got_nebula = true;
     }
@@ -504,7 +516,8 @@ Clouds run_fixture(const Fixture& f, const std::vector<RawPacket>& packets) {
 }
 
 double dist3(float ax, float ay, float az, float bx, float by, float bz) {
-  return std::sqrt(double(ax - bx) * double(ax - bx) + double(ay - by) * double(ay - by) + double(az - bz) * double(az - bz));
+  return std::sqrt(double(ax - bx) * double(ax - bx) + double(ay - by) * double(ay - by) +
+                   double(az - bz) * double(az - bz));
 }
 
 // Two clouds agree point by point (same order) within 1 mm. A point further off must be an azimuth
@@ -537,7 +550,8 @@ class VelodyneFixtureTest : public ::testing::TestWithParam<std::string> {};
 TEST_P(VelodyneFixtureTest, ReproducesReferenceSweep) {
   const Fixture f = fixture(GetParam());
   const auto dir = data_dir();
-  if (!std::filesystem::exists(dir / f.model_dir)) GTEST_SKIP() << "no Velodyne fixtures in " << dir << " (set CDC_DATA_DIR)";
+  if (!std::filesystem::exists(dir / f.model_dir))
+    GTEST_SKIP() << "no Velodyne fixtures in " << dir << " (set CDC_DATA_DIR)";
   const std::vector<RawPacket> packets = read_packets(dir / f.model_dir);
   ASSERT_FALSE(packets.empty());
   const Clouds c = run_fixture(f, packets);
@@ -552,7 +566,8 @@ TEST_P(VelodyneFixtureTest, ReproducesReferenceSweep) {
     ASSERT_EQ(p.ring, q.channel) << i;
     ASSERT_EQ(p.intensity, q.intensity) << i;
     ASSERT_EQ(nebula_type(p.return_type), q.return_type) << i;
-    ASSERT_EQ(p.time_ns - c.ours_stamp_ns, q.time_ns) << i << " block " << int(p.block) << " laser " << p.laser_id << " t " << p.time_ns << " stamp " << c.ours_stamp_ns;
+    ASSERT_EQ(p.time_ns - c.ours_stamp_ns, q.time_ns) << i << " block " << int(p.block) << " laser " << p.laser_id
+                                                      << " t " << p.time_ns << " stamp " << c.ours_stamp_ns;
   }
   // 2. nebula's rules against nebula's cloud.
   const int ties_ref = expect_same_cloud(c.nebula, c.reference, "nebula rules vs reference");
@@ -572,7 +587,8 @@ TEST_P(VelodyneFixtureTest, ReproducesReferenceSweep) {
   // reference points with one of ours within 1 mm.
   std::map<std::array<long, 3>, std::vector<std::size_t>> grid;
   auto cell = [](float v) { return static_cast<long>(std::floor(v / 0.01f)); };
-  for (std::size_t i = 0; i < c.ours.size(); ++i) grid[{cell(c.ours[i].x), cell(c.ours[i].y), cell(c.ours[i].z)}].push_back(i);
+  for (std::size_t i = 0; i < c.ours.size(); ++i)
+    grid[{cell(c.ours[i].x), cell(c.ours[i].y), cell(c.ours[i].z)}].push_back(i);
   std::size_t within = 0;
   for (const auto& q : c.reference) {
     bool hit = false;
@@ -581,16 +597,18 @@ TEST_P(VelodyneFixtureTest, ReproducesReferenceSweep) {
         for (long dz = -1; dz <= 1 && !hit; ++dz) {
           const auto it = grid.find({cell(q.x) + dx, cell(q.y) + dy, cell(q.z) + dz});
           if (it == grid.end()) continue;
-          for (const std::size_t i : it->second) hit = hit || dist3(c.ours[i].x, c.ours[i].y, c.ours[i].z, q.x, q.y, q.z) <= 1e-3;
+          for (const std::size_t i : it->second)
+            hit = hit || dist3(c.ours[i].x, c.ours[i].y, c.ours[i].z, q.x, q.y, q.z) <= 1e-3;
         }
       }
     }
     within += hit;
   }
-  std::printf("[ %s ] ours %zu points, reference %zu; nebula's rules reproduce the reference (%d rounding ties), ours "
-              "the manual formulas (%d ties); reference points with one of ours within 1 mm: %zu (%.1f %%)\n",
-              GetParam().c_str(), c.ours.size(), c.reference.size(), ties_ref, ties_ours, within,
-              100.0 * static_cast<double>(within) / static_cast<double>(c.reference.size()));
+  std::printf(
+      "[ %s ] ours %zu points, reference %zu; nebula's rules reproduce the reference (%d rounding ties), ours "
+      "the manual formulas (%d ties); reference points with one of ours within 1 mm: %zu (%.1f %%)\n",
+      GetParam().c_str(), c.ours.size(), c.reference.size(), ties_ref, ties_ours, within,
+      100.0 * static_cast<double>(within) / static_cast<double>(c.reference.size()));
   // Rounding ties are rare: a handful per sweep.
   EXPECT_LT(ties_ours, 20);
   EXPECT_LT(ties_ref, 20);
@@ -600,7 +618,8 @@ INSTANTIATE_TEST_SUITE_P(Fixtures, VelodyneFixtureTest, ::testing::Values("vlp16
 
 TEST(VelodyneFixture, PacketHeadersAndModels) {
   const auto dir = data_dir();
-  if (!std::filesystem::exists(dir / "vlp16")) GTEST_SKIP() << "no Velodyne fixtures in " << dir << " (set CDC_DATA_DIR)";
+  if (!std::filesystem::exists(dir / "vlp16"))
+    GTEST_SKIP() << "no Velodyne fixtures in " << dir << " (set CDC_DATA_DIR)";
   const std::vector<std::pair<std::string, VelodyneModel>> cases = {
       {"vlp16", VelodyneModel::kVLP16}, {"vlp32", VelodyneModel::kVLP32C}, {"vls128", VelodyneModel::kVLS128}};
   for (const auto& [name, model] : cases) {
@@ -625,8 +644,9 @@ TEST(VelodyneFixture, PacketHeadersAndModels) {
 TEST(VelodyneCalibration, BuiltInTablesMatchTheFixtureFiles) {
   const auto dir = data_dir() / "calibration";
   if (!std::filesystem::exists(dir)) GTEST_SKIP() << "no calibration files in " << dir << " (set CDC_DATA_DIR)";
-  const std::vector<std::pair<std::string, VelodyneModel>> cases = {
-      {"VLP16.yaml", VelodyneModel::kVLP16}, {"VLP32.yaml", VelodyneModel::kVLP32C}, {"VLS128.yaml", VelodyneModel::kVLS128}};
+  const std::vector<std::pair<std::string, VelodyneModel>> cases = {{"VLP16.yaml", VelodyneModel::kVLP16},
+                                                                    {"VLP32.yaml", VelodyneModel::kVLP32C},
+                                                                    {"VLS128.yaml", VelodyneModel::kVLS128}};
   for (const auto& [file, model] : cases) {
     const VelodyneCalibration read = read_velodyne_calibration(dir / file, model);
     const VelodyneCalibration builtin = default_velodyne_calibration(model);
@@ -647,8 +667,9 @@ TEST(VelodyneCalibration, BuiltInTablesMatchTheFixtureFiles) {
 class TempDir {
  public:
   TempDir() {
-    path_ = std::filesystem::temp_directory_path() / ("cdc_velodyne_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) +
-                                                      "_" + std::to_string(reinterpret_cast<uintptr_t>(this)));
+    path_ = std::filesystem::temp_directory_path() /
+            ("cdc_velodyne_" + std::to_string(::testing::UnitTest::GetInstance()->random_seed()) + "_" +
+             std::to_string(reinterpret_cast<uintptr_t>(this)));
     std::filesystem::create_directories(path_);
   }
   ~TempDir() { std::filesystem::remove_all(path_); }
@@ -755,7 +776,8 @@ std::vector<uint8_t> make_packet(const std::array<Block, 12>& blocks, uint8_t mo
 
 // Expected point from the manual's formulas: azimuth rounded to 0.01 deg, x = d cos(e) cos(a),
 // y = -d cos(e) sin(a), z = d sin(e).
-void expect_point(const VelodynePoint& p, double distance, double elevation_deg, double azimuth_h, const std::string& what) {
+void expect_point(const VelodynePoint& p, double distance, double elevation_deg, double azimuth_h,
+                  const std::string& what) {
   const long az = std::lround(azimuth_h) % 36000;
   const double a = static_cast<double>(az) * 0.01 * kPi / 180, e = elevation_deg * kPi / 180;
   EXPECT_NEAR(p.distance, distance, 1e-5) << what;
@@ -768,9 +790,9 @@ void expect_point(const VelodynePoint& p, double distance, double elevation_deg,
 TEST(VelodyneSynthetic, Hdl32eGeometryAndTiming) {
   // HDL-32E manual: 12 blocks of the 32 lasers per packet, one block per 46.08 us firing cycle,
   // lasers 1.152 us apart; elevation table -30.67 .. +10.67 deg.
-  const double elevation[32] = {-30.67, -9.33, -29.33, -8.00, -28.00, -6.67, -26.67, -5.33, -25.33, -4.00, -24.00,
-                                -2.67,  -22.67, -1.33, -21.33, 0.00,  -20.00, 1.33,  -18.67, 2.67,  -17.33, 4.00,
-                                -16.00, 5.33,  -14.67, 6.67,  -13.33, 8.00,  -12.00, 9.33,  -10.67, 10.67};
+  const double elevation[32] = {-30.67, -9.33,  -29.33, -8.00,  -28.00, -6.67,  -26.67, -5.33,  -25.33, -4.00,  -24.00,
+                                -2.67,  -22.67, -1.33,  -21.33, 0.00,   -20.00, 1.33,   -18.67, 2.67,   -17.33, 4.00,
+                                -16.00, 5.33,   -14.67, 6.67,   -13.33, 8.00,   -12.00, 9.33,   -10.67, 10.67};
   std::array<Block, 12> blocks;
   const int step = 16;  // [0.01 deg] per block (about 580 rpm; 17 would make x.5 rounding ties)
   for (std::size_t b = 0; b < 12; ++b) {
@@ -849,9 +871,9 @@ TEST(VelodyneSynthetic, Hdl32eDualReturn) {
 // The HDL-64E S2 manual's laser firing time table, within a firing of a block pair [us]: 8 groups of 4
 // lasers, a group every 6 us, the lasers of a group 0, 1.26, 2.46 and 3.66 us after its start.
 constexpr double kHdl64S2Cycle = 48.0;
-constexpr double kHdl64S2Offset[32] = {0,  1.26,  2.46,  3.66,  6,  7.26,  8.46,  9.66,  12, 13.26, 14.46,
-                                       15.66, 18, 19.26, 20.46, 21.66, 24, 25.26, 26.46, 27.66, 30, 31.26,
-                                       32.46, 33.66, 36, 37.26, 38.46, 39.66, 42, 43.26, 44.46, 45.66};
+constexpr double kHdl64S2Offset[32] = {0,     1.26,  2.46,  3.66,  6,     7.26,  8.46,  9.66,  12,    13.26, 14.46,
+                                       15.66, 18,    19.26, 20.46, 21.66, 24,    25.26, 26.46, 27.66, 30,    31.26,
+                                       32.46, 33.66, 36,    37.26, 38.46, 39.66, 42,    43.26, 44.46, 45.66};
 
 TEST(VelodyneSynthetic, Hdl64eBanksTimingAndCalibrationModel) {
   // HDL-64E S2: blocks alternate upper (0xEEFF, lasers 0-31) and lower (0xDDFF, lasers 32-63); an upper
@@ -912,8 +934,10 @@ TEST(VelodyneSynthetic, Hdl64eBanksTimingAndCalibrationModel) {
       const double cx = (l.dist_correction - l.dist_correction_x) * (xx - 2.4) / (25.04 - 2.4) + l.dist_correction_x;
       const double cy = (l.dist_correction - l.dist_correction_y) * (yy - 1.93) / (25.04 - 1.93) + l.dist_correction_y;
       const double dx = raw_m + cx, dy = raw_m + cy;
-      const double sx = (dx * cv - l.vert_offset_correction * sv) * std::sin(a) - l.horiz_offset_correction * std::cos(a);
-      const double sy = (dy * cv - l.vert_offset_correction * sv) * std::cos(a) + l.horiz_offset_correction * std::sin(a);
+      const double sx =
+          (dx * cv - l.vert_offset_correction * sv) * std::sin(a) - l.horiz_offset_correction * std::cos(a);
+      const double sy =
+          (dy * cv - l.vert_offset_correction * sv) * std::cos(a) + l.horiz_offset_correction * std::sin(a);
       const double sz = dy * sv + l.vert_offset_correction * cv;
       EXPECT_NEAR(p.x, sy, 1e-4) << what;
       EXPECT_NEAR(p.y, -sx, 1e-4) << what;
@@ -963,10 +987,10 @@ TEST(VelodyneSynthetic, Hdl64eS2AndS3FiringTimes) {
     double s2_us, s3_us;
   };
   const Expected expected[] = {
-      {0, 0, 0.0, 0.0},       {1, 0, 0.0, 0.0},       // laser 32 fires with laser 0
-      {0, 1, 1.26, 1.3},      {0, 2, 2.46, 2.5},      {0, 3, 3.66, 3.7},   {0, 4, 6.0, 7.2},
-      {1, 5, 7.26, 8.5},      {0, 31, 45.66, 54.1},   {3, 10, 62.46, 74.5},  // firing 1, laser 42
-      {4, 3, 99.66, 118.9},   {11, 31, 285.66, 342.1},                     // firing 5, laser 63
+      {0, 0, 0.0, 0.0},     {1, 0, 0.0, 0.0},  // laser 32 fires with laser 0
+      {0, 1, 1.26, 1.3},    {0, 2, 2.46, 2.5},       {0, 3, 3.66, 3.7},    {0, 4, 6.0, 7.2},
+      {1, 5, 7.26, 8.5},    {0, 31, 45.66, 54.1},    {3, 10, 62.46, 74.5},  // firing 1, laser 42
+      {4, 3, 99.66, 118.9}, {11, 31, 285.66, 342.1},                        // firing 5, laser 63
   };
   const auto pkt = make_packet(hdl64e_blocks(2, 17), 0, 0, 0);
   for (const VelodyneModel model : {VelodyneModel::kHDL64E, VelodyneModel::kHDL64ES3}) {
@@ -980,8 +1004,8 @@ TEST(VelodyneSynthetic, Hdl64eS2AndS3FiringTimes) {
     EXPECT_EQ(d.model(), model);
     for (const Expected& e : expected) {
       const std::size_t laser = (e.block % 2 == 0 ? 0 : 32) + e.channel;
-      const std::string what = std::string(to_string(model)) + " block " + std::to_string(e.block) + " channel " +
-                               std::to_string(e.channel);
+      const std::string what =
+          std::string(to_string(model)) + " block " + std::to_string(e.block) + " channel " + std::to_string(e.channel);
       const VelodynePoint* p = find_point(pts, e.block, laser);
       ASSERT_NE(p, nullptr) << what;
       const double t_us = model == VelodyneModel::kHDL64E ? e.s2_us : e.s3_us;
@@ -1047,7 +1071,8 @@ TEST(VelodyneSynthetic, RangeAndSectorLimits) {
   std::array<Block, 12> blocks;
   for (std::size_t b = 0; b < 12; ++b) {
     blocks[b].azimuth = static_cast<uint16_t>(b * 3000);  // 0, 30, ..., 330 deg
-    for (std::size_t c = 0; c < 32; ++c) blocks[b].distance[c] = static_cast<uint16_t>(c == 0 ? 100 : 50000);  // 0.2 m, 100 m
+    for (std::size_t c = 0; c < 32; ++c)
+      blocks[b].distance[c] = static_cast<uint16_t>(c == 0 ? 100 : 50000);  // 0.2 m, 100 m
   }
   const auto pkt = make_packet(blocks, 0x37, 0x21, 0);
   VelodyneDecoderOptions o;

@@ -49,7 +49,8 @@ int bag_to_pcap(const std::string& bag_path, const std::string& out_path, const 
   std::printf("{\"messages\": %llu, \"packets\": %llu, \"pcap\": \"%s\"}\n", static_cast<unsigned long long>(messages),
               static_cast<unsigned long long>(packets), out_path.c_str());
   if (messages == 0) {
-    std::cerr << "cdc-velodyne-pcap: no VelodyneScan messages" << (topic.empty() ? "" : " on " + topic) << " in " << bag_path << "\n";
+    std::cerr << "cdc-velodyne-pcap: no VelodyneScan messages" << (topic.empty() ? "" : " on " + topic) << " in "
+              << bag_path << "\n";
     return 1;
   }
   return 0;
@@ -129,8 +130,8 @@ int decode(DecodeArgs& a) {
   if (a.return_mode == "last") a.decoder.return_mode = VelodyneReturnMode::kLast;
   if (a.return_mode == "dual") a.decoder.return_mode = VelodyneReturnMode::kDual;
   a.sweep.emit_incomplete = a.keep_incomplete;
-  const VelodyneCalibration cal =
-      a.calibration.empty() ? default_velodyne_calibration(model.value()) : read_velodyne_calibration(a.calibration, model);
+  const VelodyneCalibration cal = a.calibration.empty() ? default_velodyne_calibration(model.value())
+                                                        : read_velodyne_calibration(a.calibration, model);
   VelodyneSweepAssembler assembler(cal, a.decoder, a.sweep);
   SweepFiles files(a.out);
   auto drain = [&]() {
@@ -170,9 +171,10 @@ int main(int argc, char** argv) {
 
   std::string bag, out_pcap, topic;
   uint16_t bag_port = 2368;
-  CLI::App* b2p = app.add_subcommand(
-      "bag2pcap", "write a bag's velodyne_msgs/VelodyneScan packets as UDP datagrams to 127.0.0.1:PORT (pcap, "
-                  "nanosecond stamps: the packets' own)");
+  CLI::App* b2p =
+      app.add_subcommand("bag2pcap",
+                         "write a bag's velodyne_msgs/VelodyneScan packets as UDP datagrams to 127.0.0.1:PORT (pcap, "
+                         "nanosecond stamps: the packets' own)");
   b2p->add_option("bag", bag, "ROS 1 .bag, ROS 2 .db3 / .mcap or a ROS 2 bag folder")->required();
   b2p->add_option("out", out_pcap, "the pcap file to write")->required();
   b2p->add_option("--topic", topic, "only this topic (default: every VelodyneScan topic)");
@@ -180,9 +182,10 @@ int main(int argc, char** argv) {
 
   DecodeArgs d;
   CLI::App* dec = app.add_subcommand(
-      "decode", "assemble the capture's Velodyne datagrams into sweeps; print counts, and with --out write each sweep "
-                "as OUT/velodyne/NNNNNN.bin (KITTI), OUT/velodyne_meta/NNNNNN.bin (float32 time offset [s], uint16 "
-                "ring, uint16 0 per point) and OUT/times.txt (sweep stamps [ns])");
+      "decode",
+      "assemble the capture's Velodyne datagrams into sweeps; print counts, and with --out write each sweep "
+      "as OUT/velodyne/NNNNNN.bin (KITTI), OUT/velodyne_meta/NNNNNN.bin (float32 time offset [s], uint16 "
+      "ring, uint16 0 per point) and OUT/times.txt (sweep stamps [ns])");
   dec->add_option("pcap", d.pcap, "the capture")->required()->check(CLI::ExistingFile);
   dec->add_option("--calibration", d.calibration,
                   "calibration YAML (ROS driver format); without it the built-in table of --model")
@@ -196,7 +199,8 @@ int main(int argc, char** argv) {
   dec->add_option("--min-range", d.decoder.min_range, "[m]")->capture_default_str();
   dec->add_option("--max-range", d.decoder.max_range, "[m]")->capture_default_str();
   dec->add_option("--sector-min", d.decoder.sector_min_deg, "keep azimuths in [min, max] [deg]")->capture_default_str();
-  dec->add_option("--sector-max", d.decoder.sector_max_deg, "(wraps through 0 when min > max) [deg]")->capture_default_str();
+  dec->add_option("--sector-max", d.decoder.sector_max_deg, "(wraps through 0 when min > max) [deg]")
+      ->capture_default_str();
   dec->add_option("--scan-phase", d.sweep.scan_phase_deg, "azimuth where sweeps are cut [deg]")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 360.0));

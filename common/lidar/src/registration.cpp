@@ -39,13 +39,14 @@ PreparedCloud::PreparedCloud(const std::vector<Eigen::Vector3f>& points, const R
 
 size_t PreparedCloud::size() const { return gicp_->points().size(); }
 
-RegistrationResult register_clouds(const std::vector<Eigen::Vector3f>& source, const std::vector<Eigen::Vector3f>& target,
-                                   const Eigen::Isometry3d& initial, const RegistrationParams& p) {
+RegistrationResult register_clouds(const std::vector<Eigen::Vector3f>& source,
+                                   const std::vector<Eigen::Vector3f>& target, const Eigen::Isometry3d& initial,
+                                   const RegistrationParams& p) {
   return register_clouds(PreparedCloud(source, p), PreparedCloud(target, p), initial, p);
 }
 
-RegistrationResult register_clouds(const PreparedCloud& source, const PreparedCloud& target, const Eigen::Isometry3d& initial,
-                                   const RegistrationParams& p) {
+RegistrationResult register_clouds(const PreparedCloud& source, const PreparedCloud& target,
+                                   const Eigen::Isometry3d& initial, const RegistrationParams& p) {
   RegistrationResult r;
   const std::vector<Eigen::Vector3d>& src = source.gicp().points();
   if (src.size() < 20 || target.size() < 20) {

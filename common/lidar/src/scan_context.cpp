@@ -89,7 +89,8 @@ QuantizedScanContext quantize(const ScanContext& sc) {
     // Square-root steps: fine for the low cells (ground, cars) that dominate most columns. An
     // occupied cell stays occupied (at least one step): an empty column compares differently.
     const long lo = sc.cells[i] > 0.0f ? 1L : 0L;
-    q.cells[i] = static_cast<uint8_t>(std::clamp(std::lround(std::sqrt(std::max(sc.cells[i], 0.0f)) / scale), lo, 255L));
+    q.cells[i] =
+        static_cast<uint8_t>(std::clamp(std::lround(std::sqrt(std::max(sc.cells[i], 0.0f)) / scale), lo, 255L));
   }
   return q;
 }
@@ -114,7 +115,9 @@ struct ScanContextDatabase::Index {
     size_t kdtree_get_point_count() const { return contexts->size(); }
     float kdtree_get_pt(size_t idx, size_t dim) const { return (*contexts)[idx].ring_key[dim]; }
     template <class BBox>
-    bool kdtree_get_bbox(BBox&) const { return false; }
+    bool kdtree_get_bbox(BBox&) const {
+      return false;
+    }
   };
   using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Adaptor>, Adaptor, -1, size_t>;
   Adaptor adaptor;
@@ -139,7 +142,8 @@ std::vector<size_t> ScanContextDatabase::nearest(const std::vector<float>& key, 
   // newest contexts linearly, so nothing added is ever missed).
   if (!index_->tree || contexts_.size() > index_->built_for + index_->built_for / 10 + 10) {
     // nanoflann builds the index in the tree's constructor.
-    index_->tree = std::make_unique<Index::Tree>(rings_, index_->adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
+    index_->tree =
+        std::make_unique<Index::Tree>(rings_, index_->adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));
     index_->built_for = contexts_.size();
   }
   std::vector<std::pair<float, size_t>> cand;

@@ -12,8 +12,8 @@ std::vector<Eigen::Vector3f> scene(uint32_t seed) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<float> u(-1, 1);
   std::vector<Eigen::Vector3f> pts;
-  for (int i = 0; i < 6000; ++i) pts.emplace_back(30 * u(rng), 30 * u(rng), -1.8f);           // ground
-  for (int w = 0; w < 6; ++w) {                                                                 // walls
+  for (int i = 0; i < 6000; ++i) pts.emplace_back(30 * u(rng), 30 * u(rng), -1.8f);  // ground
+  for (int w = 0; w < 6; ++w) {                                                      // walls
     const float x0 = 25 * u(rng), y0 = 25 * u(rng), a = 3.1416f * u(rng);
     for (int i = 0; i < 1500; ++i) {
       const float s = 8 * u(rng);
@@ -44,8 +44,10 @@ TEST_P(RegistrationRecovers, AKnownTransformForwardAndInverse) {
     const auto& t = inverse ? source : target;
     const Eigen::Isometry3d want = inverse ? T.inverse() : T;
     Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();
-    guess.linear() = Eigen::AngleAxisd(Eigen::AngleAxisd(want.rotation()).angle() * (want.rotation()(1, 0) >= 0 ? 1 : -1),
-                                       Eigen::Vector3d::UnitZ()).toRotationMatrix();  // yaw known (Scan Context)
+    guess.linear() =
+        Eigen::AngleAxisd(Eigen::AngleAxisd(want.rotation()).angle() * (want.rotation()(1, 0) >= 0 ? 1 : -1),
+                          Eigen::Vector3d::UnitZ())
+            .toRotationMatrix();  // yaw known (Scan Context)
     const RegistrationResult r = register_clouds(s, t, guess, RegistrationParams{});
     ASSERT_TRUE(r.converged);
     EXPECT_LT((r.T_target_source.translation() - want.translation()).norm(), 0.05) << (inverse ? "inverse" : "forward");
@@ -153,8 +155,9 @@ TEST(Registration, RealKittiPairsAgreeWithGroundTruth) {
     std::snprintf(pa, sizeof pa, "%06d.bin", a);
     std::snprintf(pb, sizeof pb, "%06d.bin", b);
     const Eigen::Isometry3d gt = seq[static_cast<size_t>(a)].pose.inverse() * seq[static_cast<size_t>(b)].pose;
-    const RegistrationResult r = register_clouds(load_kitti_bin(d + "scans/seq00/" + pb), load_kitti_bin(d + "scans/seq00/" + pa),
-                                                 Eigen::Isometry3d::Identity(), RegistrationParams{});
+    const RegistrationResult r =
+        register_clouds(load_kitti_bin(d + "scans/seq00/" + pb), load_kitti_bin(d + "scans/seq00/" + pa),
+                        Eigen::Isometry3d::Identity(), RegistrationParams{});
     const Eigen::Isometry3d e = gt.inverse() * r.T_target_source;
     const double deg = Eigen::AngleAxisd(e.rotation()).angle() * 180 / M_PI;
     std::printf("KITTI 00 %d-%d: %.4f m, %.4f deg from ground truth\n", a, b, e.translation().norm(), deg);

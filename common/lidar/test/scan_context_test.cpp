@@ -1,7 +1,7 @@
 #include "cdc/lidar/scan_context.hpp"
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include <cmath>
 #include <random>
@@ -100,7 +100,8 @@ TEST(ScanContext, QuantisedDescriptorFitsTheWireBudgetAndMatchesAlike) {
     mean /= back.sectors;
     EXPECT_NEAR(back.ring_key[static_cast<size_t>(r)], mean, 1e-5) << "ring " << r;
     EXPECT_NEAR(back.ring_key[static_cast<size_t>(r)], a.ring_key[static_cast<size_t>(r)],
-                0.02 * a.ring_key[static_cast<size_t>(r)] + 0.01) << "ring " << r;
+                0.02 * a.ring_key[static_cast<size_t>(r)] + 0.01)
+        << "ring " << r;
   }
   const ScanContextMatch m = compare(b, a), mq = compare(b, back);
   EXPECT_EQ(m.shift, mq.shift);

@@ -24,8 +24,8 @@ int bin_of(double v, double lo, double hi) {
 }
 
 // The three angles of Rusu's Darboux frame between two oriented points; false when undefined.
-bool pair_feature(const Eigen::Vector3d& p1, const Eigen::Vector3d& n1, const Eigen::Vector3d& p2, const Eigen::Vector3d& n2,
-                  double& f1, double& f2, double& f3) {
+bool pair_feature(const Eigen::Vector3d& p1, const Eigen::Vector3d& n1, const Eigen::Vector3d& p2,
+                  const Eigen::Vector3d& n2, double& f1, double& f2, double& f3) {
   Eigen::Vector3d d = p2 - p1;
   const double len = d.norm();
   if (len <= 0) return false;
@@ -48,7 +48,8 @@ bool pair_feature(const Eigen::Vector3d& p1, const Eigen::Vector3d& n1, const Ei
 }
 
 // Normals (PCA of the neighbours within the radius, turned towards the origin, where the sensor is).
-std::vector<Eigen::Vector3d> normals_of(const std::vector<Eigen::Vector3d>& pts, const detail::KdTree& tree, double radius) {
+std::vector<Eigen::Vector3d> normals_of(const std::vector<Eigen::Vector3d>& pts, const detail::KdTree& tree,
+                                        double radius) {
   std::vector<Eigen::Vector3d> out(pts.size(), Eigen::Vector3d::Zero());
   std::vector<std::pair<size_t, double>> hits;
   std::vector<size_t> idx;
@@ -59,7 +60,7 @@ std::vector<Eigen::Vector3d> normals_of(const std::vector<Eigen::Vector3d>& pts,
     idx.clear();
     for (const auto& h : hits) idx.push_back(h.first);
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(detail::neighbour_scatter(pts, idx.data(), idx.size()));
-    const Eigen::Vector3d ev = es.eigenvalues();  // ascending
+    const Eigen::Vector3d ev = es.eigenvalues();      // ascending
     if (ev(1) <= 0 || ev(0) > 0.3 * ev(1)) continue;  // no surface (scattered or a line)
     Eigen::Vector3d n = es.eigenvectors().col(0);
     if (n.dot(pts[i]) > 0) n = -n;
@@ -93,7 +94,9 @@ FeatureCloud make_feature_cloud(const std::vector<Eigen::Vector3d>& points_senso
     int used = 0;
     for (const auto& [j, d2] : hits) {
       double f1 = 0, f2 = 0, f3 = 0;
-      if (j == i || c.normals[j].isZero() || !pair_feature(c.points[i], c.normals[i], c.points[j], c.normals[j], f1, f2, f3)) continue;
+      if (j == i || c.normals[j].isZero() ||
+          !pair_feature(c.points[i], c.normals[i], c.points[j], c.normals[j], f1, f2, f3))
+        continue;
       spfh[i](bin_of(f1, -M_PI, M_PI)) += 1.0F;
       spfh[i](kBins + bin_of(f2, -1.0, 1.0)) += 1.0F;
       spfh[i](2 * kBins + bin_of(f3, -1.0, 1.0)) += 1.0F;

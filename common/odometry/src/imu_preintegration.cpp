@@ -14,7 +14,8 @@ Eigen::Matrix3d right_jacobian(const Eigen::Vector3d& phi) {
   const double th = phi.norm();
   const Eigen::Matrix3d W = hat(phi);
   if (th < 1e-8) return Eigen::Matrix3d::Identity() - 0.5 * W;
-  return Eigen::Matrix3d::Identity() - (1 - std::cos(th)) / (th * th) * W + (th - std::sin(th)) / (th * th * th) * W * W;
+  return Eigen::Matrix3d::Identity() - (1 - std::cos(th)) / (th * th) * W +
+         (th - std::sin(th)) / (th * th * th) * W * W;
 }
 
 }  // namespace
@@ -51,7 +52,9 @@ void ImuPreintegration::integrate(const Eigen::Vector3d& gyro, const Eigen::Vect
   d_.step(dRi, a, dt);
 }
 
-Eigen::Matrix3d ImuPreintegration::delta_R(const Eigen::Vector3d& bg) const { return d_.R * so3_exp(dR_dbg_ * (bg - bg_)); }
+Eigen::Matrix3d ImuPreintegration::delta_R(const Eigen::Vector3d& bg) const {
+  return d_.R * so3_exp(dR_dbg_ * (bg - bg_));
+}
 
 Eigen::Vector3d ImuPreintegration::delta_v(const Eigen::Vector3d& bg, const Eigen::Vector3d& ba) const {
   return d_.v + dv_dbg_ * (bg - bg_) + dv_dba_ * (ba - ba_);
@@ -62,7 +65,8 @@ Eigen::Vector3d ImuPreintegration::delta_p(const Eigen::Vector3d& bg, const Eige
 }
 
 void ImuPreintegration::predict(const Eigen::Matrix3d& Ri, const Eigen::Vector3d& vi, const Eigen::Vector3d& pi,
-                                const Eigen::Vector3d& g, Eigen::Matrix3d& Rj, Eigen::Vector3d& vj, Eigen::Vector3d& pj) const {
+                                const Eigen::Vector3d& g, Eigen::Matrix3d& Rj, Eigen::Vector3d& vj,
+                                Eigen::Vector3d& pj) const {
   Rj = geometry::project_to_so3(Ri * d_.R);
   vj = vi + g * d_.dt + Ri * d_.v;
   pj = pi + vi * d_.dt + 0.5 * g * d_.dt * d_.dt + Ri * d_.p;

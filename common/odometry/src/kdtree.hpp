@@ -19,7 +19,8 @@ struct CloudAdaptor {
   }
 };
 
-using KdTree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, CloudAdaptor>, CloudAdaptor, 3, size_t>;
+using KdTree =
+    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, CloudAdaptor>, CloudAdaptor, 3, size_t>;
 
 // Sum of (p - mean)(p - mean)^T over cloud[idx[0..n)].
 inline Eigen::Matrix3d neighbour_scatter(const std::vector<Eigen::Vector3d>& cloud, const size_t* idx, size_t n) {

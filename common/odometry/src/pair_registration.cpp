@@ -21,7 +21,8 @@ namespace {
 
 // Each point's covariance from its k nearest neighbours, with the eigenvalues replaced by
 // (1e-3, 1, 1): a plane through the neighbourhood, certain along its normal (GICP's plane-to-plane).
-std::vector<Eigen::Matrix3d> plane_covariances(const std::vector<Eigen::Vector3d>& cloud, const detail::KdTree& tree, int k) {
+std::vector<Eigen::Matrix3d> plane_covariances(const std::vector<Eigen::Vector3d>& cloud, const detail::KdTree& tree,
+                                               int k) {
   std::vector<Eigen::Matrix3d> out(cloud.size(), Eigen::Matrix3d::Identity());
   std::vector<size_t> idx(static_cast<size_t>(k));
   std::vector<double> d2(static_cast<size_t>(k));
@@ -36,7 +37,8 @@ std::vector<Eigen::Matrix3d> plane_covariances(const std::vector<Eigen::Vector3d
 }
 
 // For each source point moved by T, the distance to its nearest point in the tree's cloud (not empty).
-std::vector<double> distances_to(const detail::KdTree& tree, const std::vector<Eigen::Vector3d>& source, const Eigen::Isometry3d& T) {
+std::vector<double> distances_to(const detail::KdTree& tree, const std::vector<Eigen::Vector3d>& source,
+                                 const Eigen::Isometry3d& T) {
   std::vector<double> out(source.size(), std::numeric_limits<double>::infinity());
   for (size_t i = 0; i < source.size(); ++i) {
     const Eigen::Vector3d q = T * source[i];
@@ -65,7 +67,8 @@ struct GicpCloud::Impl {
   explicit Impl(std::vector<Eigen::Vector3d> p) : points(std::move(p)) {}
 };
 
-GicpCloud::GicpCloud(std::vector<Eigen::Vector3d> points, int neighbours) : impl_(std::make_unique<Impl>(std::move(points))) {
+GicpCloud::GicpCloud(std::vector<Eigen::Vector3d> points, int neighbours)
+    : impl_(std::make_unique<Impl>(std::move(points))) {
   // The tree was built when it was made (nanoflann builds in its constructor).
   impl_->covariances = plane_covariances(impl_->points, impl_->tree, neighbours);
 }
@@ -74,7 +77,8 @@ GicpCloud::~GicpCloud() = default;
 
 const std::vector<Eigen::Vector3d>& GicpCloud::points() const { return impl_->points; }
 
-std::vector<double> GicpCloud::nearest_distances(const std::vector<Eigen::Vector3d>& source, const Eigen::Isometry3d& T) const {
+std::vector<double> GicpCloud::nearest_distances(const std::vector<Eigen::Vector3d>& source,
+                                                 const Eigen::Isometry3d& T) const {
   if (impl_->points.empty()) return std::vector<double>(source.size(), std::numeric_limits<double>::infinity());
   return distances_to(impl_->tree, source, T);
 }
@@ -133,7 +137,8 @@ RegistrationOutput register_pair(const std::vector<Eigen::Vector3d>& source, con
   VoxelMap map(VoxelMapParams{params.map_voxel_m, 1000.0, 20});  // no pruning: one target sweep
   map.add(voxel_filter(target, params.target_voxel_m));
   const std::vector<Eigen::Vector3d> src = voxel_filter(source, params.source_voxel_m);
-  const std::vector<Eigen::Vector3d> normals = knn_normals(src, source, params.normal_neighbours, params.normal_radius_m);
+  const std::vector<Eigen::Vector3d> normals =
+      knn_normals(src, source, params.normal_neighbours, params.normal_radius_m);
   RegistrationOutput out;
   out.T_map_sensor = guess;
   for (const double gate : params.gates_m) {
@@ -145,7 +150,8 @@ RegistrationOutput register_pair(const std::vector<Eigen::Vector3d>& source, con
   return out;
 }
 
-std::vector<double> nearest_distances(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
+std::vector<double> nearest_distances(const std::vector<Eigen::Vector3d>& source,
+                                      const std::vector<Eigen::Vector3d>& target,
                                       const Eigen::Isometry3d& T_target_source) {
   if (target.empty()) return std::vector<double>(source.size(), std::numeric_limits<double>::infinity());
   const detail::CloudAdaptor adaptor{&target};
@@ -186,7 +192,9 @@ std::string read_all(const std::string& path) {
   return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
 }
 
-[[noreturn]] void bad(const std::string& path, const std::string& what) { throw std::runtime_error(path + ": " + what); }
+[[noreturn]] void bad(const std::string& path, const std::string& what) {
+  throw std::runtime_error(path + ": " + what);
+}
 
 // Float32 x, y, z at the given byte offsets of records of `stride` bytes from `begin`.
 std::vector<Eigen::Vector3d> records(const std::string& path, const std::string& bytes, size_t begin, size_t stride,
@@ -276,17 +284,25 @@ std::vector<Eigen::Vector3d> read_ply(const std::string& path, const std::string
       std::string name;
       l >> name;
       in_vertex = name == "vertex";
-      if (in_vertex) l >> vertices;
-      else if (vertices == 0) bad(path, "PLY element '" + name + "' before the vertices is not supported");
+      if (in_vertex)
+        l >> vertices;
+      else if (vertices == 0)
+        bad(path, "PLY element '" + name + "' before the vertices is not supported");
     } else if (key == "property" && in_vertex) {
       std::string type, name;
       l >> type >> name;
       size_t size = 0;
-      if (type == "float" || type == "float32" || type == "int" || type == "uint" || type == "int32" || type == "uint32") size = 4;
-      else if (type == "double" || type == "float64") size = 8;
-      else if (type == "uchar" || type == "char" || type == "uint8" || type == "int8") size = 1;
-      else if (type == "short" || type == "ushort" || type == "int16" || type == "uint16") size = 2;
-      else bad(path, "PLY vertex property type '" + type + "' is not supported");
+      if (type == "float" || type == "float32" || type == "int" || type == "uint" || type == "int32" ||
+          type == "uint32")
+        size = 4;
+      else if (type == "double" || type == "float64")
+        size = 8;
+      else if (type == "uchar" || type == "char" || type == "uint8" || type == "int8")
+        size = 1;
+      else if (type == "short" || type == "ushort" || type == "int16" || type == "uint16")
+        size = 2;
+      else
+        bad(path, "PLY vertex property type '" + type + "' is not supported");
       for (int k = 0; k < 3; ++k) {
         if (name == std::string(1, static_cast<char>('x' + k))) {
           if (size != 4 || type.rfind("float", 0) != 0) bad(path, "PLY property " + name + " is not float32");
@@ -313,7 +329,8 @@ std::vector<Eigen::Vector3d> read_cloud_file(const std::string& path) {
   const std::string bytes = read_all(path);
   if (ext == ".pcd") return read_pcd(path, bytes);
   if (ext == ".ply") return read_ply(path, bytes);
-  if (bytes.size() % 16 != 0) bad(path, "KITTI .bin size " + std::to_string(bytes.size()) + " B is not a multiple of 16");
+  if (bytes.size() % 16 != 0)
+    bad(path, "KITTI .bin size " + std::to_string(bytes.size()) + " B is not a multiple of 16");
   const size_t offset[3] = {0, 4, 8};
   return records(path, bytes, 0, 16, bytes.size() / 16, offset);
 }
@@ -322,7 +339,8 @@ Eigen::Isometry3d read_matrix_file(const std::string& path) {
   std::istringstream in(read_all(path));
   Eigen::Matrix4d m;
   for (int i = 0; i < 16; ++i) {
-    if (!(in >> m(i / 4, i % 4))) bad(path, "expected 16 numbers (a 4x4 matrix, row by row), found " + std::to_string(i));
+    if (!(in >> m(i / 4, i % 4)))
+      bad(path, "expected 16 numbers (a 4x4 matrix, row by row), found " + std::to_string(i));
   }
   if (std::string rest; in >> rest) bad(path, "more than 16 numbers");
   const Eigen::Matrix3d R = m.topLeftCorner<3, 3>();

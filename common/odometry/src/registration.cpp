@@ -64,8 +64,8 @@ RegistrationOutput register_to_map(const std::vector<Eigen::Vector3d>& pts, cons
   return out;
 }
 
-FitQuality evaluate_fit(const std::vector<Eigen::Vector3d>& pts, const std::vector<Eigen::Vector3d>& normals, const VoxelMap& map,
-                        const Eigen::Isometry3d& T, double max_distance_m, double inlier_m) {
+FitQuality evaluate_fit(const std::vector<Eigen::Vector3d>& pts, const std::vector<Eigen::Vector3d>& normals,
+                        const VoxelMap& map, const Eigen::Isometry3d& T, double max_distance_m, double inlier_m) {
   FitQuality f;
   const Eigen::Matrix3d R = T.rotation();
   const double gate2 = max_distance_m * max_distance_m;
@@ -88,7 +88,8 @@ FitQuality evaluate_fit(const std::vector<Eigen::Vector3d>& pts, const std::vect
 }
 
 std::vector<Eigen::Vector3d> range_image_normals(const std::vector<Eigen::Vector3d>& points,
-                                                 const std::vector<uint16_t>& rings, int columns, double max_neighbour_m) {
+                                                 const std::vector<uint16_t>& rings, int columns,
+                                                 double max_neighbour_m) {
   const size_t n = points.size();
   std::vector<Eigen::Vector3d> normals(n, Eigen::Vector3d::Zero());
   if (n == 0 || rings.size() != n) return normals;
@@ -103,7 +104,8 @@ std::vector<Eigen::Vector3d> range_image_normals(const std::vector<Eigen::Vector
     double az = std::atan2(points[i].y(), points[i].x());
     if (az < 0) az += 2 * M_PI;
     col[i] = std::min(columns - 1, static_cast<int>(az / (2 * M_PI) * columns));
-    image[static_cast<size_t>(rings[i]) * static_cast<size_t>(columns) + static_cast<size_t>(col[i])] = static_cast<int>(i);
+    image[static_cast<size_t>(rings[i]) * static_cast<size_t>(columns) + static_cast<size_t>(col[i])] =
+        static_cast<int>(i);
   }
   const double lim2 = max_neighbour_m * max_neighbour_m;
   auto at = [&](int r, int c) -> int {
@@ -147,8 +149,8 @@ std::vector<Eigen::Vector3d> range_image_normals(const std::vector<Eigen::Vector
   return normals;
 }
 
-std::vector<Eigen::Vector3d> knn_normals(const std::vector<Eigen::Vector3d>& queries, const std::vector<Eigen::Vector3d>& cloud,
-                                         int k, double max_neighbour_m) {
+std::vector<Eigen::Vector3d> knn_normals(const std::vector<Eigen::Vector3d>& queries,
+                                         const std::vector<Eigen::Vector3d>& cloud, int k, double max_neighbour_m) {
   std::vector<Eigen::Vector3d> normals(queries.size(), Eigen::Vector3d::Zero());
   if (cloud.size() < static_cast<size_t>(k) || k < 3) return normals;
   detail::CloudAdaptor adaptor{&cloud};

@@ -7,7 +7,8 @@
 
 namespace cdc::odometry {
 
-VoxelMap::VoxelMap(const VoxelMapParams& params) : p_(params), cap_(static_cast<size_t>(std::max(1, params.max_points))) {}
+VoxelMap::VoxelMap(const VoxelMapParams& params)
+    : p_(params), cap_(static_cast<size_t>(std::max(1, params.max_points))) {}
 
 void VoxelMap::add(const std::vector<Eigen::Vector3d>& pts) {
   for (const auto& p : pts) {

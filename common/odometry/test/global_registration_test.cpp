@@ -2,8 +2,8 @@
 // finds them, before and after the map slides), the fit test that tells a registration that found
 // a sweep's place from one in a wrong minimum, and global registration (FPFH + RANSAC) recovering
 // a sharp turn between two simulated sweeps without any guess.
-#include "cdc/geometry/se3.hpp"
 #include "cdc/odometry/global_registration.hpp"
+#include "cdc/geometry/se3.hpp"
 #include "cdc/odometry/registration.hpp"
 #include "cdc/odometry/voxel_index.hpp"
 #include "cdc/odometry/voxel_map.hpp"
@@ -39,7 +39,8 @@ TEST(VoxelIndex, FindsWhatWasInsertedAndNothingElseAsItGrows) {
   EXPECT_EQ(index.find(Eigen::Vector3i(2'100'000, 0, 0)), VoxelIndex::kNone);
   // Far or non-finite coordinates are clamped, never overflow the cast.
   EXPECT_EQ(voxel_coordinates(Eigen::Vector3d(1e300, -1e300, 0.5), 1.0), Eigen::Vector3i(1 << 30, -(1 << 30), 0));
-  const Eigen::Vector3i nan_key = voxel_coordinates(Eigen::Vector3d(std::numeric_limits<double>::quiet_NaN(), 0, 0), 1.0);
+  const Eigen::Vector3i nan_key =
+      voxel_coordinates(Eigen::Vector3d(std::numeric_limits<double>::quiet_NaN(), 0, 0), 1.0);
   EXPECT_EQ(nan_key.x(), -(1 << 30));
 }
 

@@ -2,11 +2,11 @@
 // perturbations, forward and inverse; the voxel map stays bounded as the robot moves on. IMU
 // preintegration predicts a simulated drive, and its bias Jacobians agree with integrating again.
 #include "cdc/geometry/se3.hpp"
+#include "cdc/io/kitti.hpp"
 #include "cdc/odometry/imu_preintegration.hpp"
 #include "cdc/odometry/pair_registration.hpp"
 #include "cdc/odometry/registration.hpp"
 #include "cdc/odometry/voxel_map.hpp"
-#include "cdc/io/kitti.hpp"
 #include "cdc/sim/lidar.hpp"
 #include "cdc/sim/trajectory.hpp"
 #include "cdc/sim/world.hpp"
@@ -168,12 +168,14 @@ TEST(Registration, RealKittiPairsAgreeWithGroundTruth) {
     Eigen::Isometry3d T_target_source;
   };
   std::vector<Pair> pairs;
-  const auto seq = io::kitti_lidar_trajectory(d + "/kitti/poses/00.txt", io::read_kitti_calib(d + "/kitti/calib_Tr.txt", "Tr_00_02"));
+  const auto seq = io::kitti_lidar_trajectory(d + "/kitti/poses/00.txt",
+                                              io::read_kitti_calib(d + "/kitti/calib_Tr.txt", "Tr_00_02"));
   for (const auto& [a, b] : {std::pair<int, int>{94, 95}, std::pair<int, int>{198, 199}}) {
     char pa[64], pb[64];
     std::snprintf(pa, sizeof pa, "/kitti/scans/seq00/%06d.bin", a);
     std::snprintf(pb, sizeof pb, "/kitti/scans/seq00/%06d.bin", b);
-    pairs.push_back({"KITTI 00 " + std::to_string(a) + "-" + std::to_string(b), read_cloud_file(d + pb), read_cloud_file(d + pa),
+    pairs.push_back({"KITTI 00 " + std::to_string(a) + "-" + std::to_string(b), read_cloud_file(d + pb),
+                     read_cloud_file(d + pa),
                      seq[static_cast<size_t>(a)].pose.inverse() * seq[static_cast<size_t>(b)].pose});
   }
   for (const Pair& p : pairs) {
@@ -208,7 +210,8 @@ TEST(Registration, AlignmentScoresRankTheTrueTransformFirst) {
   for (const auto& [dt, dyaw] : std::vector<std::pair<double, double>>{{0.03, 0}, {0, 0.3 * M_PI / 180}}) {
     const AlignmentScore off = score_alignment(source, target, B * pose(dt, 0, dyaw) * pose(0, 0, 0).inverse());
     std::printf("true: %zu within 1 cm, rms %.1f mm; %.2f m / %.2f deg off: %zu, rms %.1f mm\n", truth.within_1cm,
-                truth.rms_point_to_plane_m * 1e3, dt, dyaw * 180 / M_PI, off.within_1cm, off.rms_point_to_plane_m * 1e3);
+                truth.rms_point_to_plane_m * 1e3, dt, dyaw * 180 / M_PI, off.within_1cm,
+                off.rms_point_to_plane_m * 1e3);
     EXPECT_GT(truth.within_1cm, off.within_1cm);
     EXPECT_LT(truth.rms_point_to_plane_m, off.rms_point_to_plane_m);
   }
@@ -217,14 +220,17 @@ TEST(Registration, AlignmentScoresRankTheTrueTransformFirst) {
 
 TEST(Registration, RealSweepPairAgreesWithTheGicpReferences) {
   const std::string d = data_dir() + "/registration";
-  if (!std::filesystem::exists(d + "/small_gicp/source.ply") || !std::filesystem::exists(d + "/fast_gicp/relative.txt")) {
+  if (!std::filesystem::exists(d + "/small_gicp/source.ply") ||
+      !std::filesystem::exists(d + "/fast_gicp/relative.txt")) {
     GTEST_SKIP() << "reference data absent: " << d << " (small_gicp/, fast_gicp/) not found";
   }
-  const auto source = read_cloud_file(d + "/small_gicp/source.ply"), target = read_cloud_file(d + "/small_gicp/target.ply");
+  const auto source = read_cloud_file(d + "/small_gicp/source.ply"),
+             target = read_cloud_file(d + "/small_gicp/target.ply");
   const Eigen::Isometry3d ref_small = read_matrix_file(d + "/small_gicp/T_target_source.txt");
   const Eigen::Isometry3d ref_fast = read_matrix_file(d + "/fast_gicp/relative.txt");
   // fast_gicp's copy of the pair is the same two sweeps (PCD): its clouds register to the same answer.
-  const auto fast_source = read_cloud_file(d + "/fast_gicp/251371071.pcd"), fast_target = read_cloud_file(d + "/fast_gicp/251370668.pcd");
+  const auto fast_source = read_cloud_file(d + "/fast_gicp/251371071.pcd"),
+             fast_target = read_cloud_file(d + "/fast_gicp/251370668.pcd");
   ASSERT_EQ(fast_source.size(), source.size());
   const Eigen::Isometry3d T = align(source, target, PairMethod::kGicp);
   const Eigen::Isometry3d T_fast_copy = align(fast_source, fast_target, PairMethod::kGicp);
@@ -261,7 +267,8 @@ class CloudFiles : public ::testing::Test {
     const std::string path = (dir_ / name).string();
     std::ofstream out(path, std::ios::binary);
     out << header;
-    out.write(reinterpret_cast<const char*>(values.data()), static_cast<std::streamsize>(values.size() * sizeof(float)));
+    out.write(reinterpret_cast<const char*>(values.data()),
+              static_cast<std::streamsize>(values.size() * sizeof(float)));
     return path;
   }
   std::string error_of(const std::string& path) {
@@ -281,23 +288,31 @@ TEST_F(CloudFiles, ReadsKittiPcdAndPlyAndNamesWhatIsWrong) {
   ASSERT_EQ(bin.size(), 2u);
   EXPECT_EQ(bin[1], Eigen::Vector3d(4, 5, 6));
   // PCD with intensity first: x, y, z found by name.
-  const auto pcd = read_cloud_file(write("a.pcd",
-      "VERSION 0.7\nFIELDS intensity x y z\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 2\nHEIGHT 1\n"
-      "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA binary\n", {9, 1, 2, 3, 9, 4, 5, 6}));
+  const auto pcd = read_cloud_file(
+      write("a.pcd",
+            "VERSION 0.7\nFIELDS intensity x y z\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 2\nHEIGHT 1\n"
+            "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA binary\n",
+            {9, 1, 2, 3, 9, 4, 5, 6}));
   ASSERT_EQ(pcd.size(), 2u);
   EXPECT_EQ(pcd[0], Eigen::Vector3d(1, 2, 3));
-  const auto ply = read_cloud_file(write("a.ply",
+  const auto ply = read_cloud_file(write(
+      "a.ply",
       "ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
-      "property float scalar_intensity\nend_header\n", two));
+      "property float scalar_intensity\nend_header\n",
+      two));
   ASSERT_EQ(ply.size(), 2u);
   EXPECT_EQ(ply[1], Eigen::Vector3d(4, 5, 6));
-  EXPECT_NE(error_of(write("b.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 5\nDATA binary\n", {1, 2, 3})).find("truncated"),
+  EXPECT_NE(error_of(write("b.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 5\nDATA binary\n", {1, 2, 3}))
+                .find("truncated"),
             std::string::npos);
-  EXPECT_NE(error_of(write("c.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nDATA ascii\n", {})).find("binary only"),
-            std::string::npos);
-  EXPECT_NE(error_of(write("d.pcd", "FIELDS x y\nSIZE 4 4\nTYPE F F\nPOINTS 1\nDATA binary\n", {1, 2})).find("no x, y and z"),
-            std::string::npos);
-  EXPECT_NE(error_of(write("b.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n", {})).find("ascii"),
+  EXPECT_NE(
+      error_of(write("c.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nDATA ascii\n", {})).find("binary only"),
+      std::string::npos);
+  EXPECT_NE(
+      error_of(write("d.pcd", "FIELDS x y\nSIZE 4 4\nTYPE F F\nPOINTS 1\nDATA binary\n", {1, 2})).find("no x, y and z"),
+      std::string::npos);
+  EXPECT_NE(error_of(write("b.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n", {}))
+                .find("ascii"),
             std::string::npos);
   EXPECT_NE(error_of(write("c.bin", "", {1, 2, 3})).find("multiple of 16"), std::string::npos);
   EXPECT_NE(error_of(write("a.xyz", "", {})).find("unknown point cloud format"), std::string::npos);
@@ -334,7 +349,8 @@ sim::SplineTrajectory imu_drive() {
   return sim::SplineTrajectory(controls, 0.0, 0.1);
 }
 
-ImuPreintegration integrate(const std::vector<sim::ImuSample>& imu, const Eigen::Vector3d& bg, const Eigen::Vector3d& ba) {
+ImuPreintegration integrate(const std::vector<sim::ImuSample>& imu, const Eigen::Vector3d& bg,
+                            const Eigen::Vector3d& ba) {
   ImuPreintegration pre(bg, ba);
   for (size_t i = 0; i + 1 < imu.size(); ++i) pre.integrate(imu[i].gyro, imu[i].accel, imu[i + 1].t - imu[i].t);
   return pre;
@@ -379,7 +395,8 @@ TEST(ImuPreintegration, BiasJacobiansAgreeWithIntegratingAgain) {
     double rotation, velocity, position, effect_rotation, effect_velocity;
   };
   auto errors = [&](double scale) {
-    const Eigen::Vector3d dbg = scale * Eigen::Vector3d(2e-3, -1e-3, 1.5e-3), dba = scale * Eigen::Vector3d(0.03, 0.02, -0.04);
+    const Eigen::Vector3d dbg = scale * Eigen::Vector3d(2e-3, -1e-3, 1.5e-3),
+                          dba = scale * Eigen::Vector3d(0.03, 0.02, -0.04);
     const ImuPreintegration again = integrate(imu, dbg, dba);
     return Errors{geometry::rotation_angle(at_zero.delta_R(dbg).transpose() * again.delta_R(dbg)),
                   (at_zero.delta_v(dbg, dba) - again.delta_v(dbg, dba)).norm(),
@@ -388,8 +405,8 @@ TEST(ImuPreintegration, BiasJacobiansAgreeWithIntegratingAgain) {
                   (at_zero.delta_v(zero, zero) - again.delta_v(dbg, dba)).norm()};
   };
   const Errors full = errors(1.0), half = errors(0.5);
-  std::printf("first-order errors: %.2e rad, %.2e m/s, %.2e m (change: %.2e rad, %.2e m/s)\n", full.rotation, full.velocity,
-              full.position, full.effect_rotation, full.effect_velocity);
+  std::printf("first-order errors: %.2e rad, %.2e m/s, %.2e m (change: %.2e rad, %.2e m/s)\n", full.rotation,
+              full.velocity, full.position, full.effect_rotation, full.effect_velocity);
   EXPECT_LT(full.rotation, 1e-3 * full.effect_rotation);  // at rounding level: the rotation's correction is exact here
   EXPECT_LT(full.velocity, 1e-2 * full.effect_velocity);
   EXPECT_LT(full.position, 1e-2 * full.effect_velocity);

@@ -15,11 +15,11 @@
 namespace cdc::odometry::test {
 
 struct SceneOptions {
-  int path_points = 40;      // path points i = 0 .. path_points - 1
-  double step_m = 1.0;       // x of point i: step_m * (i - path_points / 2)
-  double slant_m = 0.2;      // y of point i: slant_m * i
+  int path_points = 40;  // path points i = 0 .. path_points - 1
+  double step_m = 1.0;   // x of point i: step_m * (i - path_points / 2)
+  double slant_m = 0.2;  // y of point i: slant_m * i
   uint64_t world_seed = 9;
-  double spacing_m = 6;      // between the world's objects
+  double spacing_m = 6;  // between the world's objects
   sim::LidarModel lidar = sim::LidarModel::hdl64();
 };
 
@@ -42,7 +42,8 @@ struct SimScene {
   // One sweep from the still pose T, in the sensor frame; each point's ring into `rings` when given.
   std::vector<Eigen::Vector3d> scan(const Eigen::Isometry3d& T, std::vector<uint16_t>* rings = nullptr) {
     std::vector<Eigen::Vector3d> out;
-    for (const auto& p : sim::sweep(world, lidar, [&](double) { return T; }, rng)) {
+    for (const auto& p : sim::sweep(
+             world, lidar, [&](double) { return T; }, rng)) {
       out.emplace_back(p.x, p.y, p.z);
       if (rings != nullptr) rings->push_back(p.ring);
     }

@@ -7,8 +7,8 @@
 #include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/qos.hpp"
 
-#include <CLI/CLI.hpp>
 #include <gtest/gtest.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>

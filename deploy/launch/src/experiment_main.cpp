@@ -14,8 +14,8 @@
 #include <algorithm>
 #include <chrono>
 #include <filesystem>
-#include <functional>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <sstream>
 #include <thread>
@@ -24,7 +24,6 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 namespace {
-
 
 struct VariantSpec {
   std::string key, label, yaml;
@@ -75,7 +74,9 @@ struct Options {
 
   // Any calibration error: the scenarios are run on a miscalibrated LiDAR, in datasets of their own.
   bool miscalibrated() const { return elevation_error > 0 || elevation_bias != 0 || azimuth_error > 0; }
-  bool wanted(const VariantSpec& v) const { return std::find(variants.begin(), variants.end(), v.key) != variants.end(); }
+  bool wanted(const VariantSpec& v) const {
+    return std::find(variants.begin(), variants.end(), v.key) != variants.end();
+  }
   // (b) and (d) depend on when back-end results reach the robots; (a) and (c) repeat to the millimetre.
   int runs_of(const VariantSpec& v) const { return (v.key == "b" || v.key == "d") ? repeats : 1; }
   fs::path launcher() const { return fs::path(bin_dir) / "deploy/launch/cdc-launch"; }
@@ -83,8 +84,11 @@ struct Options {
 
 void add_options(CLI::App& app, Options& o) {
   app.add_option("--out", o.out, "output folder")->capture_default_str();
-  app.add_option("--sequences", o.sequences, "KITTI sequences with a sim/scenarios/kittiNN_3robots.yaml")->capture_default_str();
-  app.add_option("--variants", o.variants, "subset of a b c d")->capture_default_str()->check(CLI::IsMember({"a", "b", "c", "d"}));
+  app.add_option("--sequences", o.sequences, "KITTI sequences with a sim/scenarios/kittiNN_3robots.yaml")
+      ->capture_default_str();
+  app.add_option("--variants", o.variants, "subset of a b c d")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"a", "b", "c", "d"}));
   app.add_option("--max-scans", o.max_scans, "sweeps per robot (0: whole sequence)")->capture_default_str();
   app.add_option("--bin-dir", o.bin_dir, "build folder")->capture_default_str();
   app.add_option("--root", o.root, "project root")->capture_default_str();
@@ -97,21 +101,24 @@ void add_options(CLI::App& app, Options& o) {
                  "loses track on KITTI 06 robots 0 and 2 and KITTI 09 robot 0")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 2.0));
-  app.add_option("--lidar-elevation-bias", o.elevation_bias,
-                 "an elevation calibration error common to every beam [deg] (datasets kittiNN_3robots_..._biasX); KITTI's\n"
-                 "HDL-64E has about 0.22. Levelled, our front-end then drifts about 0.2 % on the KITTI 05 robots, ATE\n"
-                 "0.15-0.25 m, most of it in height")
+  app.add_option(
+         "--lidar-elevation-bias", o.elevation_bias,
+         "an elevation calibration error common to every beam [deg] (datasets kittiNN_3robots_..._biasX); KITTI's\n"
+         "HDL-64E has about 0.22. Levelled, our front-end then drifts about 0.2 % on the KITTI 05 robots, ATE\n"
+         "0.15-0.25 m, most of it in height")
       ->capture_default_str()
       ->check(CLI::Range(-1.0, 1.0));
-  app.add_option("--lidar-azimuth-error", o.azimuth_error,
-                 "a fixed per-beam azimuth calibration error of this sigma [deg] (datasets kittiNN_3robots_..._azX). At\n"
-                 "0.2 our front-end drifts 0.7-1.0 % and 0.4-0.5 deg/100 m on the KITTI 05 robots, about what real\n"
-                 "LiDAR odometry shows on KITTI, and the drift accumulates in yaw as on real data")
+  app.add_option(
+         "--lidar-azimuth-error", o.azimuth_error,
+         "a fixed per-beam azimuth calibration error of this sigma [deg] (datasets kittiNN_3robots_..._azX). At\n"
+         "0.2 our front-end drifts 0.7-1.0 % and 0.4-0.5 deg/100 m on the KITTI 05 robots, about what real\n"
+         "LiDAR odometry shows on KITTI, and the drift accumulates in yaw as on real data")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 2.0));
-  app.add_flag("--lidar-per-robot", o.per_robot,
-               "give each robot a LiDAR of its own, with calibration errors drawn for that unit (datasets ..._own); without\n"
-               "it every robot carries the same miscalibrated sensor, so robots on the same road drift alike");
+  app.add_flag(
+      "--lidar-per-robot", o.per_robot,
+      "give each robot a LiDAR of its own, with calibration errors drawn for that unit (datasets ..._own); without\n"
+      "it every robot carries the same miscalibrated sensor, so robots on the same road drift alike");
   app.add_flag("--reuse", o.reuse, "keep runs that already have a report.json in OUT (re-tabulate only)");
   app.add_option("--repeats", o.repeats,
                  "runs of (b) and (d), whose results depend on when back-end results reach the robots; the tables\n"
@@ -148,9 +155,10 @@ SequenceData sequence_data(const Options& o, const std::string& seq) {
   const fs::path derived = fs::absolute(fs::path(o.out) / "scenarios" / (d.dataset + ".yaml"));
   fs::create_directories(derived.parent_path());
   std::ifstream base(d.scenario);
-  std::ofstream(derived) << base.rdbuf()
-                         << "\n# added by cdc-experiment (--lidar-elevation-error / --lidar-elevation-bias / --lidar-azimuth-error)\n"
-                         << keys;
+  std::ofstream(derived)
+      << base.rdbuf()
+      << "\n# added by cdc-experiment (--lidar-elevation-error / --lidar-elevation-bias / --lidar-azimuth-error)\n"
+      << keys;
   d.scenario = derived;
   return d;
 }
@@ -158,11 +166,12 @@ SequenceData sequence_data(const Options& o, const std::string& seq) {
 // OUT/swarms/NAME.yaml: the split's dataset in lock-step over netns, with the variant's settings.
 fs::path write_swarm_file(const Options& o, const std::string& name, const VariantSpec& v, const SequenceData& d) {
   const fs::path swarm = fs::absolute(fs::path(o.out) / "swarms" / (name + ".yaml"));
-  std::ofstream(swarm) << "name: " << name << "\nscenario: " << fs::absolute(d.scenario).string() << "\ndataset: "
-                       << fs::absolute(fs::path(o.datasets) / d.dataset).string() << "\n"
+  std::ofstream(swarm) << "name: " << name << "\nscenario: " << fs::absolute(d.scenario).string()
+                       << "\ndataset: " << fs::absolute(fs::path(o.datasets) / d.dataset).string() << "\n"
                        << "max_scans: " << o.max_scans << "\nnetwork: netns\nlockstep: true\nsettle_s: 5\nmap: false\n"
                        << v.yaml << "configs:\n  peer_optimiser: "
-                       << fs::absolute(fs::path(o.root) / "deploy/swarms/config/peer_liveliness_only.yaml").string() << "\n";
+                       << fs::absolute(fs::path(o.root) / "deploy/swarms/config/peer_liveliness_only.yaml").string()
+                       << "\n";
   return swarm;
 }
 
@@ -173,7 +182,9 @@ bool run_launcher(const Options& o, const std::string& name, const fs::path& swa
       name,
       {fs::absolute(o.launcher()).string(), swarm.string(), "--root", fs::absolute(o.root).string(), "--bin-dir",
        fs::absolute(o.bin_dir).string(), "--out", run.string(), "--no-progress"},
-      {}, "", log});
+      {},
+      "",
+      log});
   while (p.running()) {
     if (cdc::launch::stop_signal() != 0) p.signal(SIGINT);
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
@@ -211,7 +222,8 @@ json run_variant(const Options& o, const std::string& seq, const VariantSpec& v,
 json run_all(const Options& o) {
   fs::create_directories(fs::path(o.out) / "swarms");
   const std::string launcher = o.launcher().string();
-  if (!fs::exists(launcher)) throw std::runtime_error(launcher + ": missing; build first (./cdc build --preset release)");
+  if (!fs::exists(launcher))
+    throw std::runtime_error(launcher + ": missing; build first (./cdc build --preset release)");
   json table;
   for (const std::string& seq : o.sequences) {
     const SequenceData d = sequence_data(o, seq);
@@ -247,10 +259,12 @@ void write_table(std::ostream& md, const Options& o, const json& table, const st
 }
 
 void write_ate_tables(std::ostream& md, const Options& o, const json& table) {
-  const std::string medians = o.repeats > 1 ? " ((b) and (d): median of " + std::to_string(o.repeats) + " runs)" : std::string();
-  write_table(md, o, table,
-              "# Table IV (our data): ATE / RPE [m] of each robot's real-time trajectory, SE(3)-aligned per robot" + medians,
-              [](const json& r) { return fixed(r["ate_m"].get<double>(), 3) + " / " + fixed(r["rpe_m"].get<double>(), 4); });
+  const std::string medians =
+      o.repeats > 1 ? " ((b) and (d): median of " + std::to_string(o.repeats) + " runs)" : std::string();
+  write_table(
+      md, o, table,
+      "# Table IV (our data): ATE / RPE [m] of each robot's real-time trajectory, SE(3)-aligned per robot" + medians,
+      [](const json& r) { return fixed(r["ate_m"].get<double>(), 3) + " / " + fixed(r["rpe_m"].get<double>(), 4); });
   if (o.repeats > 1) {
     write_table(md, o, table, "\nReal-time ATE [m] of every run of (b) and (d):", [](const json& r) {
       std::string text;
@@ -260,10 +274,14 @@ void write_ate_tables(std::ostream& md, const Options& o, const json& table) {
       return text;
     });
   }
-  write_table(md, o, table,
-              "\nFinal optimised keyframes, ATE [m] (the central's final graph where it holds the robot, else the robot's "
-              "peer optimiser)" + medians + ":",
-              [](const json& r) { return r.contains("keyframes_ate_m") ? fixed(r["keyframes_ate_m"].get<double>(), 3) : std::string(); });
+  write_table(
+      md, o, table,
+      "\nFinal optimised keyframes, ATE [m] (the central's final graph where it holds the robot, else the robot's "
+      "peer optimiser)" +
+          medians + ":",
+      [](const json& r) {
+        return r.contains("keyframes_ate_m") ? fixed(r["keyframes_ate_m"].get<double>(), 3) : std::string();
+      });
 }
 
 // The paper's claim on one split's real-time ATE: (d) no worse than (c) on every robot and lower on
@@ -276,7 +294,9 @@ struct ClaimCheck {
   // Null when (c) or (d) has no robots.
   static std::optional<ClaimCheck> of(const json& t);
   json to_json() const {
-    return {{"d_no_worse_than_c_every_robot", every}, {"d_mean_lower_than_c", lower_c}, {"d_mean_lower_than_a", lower_a},
+    return {{"d_no_worse_than_c_every_robot", every},
+            {"d_mean_lower_than_c", lower_c},
+            {"d_mean_lower_than_a", lower_a},
             {"d_within_half_percent", within}};
   }
 };
@@ -323,8 +343,9 @@ void write_claim(std::ostream& md, const Options& o, json& table) {
     const std::optional<ClaimCheck> k = ClaimCheck::of(table[seq]);
     if (!k) continue;
     md << "| " << seq << " | " << yn(k->every) << " | " << yn(k->lower_c) << " (" << fixed(k->mean_d, 4) << " vs "
-       << fixed(k->mean_c, 4) << ") | " << (k->has_a ? yn(k->lower_a) + " (vs " + fixed(k->mean_a, 4) + ")" : std::string("-"))
-       << " | " << yn(k->within) << " |\n";
+       << fixed(k->mean_c, 4) << ") | "
+       << (k->has_a ? yn(k->lower_a) + " (vs " + fixed(k->mean_a, 4) + ")" : std::string("-")) << " | " << yn(k->within)
+       << " |\n";
     table[seq]["claim"] = k->to_json();
   }
 }
@@ -347,8 +368,9 @@ void write_correction_effect(std::ostream& md, const Options& o, json& table) {
     for (const auto& [robot, rd] : t["d"]["robots"].items()) {
       if (!t["c"]["robots"].contains(robot)) continue;
       const json& rc = t["c"]["robots"][robot];
-      const std::string gain =
-          rc.contains("keyframes_ate_m") ? fixed(rc["ate_m"].get<double>() - rc["keyframes_ate_m"].get<double>(), 4) : "-";
+      const std::string gain = rc.contains("keyframes_ate_m")
+                                   ? fixed(rc["ate_m"].get<double>() - rc["keyframes_ate_m"].get<double>(), 4)
+                                   : "-";
       const std::string tum = "robot_" + robot + "/odometry.tum";
       const auto moved = cdc::launch::position_difference((fs::path(o.out) / ("kitti" + seq + "_c") / tum).string(),
                                                           (fs::path(o.out) / ("kitti" + seq + "_d") / tum).string());
@@ -382,9 +404,12 @@ void write_data_notes(std::ostream& md, const Options& o) {
 
 int main(int argc, char** argv) {
   CLI::App app{
-      "cdc-experiment: the paper's Table IV. For each sequence (KITTI split into three robots, sim/scenarios/kittiNN_3robots.yaml)\n"
-      "runs cdc-launch four times: (a) single robot, (b) distributed only, (c) switching without front-end correction,\n"
-      "(d) switching with correction; then writes OUT/table4.md and OUT/table4.json with ATE and RPE per robot per variant\n"
+      "cdc-experiment: the paper's Table IV. For each sequence (KITTI split into three robots, "
+      "sim/scenarios/kittiNN_3robots.yaml)\n"
+      "runs cdc-launch four times: (a) single robot, (b) distributed only, (c) switching without front-end "
+      "correction,\n"
+      "(d) switching with correction; then writes OUT/table4.md and OUT/table4.json with ATE and RPE per robot per "
+      "variant\n"
       "(the front-end's real-time trajectory, SE(3)-aligned per robot). Needs the netns network mode (root)."};
   Options o;
   add_options(app, o);
@@ -392,8 +417,9 @@ int main(int argc, char** argv) {
   cdc::launch::install_stop_signals();
   try {
     if (o.per_robot && !o.miscalibrated()) {
-      throw std::runtime_error("--lidar-per-robot needs a calibration error to draw (--lidar-elevation-error, "
-                               "--lidar-elevation-bias or --lidar-azimuth-error)");
+      throw std::runtime_error(
+          "--lidar-per-robot needs a calibration error to draw (--lidar-elevation-error, "
+          "--lidar-elevation-bias or --lidar-azimuth-error)");
     }
     json table = run_all(o);
     std::ostringstream md;

@@ -122,7 +122,8 @@ class Launcher {
   std::string on_player_ended();
   void watch_rendezvous();
 
-  Process& spawn(const std::string& name, uint32_t node, std::vector<std::string> argv, std::vector<std::string> env = {});
+  Process& spawn(const std::string& name, uint32_t node, std::vector<std::string> argv,
+                 std::vector<std::string> env = {});
   std::string loopback_config() const {
     return "file://" + fs::absolute(fs::path(o_.root) / "deploy/cyclonedds/loopback.xml").string();
   }
@@ -159,14 +160,14 @@ class Launcher {
   RunInfo info_;
   Clock::time_point t0_ = Clock::now();
   std::map<std::pair<uint32_t, uint32_t>, LinkBytes> last_counters_;
-  std::ofstream traffic_log_;  // traffic.csv: every sample's counted bytes per robot, link and mode
+  std::ofstream traffic_log_;                   // traffic.csv: every sample's counted bytes per robot, link and mode
   std::map<uint32_t, bool> loopback_in_range_;  // loopback radio: robot -> in range of the central
   std::map<uint32_t, uint64_t> last_keyframes_;
   std::map<uint32_t, std::string> interval_start_mode_;  // each robot's mode at the previous traffic sample
   double sim_total_s_ = 0;
-  double t_s_ = 0;  // sim time now (the player's clock file)
-  bool startup_ = false;  // traffic counted now belongs to start-up (discovery), not to a mode
-  bool rendezvous_ = false;  // the mission is over: every link is up
+  double t_s_ = 0;            // sim time now (the player's clock file)
+  bool startup_ = false;      // traffic counted now belongs to start-up (discovery), not to a mode
+  bool rendezvous_ = false;   // the mission is over: every link is up
   bool radio_armed_ = false;  // loopback: services are up (their signal handlers installed)
   std::optional<Rendezvous> rendezvous_watch_;
   std::optional<Clock::time_point> settle_until_;  // the run ends then
@@ -174,10 +175,13 @@ class Launcher {
 
 void Launcher::ensure_dataset() {
   if (fs::exists(fs::path(c_.dataset) / "dataset.json")) return;
-  if (c_.scenario.empty()) throw std::runtime_error(c_.dataset + ": no dataset there and no scenario to generate it from (a real recording: cdc-import)");
+  if (c_.scenario.empty())
+    throw std::runtime_error(c_.dataset +
+                             ": no dataset there and no scenario to generate it from (a real recording: cdc-import)");
   std::cout << "cdc-launch: generating the dataset " << c_.dataset << " from " << c_.scenario << " (once)" << std::endl;
   fs::create_directories(fs::path(c_.dataset).parent_path());
-  std::vector<std::string> argv = {bin("sim/tools/cdc-sim"), "generate", "--scenario", c_.scenario, "--out", c_.dataset};
+  std::vector<std::string> argv = {
+      bin("sim/tools/cdc-sim"), "generate", "--scenario", c_.scenario, "--out", c_.dataset};
   if (c_.max_scans > 0) argv.insert(argv.end(), {"--max-scans", std::to_string(c_.max_scans)});
   Process gen(ProcessSpec{"generate", argv, {}, "", (run_ / "logs" / "generate.log").string()});
   record_pid(gen);
@@ -195,11 +199,13 @@ void Launcher::ensure_dataset() {
   }
 }
 
-Process& Launcher::spawn(const std::string& name, uint32_t node, std::vector<std::string> argv, std::vector<std::string> env) {
+Process& Launcher::spawn(const std::string& name, uint32_t node, std::vector<std::string> argv,
+                         std::vector<std::string> env) {
   std::string log = name;
   std::replace(log.begin(), log.end(), '/', '_');
   env.push_back("CYCLONEDDS_URI=" + dds_config(node));
-  ProcessSpec spec{name, std::move(argv), std::move(env), net_ ? net_->netns(node) : "", (run_ / "logs" / (log + ".log")).string()};
+  ProcessSpec spec{name, std::move(argv), std::move(env), net_ ? net_->netns(node) : "",
+                   (run_ / "logs" / (log + ".log")).string()};
   services_.push_back(std::make_unique<Process>(std::move(spec)));
   record_pid(*services_.back());
   return *services_.back();
@@ -225,10 +231,23 @@ void Launcher::start_services() {
     // and peer optimiser also join the SLAM domain, the one the radio carries.
     const std::string own = std::to_string(local_domain(r));
     const std::vector<std::string> local = {"--local-domain", own, "--local-dds-config", loopback_config()};
-    std::vector<std::string> fe = {bin("services/frontend/cdc-frontend"), "--robot", id, "--config", c_.frontend_config,
-                                   "--domain", own, "--dds-config", loopback_config(), "--sensor-domain", sim,
-                                   "--sensor-dds-config", dds_config(r), "--trajectory-out", (rd / "odometry.tum").string(),
-                                   "--stats-out", (rd / "frontend.stats.json").string()};
+    std::vector<std::string> fe = {bin("services/frontend/cdc-frontend"),
+                                   "--robot",
+                                   id,
+                                   "--config",
+                                   c_.frontend_config,
+                                   "--domain",
+                                   own,
+                                   "--dds-config",
+                                   loopback_config(),
+                                   "--sensor-domain",
+                                   sim,
+                                   "--sensor-dds-config",
+                                   dds_config(r),
+                                   "--trajectory-out",
+                                   (rd / "odometry.tum").string(),
+                                   "--stats-out",
+                                   (rd / "frontend.stats.json").string()};
     if (c_.lidar_only) fe.push_back("--lidar-only");
     if (!c_.frontend_correction) fe.push_back("--no-corrections");
     if (c_.lockstep) {
@@ -242,8 +261,8 @@ void Launcher::start_services() {
       return argv;
     };
     spawn("robot" + id + "/descriptor", r,
-          with_local({bin("services/descriptor/cdc-descriptor"), "--robot", id, "--config", c_.descriptor_config, "--domain",
-                      slam, "--stats-out", (rd / "descriptor.stats.json").string()}));
+          with_local({bin("services/descriptor/cdc-descriptor"), "--robot", id, "--config", c_.descriptor_config,
+                      "--domain", slam, "--stats-out", (rd / "descriptor.stats.json").string()}));
     spawn("robot" + id + "/loop-closure", r,
           with_local({bin("services/loop_closure/cdc-loop-closure"), "--robot", id, "--config", c_.loop_closure_config,
                       "--domain", slam, "--stats-out", (rd / "loop_closure.stats.json").string(), "--backlog-out",
@@ -319,8 +338,8 @@ std::map<uint32_t, std::string> Launcher::charge_keyframes() {
     const std::string own = now.mode == "-" ? fallback : now.mode;
     const std::string mode = startup_ ? "STARTUP" : rendezvous_ ? "RENDEZVOUS" : own;
     auto it = interval_start_mode_.find(r);
-    const bool switched = it != interval_start_mode_.end() && it->second != mode && it->second != "STARTUP" &&
-                          mode != "RENDEZVOUS";
+    const bool switched =
+        it != interval_start_mode_.end() && it->second != mode && it->second != "STARTUP" && mode != "RENDEZVOUS";
     charged[r] = switched ? "CENTRALIZED" : mode;
     interval_start_mode_[r] = mode;
     // Keyframes still coming out of the last sweeps in the rendezvous belong to the mode they were made in.
@@ -366,8 +385,8 @@ void Launcher::progress(double t_s, bool final_line) {
   std::ostringstream s;
   const double frac = sim_total_s_ > 0 ? std::clamp(t_s / sim_total_s_, 0.0, 1.0) : 0.0;
   const int width = 24, filled = static_cast<int>(frac * width);
-  s << '[' << std::string(static_cast<size_t>(filled), '#') << std::string(static_cast<size_t>(width - filled), '.') << "] sim "
-    << std::fixed;
+  s << '[' << std::string(static_cast<size_t>(filled), '#') << std::string(static_cast<size_t>(width - filled), '.')
+    << "] sim " << std::fixed;
   s.precision(1);
   s << t_s << '/' << sim_total_s_ << " s, wall " << std::chrono::duration<double>(Clock::now() - t0_).count() << " s";
   for (uint32_t r : robots_) {
@@ -532,16 +551,24 @@ void Launcher::wait_for_services() {
     }
     if (interrupted()) return;
     if (Clock::now() > deadline) {
-      throw std::runtime_error("the robots' peer optimisers did not come up (or did not reach CENTRALIZED with the central) "
-                               "within 30 s; see " + (run_ / "logs").string());
+      throw std::runtime_error(
+          "the robots' peer optimisers did not come up (or did not reach CENTRALIZED with the central) "
+          "within 30 s; see " +
+          (run_ / "logs").string());
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
 }
 
 void Launcher::start_player() {
-  std::vector<std::string> play = {bin("sim/tools/cdc-sim"), "play", c_.dataset, "--domain", std::to_string(c_.sim_domain),
-                                   "--wait-readers", std::to_string(robots_.size()), "--clock-file",
+  std::vector<std::string> play = {bin("sim/tools/cdc-sim"),
+                                   "play",
+                                   c_.dataset,
+                                   "--domain",
+                                   std::to_string(c_.sim_domain),
+                                   "--wait-readers",
+                                   std::to_string(robots_.size()),
+                                   "--clock-file",
                                    (run_ / "sim_clock").string()};
   if (c_.lockstep) {
     play.insert(play.end(), {"--lockstep", "--lockstep-timeout", "120"});
@@ -549,8 +576,11 @@ void Launcher::start_player() {
     play.insert(play.end(), {"--rate", std::to_string(c_.rate)});
   }
   if (c_.max_scans > 0) play.insert(play.end(), {"--max-scans", std::to_string(c_.max_scans)});
-  player_ = std::make_unique<Process>(ProcessSpec{"sim/player", play, {"CYCLONEDDS_URI=" + dds_config(kSimNode)},
-                                                  net_ ? net_->netns(kSimNode) : "", (run_ / "logs" / "sim_player.log").string()});
+  player_ = std::make_unique<Process>(ProcessSpec{"sim/player",
+                                                  play,
+                                                  {"CYCLONEDDS_URI=" + dds_config(kSimNode)},
+                                                  net_ ? net_->netns(kSimNode) : "",
+                                                  (run_ / "logs" / "sim_player.log").string()});
   record_pid(*player_);
 }
 
@@ -613,7 +643,8 @@ void Launcher::watch_rendezvous() {
 
 std::string Launcher::supervise() {
   auto last_sample = Clock::now(), last_progress = Clock::now() - std::chrono::seconds(10);
-  const auto progress_period = isatty(STDOUT_FILENO) ? std::chrono::milliseconds(500) : std::chrono::milliseconds(10000);
+  const auto progress_period =
+      isatty(STDOUT_FILENO) ? std::chrono::milliseconds(500) : std::chrono::milliseconds(10000);
   while (!interrupted()) {
     read_sim_clock();
     apply_radio(t_s_);
@@ -644,8 +675,10 @@ std::string Launcher::supervise() {
 int Launcher::finish(const std::string& failure) {
   sample_traffic(t_s_);
   if (!o_.no_progress) progress(t_s_, true);
-  if (interrupted()) std::cout << "cdc-launch: interrupted (signal " << stop_signal() << "): stopping every process" << std::endl;
-  else std::cout << "cdc-launch: stopping the swarm" << std::endl;
+  if (interrupted())
+    std::cout << "cdc-launch: interrupted (signal " << stop_signal() << "): stopping every process" << std::endl;
+  else
+    std::cout << "cdc-launch: stopping the swarm" << std::endl;
   stop_all();
   if (net_) {
     net_->teardown();
@@ -694,7 +727,8 @@ int Launcher::run() {
 
 int main(int argc, char** argv) {
   CLI::App app{
-      "cdc-launch: runs a swarm on a dataset (simulated, or a real recording imported with cdc-import) from a swarm file (deploy/swarms/*.yaml): the simulator's player, every\n"
+      "cdc-launch: runs a swarm on a dataset (simulated, or a real recording imported with cdc-import) from a swarm "
+      "file (deploy/swarms/*.yaml): the simulator's player, every\n"
       "robot's front-end, descriptor, loop-closure and peer-optimiser services and the central node's optimiser and\n"
       "map. Network modes: netns (default where possible: every node in its own network namespace, the radio\n"
       "timeline applied per pair with iptables on the SLAM domain) or loopback (all on lo, the timeline applied per\n"
@@ -708,7 +742,8 @@ int main(int argc, char** argv) {
   app.add_option("--network", o.network, "override the swarm file: auto, netns or loopback")
       ->check(CLI::IsMember({"auto", "netns", "loopback"}));
   app.add_option("--max-scans", o.max_scans, "override: sweeps per robot (0: all)")->check(CLI::NonNegativeNumber);
-  app.add_option("--dataset", o.dataset, "override the swarm file's dataset folder (one made by cdc-import, for example)")
+  app.add_option("--dataset", o.dataset,
+                 "override the swarm file's dataset folder (one made by cdc-import, for example)")
       ->check(CLI::ExistingDirectory);
   app.add_option("--slam-domain", o.slam_domain, "override the SLAM DDS domain")->check(CLI::Range(0, 232));
   app.add_option("--sim-domain", o.sim_domain, "override the simulator's DDS domain")->check(CLI::Range(0, 232));
@@ -718,7 +753,9 @@ int main(int argc, char** argv) {
   try {
     SwarmConfig c = load_swarm(o.swarm, o.root);
     if (!o.network.empty()) {
-      c.network = o.network == "netns" ? NetworkMode::kNetns : o.network == "loopback" ? NetworkMode::kLoopback : NetworkMode::kAuto;
+      c.network = o.network == "netns"      ? NetworkMode::kNetns
+                  : o.network == "loopback" ? NetworkMode::kLoopback
+                                            : NetworkMode::kAuto;
     }
     if (o.max_scans >= 0) c.max_scans = static_cast<size_t>(o.max_scans);
     if (!o.dataset.empty()) c.dataset = o.dataset;

@@ -41,7 +41,8 @@ bool NetnsNetwork::available(std::string* why) {
 std::string NetnsNetwork::address(uint32_t node) const {
   if (node == kCentralNode) return "198.18.0.100";
   if (node == kSimNode) return "198.18.0.200";
-  if (node >= 90) throw std::invalid_argument("robot id " + std::to_string(node) + ": netns mode supports ids below 90");
+  if (node >= 90)
+    throw std::invalid_argument("robot id " + std::to_string(node) + ": netns mode supports ids below 90");
   return "198.18.0." + std::to_string(10 + node);
 }
 
@@ -95,7 +96,9 @@ void NetnsNetwork::write_dds_config(uint32_t node, const std::string& config_dir
   std::ofstream out(path);
   if (!out) throw std::runtime_error(path + ": cannot write");
   out << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-         "<!-- written by cdc-launch: node " << short_name(node) << " in namespace " << netns_[node] << " -->\n"
+         "<!-- written by cdc-launch: node "
+      << short_name(node) << " in namespace " << netns_[node]
+      << " -->\n"
          "<CycloneDDS xmlns=\"https://cdds.io/config\">\n  <Domain Id=\"any\">\n    <General>\n"
          "      <Interfaces><NetworkInterface name=\"eth0\"/></Interfaces>\n"
          "      <AllowMulticast>false</AllowMulticast>\n"
@@ -107,7 +110,8 @@ void NetnsNetwork::write_dds_config(uint32_t node, const std::string& config_dir
          // unicast discovery probes every index up to this on every peer, so keep it small.
          "      <ParticipantIndex>auto</ParticipantIndex>\n      <MaxAutoParticipantIndex>9</MaxAutoParticipantIndex>\n"
          "      <SPDPInterval>1s</SPDPInterval>\n"
-         "      <Peers>\n" << peers << "      </Peers>\n    </Discovery>\n  </Domain>\n</CycloneDDS>\n";
+         "      <Peers>\n"
+      << peers << "      </Peers>\n    </Discovery>\n  </Domain>\n</CycloneDDS>\n";
   configs_[node] = path;
 }
 
@@ -126,10 +130,12 @@ void NetnsNetwork::add_robot_rules(uint32_t node) {
     for (const char* kind : {"data", "meta"}) {
       // Lowest bit of the UDP destination port: 1 for user data, 0 for discovery.
       const std::string parity = std::string("0>>22&0x3C@0&0x1=") + (std::string(kind) == "data" ? "1" : "0");
-      ns_cmd(node, {"iptables", "-w", "-A", "CDC_ACCT_IN", "-s", address(peer), "-p", "udp", "--dport", port_range_, "-m",
-                    "u32", "--u32", parity, "-m", "comment", "--comment", kind, "-j", "RETURN"});
-      ns_cmd(node, {"iptables", "-w", "-A", "CDC_ACCT_OUT", "-d", address(peer), "-p", "udp", "--dport", port_range_,
-                    "-m", "u32", "--u32", parity, "-m", "comment", "--comment", kind, "-j", "RETURN"});
+      ns_cmd(node, {"iptables", "-w",      "-A",        "CDC_ACCT_IN", "-s",  address(peer), "-p",
+                    "udp",      "--dport", port_range_, "-m",          "u32", "--u32",       parity,
+                    "-m",       "comment", "--comment", kind,          "-j",  "RETURN"});
+      ns_cmd(node, {"iptables", "-w",      "-A",        "CDC_ACCT_OUT", "-d",  address(peer), "-p",
+                    "udp",      "--dport", port_range_, "-m",           "u32", "--u32",       parity,
+                    "-m",       "comment", "--comment", kind,           "-j",  "RETURN"});
     }
   }
 }
@@ -161,8 +167,10 @@ void NetnsNetwork::set_link(uint32_t a, uint32_t b, bool up) {
   const char* op = up ? "-D" : "-A";
   for (auto [me, other] : {std::pair{a, b}, std::pair{b, a}}) {
     if (!is_robot(me)) continue;
-    ns_cmd(me, {"iptables", "-w", op, "CDC_RADIO_IN", "-s", address(other), "-p", "udp", "--dport", port_range_, "-j", "DROP"});
-    ns_cmd(me, {"iptables", "-w", op, "CDC_RADIO_OUT", "-d", address(other), "-p", "udp", "--dport", port_range_, "-j", "DROP"});
+    ns_cmd(me, {"iptables", "-w", op, "CDC_RADIO_IN", "-s", address(other), "-p", "udp", "--dport", port_range_, "-j",
+                "DROP"});
+    ns_cmd(me, {"iptables", "-w", op, "CDC_RADIO_OUT", "-d", address(other), "-p", "udp", "--dport", port_range_, "-j",
+                "DROP"});
   }
   down_[{std::min(a, b), std::max(a, b)}] = !up;
 }
@@ -174,7 +182,8 @@ std::map<std::pair<uint32_t, uint32_t>, LinkBytes> NetnsNetwork::counters() cons
   for (uint32_t node : nodes_) {
     if (!is_robot(node)) continue;
     for (const char* chain : {"CDC_ACCT_IN", "CDC_ACCT_OUT"}) {
-      const CommandResult r = run_command({"ip", "netns", "exec", netns_.at(node), "iptables", "-w", "-n", "-v", "-x", "-L", chain});
+      const CommandResult r =
+          run_command({"ip", "netns", "exec", netns_.at(node), "iptables", "-w", "-n", "-v", "-x", "-L", chain});
       if (r.status != 0) continue;
       std::istringstream in(r.output);
       std::string line;

@@ -24,8 +24,8 @@ inline constexpr uint32_t kSimNode = 250;      // the simulator's namespace
 // (samples, their heartbeats and acknowledgements) to odd port offsets and discovery (SPDP, SEDP,
 // participant liveliness) to even ones, which tells the two apart.
 struct LinkBytes {
-  uint64_t sent = 0, received = 0;                // user data
-  uint64_t meta_sent = 0, meta_received = 0;      // discovery
+  uint64_t sent = 0, received = 0;            // user data
+  uint64_t meta_sent = 0, meta_received = 0;  // discovery
 };
 
 class NetnsNetwork {

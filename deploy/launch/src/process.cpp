@@ -88,8 +88,7 @@ CommandResult run_command(const std::vector<std::string>& argv) {
   }
   close(pipefd[0]);
   int ws = 0;
-  while (waitpid(pid, &ws, 0) < 0 && errno == EINTR) {
-  }
+  while (waitpid(pid, &ws, 0) < 0 && errno == EINTR) {}
   r.status = decode(ws);
   return r;
 }

@@ -13,7 +13,7 @@ namespace cdc::launch {
 
 // SIGINT, SIGTERM and SIGHUP only set a flag: the program then stops the processes it started itself.
 void install_stop_signals();
-int stop_signal() noexcept;          // the signal that arrived; 0 while none has
+int stop_signal() noexcept;           // the signal that arrived; 0 while none has
 void request_stop(int sig) noexcept;  // as if `sig` had arrived
 
 struct CommandResult {
@@ -27,11 +27,11 @@ CommandResult run_command(const std::vector<std::string>& argv);
 std::string run_checked(const std::vector<std::string>& argv);
 
 struct ProcessSpec {
-  std::string name;                    // for logs and messages, e.g. "robot1/frontend"
-  std::vector<std::string> argv;       // argv[0]: path of the binary
-  std::vector<std::string> env;        // extra "KEY=VALUE"
-  std::string netns;                   // run inside this named network namespace (empty: here)
-  std::string log_path;                // stdout and stderr go here
+  std::string name;               // for logs and messages, e.g. "robot1/frontend"
+  std::vector<std::string> argv;  // argv[0]: path of the binary
+  std::vector<std::string> env;   // extra "KEY=VALUE"
+  std::string netns;              // run inside this named network namespace (empty: here)
+  std::string log_path;           // stdout and stderr go here
 };
 
 class Process {

@@ -34,15 +34,16 @@ json run_json(const RunInfo& info) {
          {"notes", info.notes},
          {"domains", {{"slam", info.slam_domain}, {"sim", info.sim_domain}}}};
   if (info.rendezvous_s) {
-    j["rendezvous"] = {{"waited_s", *info.rendezvous_s}, {"not_rejoined", info.not_rejoined},
+    j["rendezvous"] = {{"waited_s", *info.rendezvous_s},
+                       {"not_rejoined", info.not_rejoined},
                        {"loop_closure_busy", info.loop_closure_busy}};
     if (info.caught_up_s) j["rendezvous"]["loop_closure_caught_up_s"] = *info.caught_up_s;
   }
   return j;
 }
 
-json report_json(const RunInfo& info, const std::vector<RobotResult>& robots, const std::optional<TrafficSummary>& traffic,
-                 const json& topics, const eval::EvalOptions& options) {
+json report_json(const RunInfo& info, const std::vector<RobotResult>& robots,
+                 const std::optional<TrafficSummary>& traffic, const json& topics, const eval::EvalOptions& options) {
   json j = run_json(info);
   for (const RobotResult& r : robots) {
     json jr = r.to_json(options);
@@ -70,7 +71,8 @@ void write_link_log(const fs::path& path, const std::vector<LinkEvent>& links) {
   std::ofstream out(path);
   out << "wall_s,sim_s,a,b,state\n";
   for (const LinkEvent& e : links) {
-    out << fixed(e.wall_s, 3) << ',' << fixed(e.sim_s, 3) << ',' << e.a << ',' << e.b << ',' << (e.up ? "up" : "down") << '\n';
+    out << fixed(e.wall_s, 3) << ',' << fixed(e.sim_s, 3) << ',' << e.a << ',' << e.b << ',' << (e.up ? "up" : "down")
+        << '\n';
   }
 }
 
@@ -95,9 +97,10 @@ void write_plots(const RunInfo& info, const std::vector<RobotResult>& robots) {
     markers.insert(markers.end(), r.markers.begin(), r.markers.end());
   }
   if (!keyframes.empty()) {
-    write_svg_and_png(run / "trajectories.svg",
-                      eval::render_svg(keyframes, "xy", info.name + ": optimised keyframes against ground truth", markers,
-                                       "triangle: switch to DISTRIBUTED, circle: back to CENTRALIZED (sim time)"));
+    write_svg_and_png(
+        run / "trajectories.svg",
+        eval::render_svg(keyframes, "xy", info.name + ": optimised keyframes against ground truth", markers,
+                         "triangle: switch to DISTRIBUTED, circle: back to CENTRALIZED (sim time)"));
   }
   write_svg_and_png(run / "modes.svg", render_timeline(info, robots));
 }
@@ -129,7 +132,8 @@ json write_report(const RunInfo& info) {
   // Final optimised keyframes: the central's final graph for the robots it holds, else the peer's.
   const auto central = central_trajectories(run / "global_graph.g2o", run, info.robots);
   std::vector<RobotResult> robots;
-  for (size_t k = 0; k < info.robots.size(); ++k) robots.push_back(gather_robot(info, info.robots[k], k, central, options));
+  for (size_t k = 0; k < info.robots.size(); ++k)
+    robots.push_back(gather_robot(info, info.robots[k], k, central, options));
   std::optional<TrafficSummary> traffic;
   if (info.traffic_measured) traffic = summarise_traffic(info);
   const json topics = topic_traffic(run, info.robots);
@@ -176,7 +180,8 @@ json merge_runs(const std::vector<json>& rows) {
   }
   for (const std::string& robot : robots) {
     json m;
-    for (const char* key : {"ate_m", "rpe_m", "length_m", "keyframes_ate_m", "corrections", "switches_to_distributed"}) {
+    for (const char* key :
+         {"ate_m", "rpe_m", "length_m", "keyframes_ate_m", "corrections", "switches_to_distributed"}) {
       std::vector<double> v;
       for (const json& r : rows) {
         if (r.contains("robots") && r["robots"].contains(robot) && r["robots"][robot].contains(key)) {

@@ -37,7 +37,7 @@ struct RunInfo {
   uint32_t slam_domain = 0, sim_domain = 0;  // how the per-topic table names the domains
   double wall_s = 0, sim_end_s = 0;
   bool interrupted = false;
-  bool traffic_measured = false;   // per-link counters exist only in netns mode
+  bool traffic_measured = false;  // per-link counters exist only in netns mode
   std::vector<LinkEvent> links;
   std::map<uint32_t, ModeTraffic> traffic;  // per robot
   std::vector<std::string> notes;           // shown in the report (e.g. limits of the network mode)

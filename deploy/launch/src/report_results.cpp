@@ -45,7 +45,8 @@ std::vector<Transition> read_modes(const fs::path& p) {
 
 // Position of the ground truth at the stamp nearest to t.
 Eigen::Vector3d gt_position(const geometry::Trajectory& gt, int64_t t) {
-  auto it = std::lower_bound(gt.begin(), gt.end(), t, [](const geometry::StampedPose& p, int64_t v) { return p.stamp_ns < v; });
+  auto it = std::lower_bound(gt.begin(), gt.end(), t,
+                             [](const geometry::StampedPose& p, int64_t v) { return p.stamp_ns < v; });
   if (it == gt.end()) return gt.back().pose.translation();
   if (it != gt.begin() && std::abs(std::prev(it)->stamp_ns - t) < std::abs(it->stamp_ns - t)) --it;
   return it->pose.translation();
@@ -56,7 +57,8 @@ void write_trajectory_files(const fs::path& rd, const geometry::Trajectory* cent
   if (central) geometry::write_tum((rd / "keyframes_central.tum").string(), *central);
   for (const char* name : {"odometry", "keyframes", "keyframes_central"}) {
     const fs::path tum = rd / (std::string(name) + ".tum");
-    if (fs::exists(tum)) geometry::write_kitti((rd / (std::string(name) + ".kitti")).string(), geometry::read_tum(tum.string()));
+    if (fs::exists(tum))
+      geometry::write_kitti((rd / (std::string(name) + ".kitti")).string(), geometry::read_tum(tum.string()));
   }
 }
 
@@ -194,7 +196,8 @@ json RobotResult::to_json(const eval::EvalOptions& options) const {
   j["keyframes"] = keyframes.to_json(options);
   json jt = json::array();
   for (const Transition& t : transitions) {
-    jt.push_back({{"sim_s", static_cast<double>(t.sim_ns) * 1e-9}, {"from", t.from}, {"to", t.to}, {"reason", t.reason}});
+    jt.push_back(
+        {{"sim_s", static_cast<double>(t.sim_ns) * 1e-9}, {"from", t.from}, {"to", t.to}, {"reason", t.reason}});
   }
   j["transitions"] = jt;
   j["switches_to_distributed"] = switches.to_distributed;
@@ -296,12 +299,13 @@ json TrafficSummary::to_json() const {
   }
   json whole = json::object();
   for (const auto& [link, p] : robot_links_whole_run) whole[link] = p.to_json();
-  return {{"per_link", per_link},
-          {"robot_links_whole_run", whole},
-          {"max_robot_link_bytes_per_keyframe_whole_run", max_robot_link_bytes_per_keyframe_whole_run},
-          {"max_distributed_bytes_per_keyframe_per_link", max_distributed_bytes_per_keyframe_per_link},
-          {"max_distributed_sent_bytes_per_own_keyframe_per_link", max_distributed_sent_bytes_per_own_keyframe_per_link},
-          {"max_distributed_bytes_per_keyframe_both_ends_per_link", max_distributed_bytes_per_keyframe_both_ends_per_link}};
+  return {
+      {"per_link", per_link},
+      {"robot_links_whole_run", whole},
+      {"max_robot_link_bytes_per_keyframe_whole_run", max_robot_link_bytes_per_keyframe_whole_run},
+      {"max_distributed_bytes_per_keyframe_per_link", max_distributed_bytes_per_keyframe_per_link},
+      {"max_distributed_sent_bytes_per_own_keyframe_per_link", max_distributed_sent_bytes_per_own_keyframe_per_link},
+      {"max_distributed_bytes_per_keyframe_both_ends_per_link", max_distributed_bytes_per_keyframe_both_ends_per_link}};
 }
 
 json TrafficSummary::robot_json(uint32_t robot) const {
@@ -321,8 +325,8 @@ TrafficSummary summarise_traffic(const RunInfo& info) {
         std::max(s.max_distributed_bytes_per_keyframe_per_link, l.bytes_per_keyframe().value_or(0.0));
     s.max_distributed_sent_bytes_per_own_keyframe_per_link =
         std::max(s.max_distributed_sent_bytes_per_own_keyframe_per_link, l.sent_per_keyframe().value_or(0.0));
-    s.max_distributed_bytes_per_keyframe_both_ends_per_link =
-        std::max(s.max_distributed_bytes_per_keyframe_both_ends_per_link, l.bytes_per_keyframe_both_ends().value_or(0.0));
+    s.max_distributed_bytes_per_keyframe_both_ends_per_link = std::max(
+        s.max_distributed_bytes_per_keyframe_both_ends_per_link, l.bytes_per_keyframe_both_ends().value_or(0.0));
   }
   s.robot_links_whole_run = robot_pairs_whole_run(info);
   for (const auto& [link, p] : s.robot_links_whole_run) {

@@ -73,8 +73,8 @@ struct LinkModeTraffic {
   uint64_t keyframes_in_mode = 0;    // the robot's own
   uint64_t keyframes_both_ends = 0;  // its own and, for a robot peer, the peer's (the central makes none)
 
-  std::optional<double> sent_per_keyframe() const;            // user data sent per own keyframe
-  std::optional<double> bytes_per_keyframe() const;           // sent and received per own keyframe
+  std::optional<double> sent_per_keyframe() const;             // user data sent per own keyframe
+  std::optional<double> bytes_per_keyframe() const;            // sent and received per own keyframe
   std::optional<double> bytes_per_keyframe_both_ends() const;  // sent and received per keyframe of either end
   nlohmann::json to_json() const;
 };
@@ -94,7 +94,7 @@ struct RobotPairTraffic {
 // central: a DISTRIBUTED robot sends the central no keyframes, only the little a link that comes back
 // carries before the robot rejoins).
 struct TrafficSummary {
-  std::vector<LinkModeTraffic> links;                              // by robot, mode, peer
+  std::vector<LinkModeTraffic> links;                             // by robot, mode, peer
   std::map<std::string, RobotPairTraffic> robot_links_whole_run;  // "robotA-robotB", A < B
   double max_robot_link_bytes_per_keyframe_whole_run = 0;
   double max_distributed_bytes_per_keyframe_per_link = 0;

@@ -9,18 +9,24 @@ namespace fs = std::filesystem;
 
 const char* to_string(NetworkMode m) {
   switch (m) {
-    case NetworkMode::kAuto: return "auto";
-    case NetworkMode::kNetns: return "netns";
-    case NetworkMode::kLoopback: return "loopback";
+    case NetworkMode::kAuto:
+      return "auto";
+    case NetworkMode::kNetns:
+      return "netns";
+    case NetworkMode::kLoopback:
+      return "loopback";
   }
   return "?";
 }
 
 const char* to_string(Variant v) {
   switch (v) {
-    case Variant::kSingle: return "single";
-    case Variant::kDistributed: return "distributed";
-    case Variant::kSwitching: return "switching";
+    case Variant::kSingle:
+      return "single";
+    case Variant::kDistributed:
+      return "distributed";
+    case Variant::kSwitching:
+      return "switching";
   }
   return "?";
 }
@@ -29,35 +35,43 @@ namespace {
 
 // What runs, on which dataset and network.
 void read_run(config::Reader& r, SwarmConfig& c) {
-  r.get<std::string>("name", c.name, [](const std::string& s) {
-    return !s.empty() && s.find_first_of("/ \t") == std::string::npos;
-  }, "a name without spaces or slashes");
+  r.get<std::string>(
+      "name", c.name, [](const std::string& s) { return !s.empty() && s.find_first_of("/ \t") == std::string::npos; },
+      "a name without spaces or slashes");
   r.get<std::string>("scenario", c.scenario);
   r.get<std::string>("dataset", c.dataset);
   int max_scans = 0;
-  r.get<int>("max_scans", max_scans, [](const int& v) { return v >= 0; }, ">= 0");
+  r.get<int>(
+      "max_scans", max_scans, [](const int& v) { return v >= 0; }, ">= 0");
   c.max_scans = static_cast<size_t>(max_scans);
   std::string network = "auto";
-  r.get<std::string>("network", network, [](const std::string& s) {
-    return s == "auto" || s == "netns" || s == "loopback";
-  }, "auto, netns or loopback");
-  c.network = network == "netns" ? NetworkMode::kNetns : network == "loopback" ? NetworkMode::kLoopback : NetworkMode::kAuto;
+  r.get<std::string>(
+      "network", network, [](const std::string& s) { return s == "auto" || s == "netns" || s == "loopback"; },
+      "auto, netns or loopback");
+  c.network = network == "netns"      ? NetworkMode::kNetns
+              : network == "loopback" ? NetworkMode::kLoopback
+                                      : NetworkMode::kAuto;
 }
 
 // How it runs: playback, the system variant, the end of the mission.
 void read_behaviour(config::Reader& r, SwarmConfig& c) {
   r.get<bool>("lockstep", c.lockstep);
-  r.get<double>("rate", c.rate, [](const double& v) { return v > 0; }, "> 0");
+  r.get<double>(
+      "rate", c.rate, [](const double& v) { return v > 0; }, "> 0");
   r.get<bool>("lidar_only", c.lidar_only);
   std::string variant = "switching";
-  r.get<std::string>("variant", variant, [](const std::string& s) {
-    return s == "single" || s == "distributed" || s == "switching";
-  }, "single, distributed or switching");
-  c.variant = variant == "single" ? Variant::kSingle : variant == "distributed" ? Variant::kDistributed : Variant::kSwitching;
+  r.get<std::string>(
+      "variant", variant, [](const std::string& s) { return s == "single" || s == "distributed" || s == "switching"; },
+      "single, distributed or switching");
+  c.variant = variant == "single"        ? Variant::kSingle
+              : variant == "distributed" ? Variant::kDistributed
+                                         : Variant::kSwitching;
   r.get<bool>("frontend_correction", c.frontend_correction);
-  r.get<double>("settle_s", c.settle_s, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get<double>(
+      "settle_s", c.settle_s, [](const double& v) { return v >= 0; }, ">= 0");
   r.get<bool>("map", c.map);
-  r.get<double>("rendezvous_s", c.rendezvous_s, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get<double>(
+      "rendezvous_s", c.rendezvous_s, [](const double& v) { return v >= 0; }, ">= 0");
 }
 
 void read_domains(config::Reader& r, SwarmConfig& c) {
@@ -105,7 +119,8 @@ SwarmConfig load_swarm(const std::string& path, const std::string& root) {
   r.get<std::string>("configs.central_optimiser", c.central_config);
   r.get<std::string>("configs.map", c.map_config);
   if (c.dataset.empty()) r.error("dataset: required (the folder is generated from 'scenario' when missing)");
-  if (c.slam_domain == c.sim_domain) r.error("slam_domain and sim_domain must differ (sensors never cross the emulated radio)");
+  if (c.slam_domain == c.sim_domain)
+    r.error("slam_domain and sim_domain must differ (sensors never cross the emulated radio)");
   resolve_paths(r, c, root);
   r.finish();
   return c;

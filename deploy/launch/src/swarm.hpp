@@ -17,25 +17,25 @@ enum class Variant {
 };
 
 struct SwarmConfig {
-  std::string path;          // the swarm file itself
+  std::string path;  // the swarm file itself
   std::string name = "swarm";
-  std::string scenario;      // cdc-sim scenario; the dataset is generated from it when missing
-  std::string dataset;       // dataset folder (relative paths: to the project root)
-  size_t max_scans = 0;      // per robot; 0: the whole dataset
+  std::string scenario;  // cdc-sim scenario; the dataset is generated from it when missing
+  std::string dataset;   // dataset folder (relative paths: to the project root)
+  size_t max_scans = 0;  // per robot; 0: the whole dataset
   NetworkMode network = NetworkMode::kAuto;
-  uint32_t slam_domain = 1;  // every SLAM topic (crosses the emulated radio)
-  uint32_t sim_domain = 2;   // sensors, lock-step progress and the radio state (never cut)
+  uint32_t slam_domain = 1;          // every SLAM topic (crosses the emulated radio)
+  uint32_t sim_domain = 2;           // sensors, lock-step progress and the radio state (never cut)
   uint32_t local_domain_base = 100;  // robot K's own domain is this + K: its services talk there
                                      // (keyframes, corrections, its own descriptors and loops), never on the radio
   bool lockstep = true;
-  double rate = 1.0;         // without lock-step: sim seconds per wall second
+  double rate = 1.0;  // without lock-step: sim seconds per wall second
   bool lidar_only = false;
   Variant variant = Variant::kSwitching;
   bool frontend_correction = true;  // (d) with, (c) without
-  double settle_s = 5.0;     // after the last sweep: time for the back-ends before shutdown
-  double rendezvous_s = 0;   // > 0: after the last sweep every robot comes back in range (the end of the
-                             // mission); the run ends once all are CENTRALIZED, the central holding
-                             // all their keyframes, for settle_s; at most rendezvous_s + settle_s later
+  double settle_s = 5.0;            // after the last sweep: time for the back-ends before shutdown
+  double rendezvous_s = 0;          // > 0: after the last sweep every robot comes back in range (the end of the
+                                    // mission); the run ends once all are CENTRALIZED, the central holding
+                                    // all their keyframes, for settle_s; at most rendezvous_s + settle_s later
   std::string frontend_config = "services/frontend/config/frontend.yaml";
   std::string descriptor_config = "services/descriptor/config/descriptor.yaml";
   std::string loop_closure_config = "services/loop_closure/config/loop_closure.yaml";

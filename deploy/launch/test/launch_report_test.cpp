@@ -4,11 +4,11 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <optional>
-#include <unistd.h>
 
 namespace fs = std::filesystem;
 
@@ -101,7 +101,8 @@ TEST(Report, DistributedTrafficPerKeyframeOfBothEnds) {
   EXPECT_DOUBLE_EQ(j["traffic"]["max_distributed_bytes_per_keyframe_both_ends_per_link"].get<double>(), 2000.0);
   std::ifstream md(fs::path(info.run_dir) / "report.md");
   const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
-  EXPECT_NE(text.find("| robot1 - robot2 | DISTRIBUTED | 20000 | 60000 | 0 | 10 | 2000 | 8000 | 40 | 2000 |"), std::string::npos);
+  EXPECT_NE(text.find("| robot1 - robot2 | DISTRIBUTED | 20000 | 60000 | 0 | 10 | 2000 | 8000 | 40 | 2000 |"),
+            std::string::npos);
 }
 
 TEST(Report, LoopClosureCountsAndLatencyPerRobot) {
@@ -134,7 +135,8 @@ TEST(Report, LoopClosureCountsAndLatencyPerRobot) {
 TEST(MergeRuns, MediansPerRobotOverTheRunsThatHaveThem) {
   auto row = [](double wall, double ate0, double kf0, std::optional<double> ate1) {
     nlohmann::json r{{"wall_s", wall}};
-    r["robots"]["0"] = {{"ate_m", ate0}, {"rpe_m", 0.001}, {"length_m", 500.0}, {"keyframes_ate_m", kf0}, {"corrections", 10}};
+    r["robots"]["0"] = {
+        {"ate_m", ate0}, {"rpe_m", 0.001}, {"length_m", 500.0}, {"keyframes_ate_m", kf0}, {"corrections", 10}};
     if (ate1) r["robots"]["1"] = {{"ate_m", *ate1}, {"rpe_m", 0.002}, {"length_m", 300.0}};
     return r;
   };

@@ -14,9 +14,9 @@ const Clock::time_point kStart = Clock::time_point{} + 1000s;
 TEST(Rendezvous, EndsOnceEveryoneIsInAndCaughtUpForTheSettlingTime) {
   Rendezvous w(kStart, 5s, 60s);
   EXPECT_FALSE(w.update({1}, {0, 1}, kStart + 1s));
-  EXPECT_FALSE(w.update({}, {1}, kStart + 3s));   // all rejoined at 3 s
-  EXPECT_FALSE(w.update({}, {}, kStart + 4s));    // all caught up at 4 s
-  EXPECT_FALSE(w.update({}, {}, kStart + 8s));    // 4 s since both: not yet
+  EXPECT_FALSE(w.update({}, {1}, kStart + 3s));  // all rejoined at 3 s
+  EXPECT_FALSE(w.update({}, {}, kStart + 4s));   // all caught up at 4 s
+  EXPECT_FALSE(w.update({}, {}, kStart + 8s));   // 4 s since both: not yet
   EXPECT_TRUE(w.update({}, {}, kStart + 9s));
   EXPECT_DOUBLE_EQ(w.waited_s(), 3.0);
   ASSERT_TRUE(w.caught_up_s().has_value());

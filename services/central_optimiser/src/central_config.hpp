@@ -12,17 +12,17 @@ namespace cdc::central {
 
 struct CentralNodeOptions {
   uint32_t domain = 0;
-  std::string dds_config;     // empty: CYCLONEDDS_URI
+  std::string dds_config;  // empty: CYCLONEDDS_URI
   CentralConfig core;
   uint32_t central_id = 200;  // node id of the central in status messages
   int central_on_robot = 0;   // the central rides on this robot; -1: fixed position
   Eigen::Vector3d central_position = Eigen::Vector3d::Zero();
-  int lease_ms = 1000;        // liveliness lease of the results writer
-  int update_period_ms = 100; // least time between optimisations
-  int max_result_age_ms = 2000; // results of an unsettled graph are held back at most this long
+  int lease_ms = 1000;           // liveliness lease of the results writer
+  int update_period_ms = 100;    // least time between optimisations
+  int max_result_age_ms = 2000;  // results of an unsettled graph are held back at most this long
   int status_period_ms = 250;
-  std::string graph_out;      // write the final graph (g2o) here at shutdown
-  std::string stats_out;      // write counters (JSON) here at shutdown
+  std::string graph_out;  // write the final graph (g2o) here at shutdown
+  std::string stats_out;  // write counters (JSON) here at shutdown
   std::string log_level = "info";
 };
 

@@ -77,10 +77,11 @@ void log_result(uint64_t version, const RobotEstimate& e) {
   const Eigen::Vector3d rv = r.angle() * r.axis() * 1e3;
   const auto& [id, P] = e.poses.back();
   const Eigen::Vector3d w = P.translation(), l = (T.inverse() * P).translation();
-  spdlog::debug("graph version {}: robot {}{}: T_world_robot ({:.3f}, {:.3f}, {:.3f}) m ({:.3f}, {:.3f}, {:.3f}) mrad; "
-                "newest keyframe {} at ({:.3f}, {:.3f}, {:.3f}) in W, ({:.3f}, {:.3f}, {:.3f}) in L",
-                version, e.robot, e.from_hint ? " (hint)" : "", T.translation().x(), T.translation().y(),
-                T.translation().z(), rv.x(), rv.y(), rv.z(), id, w.x(), w.y(), w.z(), l.x(), l.y(), l.z());
+  spdlog::debug(
+      "graph version {}: robot {}{}: T_world_robot ({:.3f}, {:.3f}, {:.3f}) m ({:.3f}, {:.3f}, {:.3f}) mrad; "
+      "newest keyframe {} at ({:.3f}, {:.3f}, {:.3f}) in W, ({:.3f}, {:.3f}, {:.3f}) in L",
+      version, e.robot, e.from_hint ? " (hint)" : "", T.translation().x(), T.translation().y(), T.translation().z(),
+      rv.x(), rv.y(), rv.z(), id, w.x(), w.y(), w.z(), l.x(), l.y(), l.z());
 }
 
 }  // namespace
@@ -145,7 +146,8 @@ void CentralNode::on_keyframe(const cdc_msg_Keyframe& m) {
 
 void CentralNode::on_loop(const cdc_msg_LoopClosure& m) {
   const AddResult r = core_.add_loop(to_core(m));
-  if (r.outcome == Outcome::kRejected) service_.boundary().refuse(topics::kLoopClosure, dds::Validation::fail(r.reason));
+  if (r.outcome == Outcome::kRejected)
+    service_.boundary().refuse(topics::kLoopClosure, dds::Validation::fail(r.reason));
   acks_dirty_ = acks_dirty_ || r.outcome == Outcome::kAccepted;
 }
 

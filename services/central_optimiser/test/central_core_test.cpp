@@ -6,11 +6,11 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <random>
-#include <unistd.h>
 
 namespace cdc::central {
 namespace {
@@ -76,10 +76,10 @@ TEST(CentralCore, PlacesEveryRobotThroughInterRobotLoopsAndTracksTheTruth) {
     const double n = static_cast<double>(e.poses.size());
     EXPECT_LT(misfit, misfit_first) << "robot " << e.robot;
     EXPECT_LT(std::sqrt(truth / n), std::sqrt(truth_first / n)) << "robot " << e.robot;
-    std::printf("robot %u: odometry laid by the fit %.3f m RMS from the estimate, %.3f from the truth "
-                "(held at the first keyframe: %.3f, %.3f)\n",
-                e.robot, std::sqrt(misfit / n), std::sqrt(truth / n), std::sqrt(misfit_first / n),
-                std::sqrt(truth_first / n));
+    std::printf(
+        "robot %u: odometry laid by the fit %.3f m RMS from the estimate, %.3f from the truth "
+        "(held at the first keyframe: %.3f, %.3f)\n",
+        e.robot, std::sqrt(misfit / n), std::sqrt(truth / n), std::sqrt(misfit_first / n), std::sqrt(truth_first / n));
   }
   EXPECT_LT(max_position_error(core, s), 1.0);
   EXPECT_EQ(core.counters().keyframes_accepted, 750u);

@@ -1,9 +1,9 @@
 #include "descriptor_node.hpp"
 
 #include "cdc/dds/convert.hpp"
-#include "cdc/dds_lidar/descriptor_convert.hpp"
 #include "cdc/dds/qos.hpp"
 #include "cdc/dds/topics.hpp"
+#include "cdc/dds_lidar/descriptor_convert.hpp"
 #include "cdc/runtime/stats.hpp"
 
 #include <spdlog/spdlog.h>
@@ -43,13 +43,15 @@ DescriptorNode::DescriptorNode(const runtime::ServiceOptions& common, const Desc
     w_desc_local_.emplace(service_.secondary(), *t_desc_local_, dds::qos::event_stream(256));
   }
   const uint32_t me = common.robot;
-  keyframes_.filter([me](const cdc_msg_Keyframe& m) { return m.robot_id == me; })
-      .on([this](const cdc_msg_Keyframe& m) { on_keyframe(m); });
+  keyframes_.filter([me](const cdc_msg_Keyframe& m) { return m.robot_id == me; }).on([this](const cdc_msg_Keyframe& m) {
+    on_keyframe(m);
+  });
   syncs_.filter([me](const cdc_msg_DescriptorSync& m) { return m.owner_robot_id == me; })
       .on([this](const cdc_msg_DescriptorSync& m) { on_sync(m); });
-  spdlog::info("descriptor service of robot {} up: Scan Context {}x{} to {} m, domain {}{}", me, o.sc.rings,
-               o.sc.sectors, o.sc.max_range_m, common.domain_id(),
-               service_.split() ? ", own keyframes on local domain " + std::to_string(common.local_domain) : std::string());
+  spdlog::info(
+      "descriptor service of robot {} up: Scan Context {}x{} to {} m, domain {}{}", me, o.sc.rings, o.sc.sectors,
+      o.sc.max_range_m, common.domain_id(),
+      service_.split() ? ", own keyframes on local domain " + std::to_string(common.local_domain) : std::string());
 }
 
 void DescriptorNode::spin() {

@@ -7,9 +7,9 @@
 
 #include "descriptor_config.hpp"
 
-#include "cdc/descriptor/descriptor_core.hpp"
 #include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/types.hpp"
+#include "cdc/descriptor/descriptor_core.hpp"
 #include "cdc/runtime/input.hpp"
 #include "cdc/runtime/options.hpp"
 #include "cdc/runtime/service.hpp"
@@ -52,7 +52,7 @@ class DescriptorNode {
   DescriptorCore core_;
   DescriptorNodeCounters counters_;
   std::vector<Eigen::Vector3f> points_;
-  cdc_msg_Descriptor msg_{};   // the message being written; its cells borrow cells_
+  cdc_msg_Descriptor msg_{};  // the message being written; its cells borrow cells_
   std::vector<uint8_t> cells_;
 };
 

@@ -20,7 +20,8 @@ odometry::RegistrationParams AdaptiveGate::params() const {
   if (errors_.size() < kMinHistory) return with_gate(p_.registration, p_.initial_gate_m, p_.kernel_divisor);
   const double ms = std::accumulate(errors_.begin(), errors_.end(), 0.0, [](double a, double e) { return a + e * e; }) /
                     static_cast<double>(errors_.size());
-  return with_gate(p_.registration, std::clamp(kSigmas * std::sqrt(ms), p_.min_gate_m, p_.max_gate_m), p_.kernel_divisor);
+  return with_gate(p_.registration, std::clamp(kSigmas * std::sqrt(ms), p_.min_gate_m, p_.max_gate_m),
+                   p_.kernel_divisor);
 }
 
 void AdaptiveGate::record(const Eigen::Isometry3d& prediction, const Eigen::Isometry3d& registered) {

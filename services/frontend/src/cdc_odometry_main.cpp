@@ -87,15 +87,20 @@ void add_options(CLI::App& app, Options& o) {
   app.add_option("--robot", o.robot, "robot of a cdc-sim dataset")->capture_default_str();
   app.add_flag("--kitti", o.kitti, "DATASET is a KITTI velodyne folder");
   app.add_option("--poses", o.poses, "poses, 3x4 row-major per sweep (for --kitti)")->check(CLI::ExistingFile);
-  app.add_option("--poses-frame", o.poses_frame, "camera: KITTI ground truth (T_world_cam0, needs --calib); lidar: the LiDAR's poses")
+  app.add_option("--poses-frame", o.poses_frame,
+                 "camera: KITTI ground truth (T_world_cam0, needs --calib); lidar: the LiDAR's poses")
       ->check(CLI::IsMember({"camera", "lidar"}))
       ->capture_default_str();
-  app.add_option("--calib", o.calib, "KITTI calibration holding Tr (calib.txt or calib_Tr.txt; for --poses-frame camera)")
+  app.add_option("--calib", o.calib,
+                 "KITTI calibration holding Tr (calib.txt or calib_Tr.txt; for --poses-frame camera)")
       ->check(CLI::ExistingFile);
   app.add_option("--calib-key", o.calib_key, "the calibration entry holding T_cam0_velo")->capture_default_str();
-  app.add_option("--times", o.times_path, "sweep times, seconds per line (for --kitti; default DIR/times.txt or frame x period)")
+  app.add_option("--times", o.times_path,
+                 "sweep times, seconds per line (for --kitti; default DIR/times.txt or frame x period)")
       ->check(CLI::ExistingFile);
-  app.add_option("--period", o.period_s, "sweep period [s] (for --kitti)")->capture_default_str()->check(CLI::PositiveNumber);
+  app.add_option("--period", o.period_s, "sweep period [s] (for --kitti)")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
   app.add_option("--config", o.config_path,
                  "front-end configuration (services/frontend/config/frontend.yaml; default: its defaults); the flags "
                  "below override it")
@@ -104,9 +109,10 @@ void add_options(CLI::App& app, Options& o) {
   app.add_flag("--no-deskew", o.no_deskew, "do not deskew sweeps");
   app.add_flag("--no-imu-window", o.no_imu_window,
                "predict sweeps from constant velocity and the raw gyro instead of the sliding-window IMU estimator");
-  app.add_flag("--imu-deskew", o.imu_deskew,
-               "deskew with the IMU's whole motion (translation from the window's velocity) instead of its rotation and "
-               "constant-velocity translation");
+  app.add_flag(
+      "--imu-deskew", o.imu_deskew,
+      "deskew with the IMU's whole motion (translation from the window's velocity) instead of its rotation and "
+      "constant-velocity translation");
   app.add_flag("--no-level", o.no_level,
                "do not level the odometry with the IMU window's gravity "
                "(roll, pitch and height then follow the map's tilt)");
@@ -151,7 +157,8 @@ Run run_core(frontend::FrontendCore& core, const Input& in, bool use_imu) {
   std::vector<frontend::ScanPoint> pts;
   for (const io::DatasetScan& s : in.scans) {
     pts.clear();
-    for (const io::CloudPoint& p : io::read_dataset_scan(s).points) pts.push_back({Eigen::Vector3f(p.x, p.y, p.z), p.time_offset, p.ring});
+    for (const io::CloudPoint& p : io::read_dataset_scan(s).points)
+      pts.push_back({Eigen::Vector3f(p.x, p.y, p.z), p.time_offset, p.ring});
     const auto t0 = std::chrono::steady_clock::now();
     while (use_imu && imu_next < in.imu.size() && in.imu[imu_next].stamp_ns <= s.stamp_ns + sweep_ns) {
       core.add_imu({in.imu[imu_next].stamp_ns, in.imu[imu_next].gyro, in.imu[imu_next].accel});
@@ -165,8 +172,8 @@ Run run_core(frontend::FrontendCore& core, const Input& in, bool use_imu) {
   return run;
 }
 
-nlohmann::json make_report(const Options& o, const Input& in, const Run& run, const frontend::FrontendStats& st, bool use_imu,
-                           double wall_s) {
+nlohmann::json make_report(const Options& o, const Input& in, const Run& run, const frontend::FrontendStats& st,
+                           bool use_imu, double wall_s) {
   return nlohmann::json{{"dataset", o.input},
                         {"scans", run.odometry.size()},
                         {"keyframes", run.keyframes.size()},
@@ -186,7 +193,8 @@ nlohmann::json make_report(const Options& o, const Input& in, const Run& run, co
 
 // Drift, ATE and RPE per sweep against the ground truth, expressed from the first scan's pose like
 // the odometry (nothing without ground truth).
-void add_accuracy(nlohmann::json& report, const geometry::Trajectory& odometry, const geometry::Trajectory& groundtruth) {
+void add_accuracy(nlohmann::json& report, const geometry::Trajectory& odometry,
+                  const geometry::Trajectory& groundtruth) {
   if (groundtruth.empty() || odometry.empty()) return;
   const auto gt_at = [&](int64_t stamp) { return geometry::interpolate_at(groundtruth, stamp); };
   geometry::Poses est, gt;
@@ -204,8 +212,11 @@ void add_accuracy(nlohmann::json& report, const geometry::Trajectory& odometry, 
   report["drift_rot_deg_per_100m"] = d.rotation_deg_per_100m;
   report["ate_m"] = ate.translation.rmse;
   const geometry::RpeResult rpe = geometry::compute_rpe_frames(est, gt, 1);
-  report["rpe_per_sweep"] = {{"translation_m", {{"rmse", rpe.translation.rmse}, {"median", rpe.translation.median}, {"max", rpe.translation.max}}},
-                             {"rotation_deg", {{"rmse", rpe.rotation_deg.rmse}, {"median", rpe.rotation_deg.median}, {"max", rpe.rotation_deg.max}}}};
+  report["rpe_per_sweep"] = {
+      {"translation_m",
+       {{"rmse", rpe.translation.rmse}, {"median", rpe.translation.median}, {"max", rpe.translation.max}}},
+      {"rotation_deg",
+       {{"rmse", rpe.rotation_deg.rmse}, {"median", rpe.rotation_deg.median}, {"max", rpe.rotation_deg.max}}}};
 }
 
 void write_outputs(const std::string& out_dir, const Run& run, const nlohmann::json& report) {
@@ -217,11 +228,12 @@ void write_outputs(const std::string& out_dir, const Run& run, const nlohmann::j
 }
 
 void print_summary(const std::string& input, const nlohmann::json& report) {
-  std::cout << input << ": " << report["scans"].get<size_t>() << " scans, " << report["keyframes"].get<size_t>() << " keyframes, "
-            << report["scans_per_s"].get<double>() << " scans/s";
+  std::cout << input << ": " << report["scans"].get<size_t>() << " scans, " << report["keyframes"].get<size_t>()
+            << " keyframes, " << report["scans_per_s"].get<double>() << " scans/s";
   if (report.contains("ate_m")) {
-    std::cout << "; drift " << report["drift_trans_pct"].get<double>() << " % / " << report["drift_rot_deg_per_100m"].get<double>()
-              << " deg/100m, ATE " << report["ate_m"].get<double>() << " m";
+    std::cout << "; drift " << report["drift_trans_pct"].get<double>() << " % / "
+              << report["drift_rot_deg_per_100m"].get<double>() << " deg/100m, ATE " << report["ate_m"].get<double>()
+              << " m";
   }
   std::cout << '\n';
 }

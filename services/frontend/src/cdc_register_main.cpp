@@ -30,28 +30,45 @@ void add_options(CLI::App& app, Options& o) {
   app.add_option("source", o.source, "the sweep to move")->required()->check(CLI::ExistingFile);
   app.add_option("target", o.target, "the sweep it is registered onto")->required()->check(CLI::ExistingFile);
   app.add_option("--reference", o.reference, "reference T_target_source (4x4, 16 numbers)")->check(CLI::ExistingFile);
-  app.add_option("--source-voxel", p.source_voxel_m, "downsampling of the source [m]")->capture_default_str()->check(CLI::PositiveNumber);
-  app.add_option("--target-voxel", p.target_voxel_m, "downsampling of the target [m]")->capture_default_str()->check(CLI::PositiveNumber);
-  app.add_option("--map-voxel", p.map_voxel_m, "voxel of the target map [m]")->capture_default_str()->check(CLI::PositiveNumber);
-  app.add_option("--normal-neighbours", p.normal_neighbours, "points per source normal")->capture_default_str()->check(CLI::Range(3, 100));
+  app.add_option("--source-voxel", p.source_voxel_m, "downsampling of the source [m]")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  app.add_option("--target-voxel", p.target_voxel_m, "downsampling of the target [m]")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  app.add_option("--map-voxel", p.map_voxel_m, "voxel of the target map [m]")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  app.add_option("--normal-neighbours", p.normal_neighbours, "points per source normal")
+      ->capture_default_str()
+      ->check(CLI::Range(3, 100));
   app.add_option("--method", o.method, "point-to-plane (the front-end's) or gicp (generalized ICP, plane-to-plane)")
       ->capture_default_str()
       ->check(CLI::IsMember({"point-to-plane", "gicp"}));
-  app.add_option("--gicp-voxel", p.gicp_voxel_m, "gicp: downsampling of both clouds [m]")->capture_default_str()->check(CLI::PositiveNumber);
-  app.add_option("--gicp-neighbours", p.gicp_neighbours, "gicp: points per covariance")->capture_default_str()->check(CLI::Range(5, 100));
+  app.add_option("--gicp-voxel", p.gicp_voxel_m, "gicp: downsampling of both clouds [m]")
+      ->capture_default_str()
+      ->check(CLI::PositiveNumber);
+  app.add_option("--gicp-neighbours", p.gicp_neighbours, "gicp: points per covariance")
+      ->capture_default_str()
+      ->check(CLI::Range(5, 100));
   app.add_option("--gicp-max-correspondence", p.gicp_max_correspondence_m, "gicp: correspondence distance [m]")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  app.add_option("--score", o.scores,
-                 "also score these transforms (4x4 files) and the result: point-to-plane RMS of the matched source points "
-                 "(0.1 m voxels, within 0.2 m) and how many matched, to compare references")
+  app.add_option(
+         "--score", o.scores,
+         "also score these transforms (4x4 files) and the result: point-to-plane RMS of the matched source points "
+         "(0.1 m voxels, within 0.2 m) and how many matched, to compare references")
       ->check(CLI::ExistingFile);
   app.add_flag("--json", o.json, "print one JSON object instead");
 }
 
 nlohmann::json score_of(const std::string& name, const odometry::AlignmentScore& a) {
-  return {{"transform", name},         {"matched", a.matched},           {"within_1cm", a.within_1cm},
-          {"within_2cm", a.within_2cm}, {"source_points", a.source_points}, {"rms_point_to_plane_m", a.rms_point_to_plane_m}};
+  return {{"transform", name},
+          {"matched", a.matched},
+          {"within_1cm", a.within_1cm},
+          {"within_2cm", a.within_2cm},
+          {"source_points", a.source_points},
+          {"rms_point_to_plane_m", a.rms_point_to_plane_m}};
 }
 
 // The registration, its distance to the reference and the scores, as one JSON object; throws on
@@ -59,12 +76,15 @@ nlohmann::json score_of(const std::string& name, const odometry::AlignmentScore&
 nlohmann::json register_sweeps(const Options& o) {
   const auto src = odometry::read_cloud_file(o.source), tgt = odometry::read_cloud_file(o.target);
   if (src.size() < 100 || tgt.size() < 100) {
-    throw std::runtime_error("too few points (" + std::to_string(src.size()) + " in the source, " + std::to_string(tgt.size()) +
-                             " in the target)");
+    throw std::runtime_error("too few points (" + std::to_string(src.size()) + " in the source, " +
+                             std::to_string(tgt.size()) + " in the target)");
   }
   const odometry::RegistrationOutput r = odometry::register_pair(src, tgt, Eigen::Isometry3d::Identity(), o.p);
-  nlohmann::json out{{"source_points", src.size()}, {"target_points", tgt.size()}, {"correspondences", r.correspondences},
-                     {"rmse_m", r.rmse}, {"converged", r.converged}};
+  nlohmann::json out{{"source_points", src.size()},
+                     {"target_points", tgt.size()},
+                     {"correspondences", r.correspondences},
+                     {"rmse_m", r.rmse},
+                     {"converged", r.converged}};
   std::vector<double> m;
   for (int i = 0; i < 4; ++i) {
     for (int j = 0; j < 4; ++j) m.push_back(r.T_map_sensor.matrix()(i, j));
@@ -77,14 +97,16 @@ nlohmann::json register_sweeps(const Options& o) {
   }
   if (!o.scores.empty()) {
     out["scores"].push_back(score_of("result", odometry::score_alignment(src, tgt, r.T_map_sensor)));
-    for (const std::string& f : o.scores) out["scores"].push_back(score_of(f, odometry::score_alignment(src, tgt, odometry::read_matrix_file(f))));
+    for (const std::string& f : o.scores)
+      out["scores"].push_back(score_of(f, odometry::score_alignment(src, tgt, odometry::read_matrix_file(f))));
   }
   return out;
 }
 
 void print_text(const nlohmann::json& out) {
   const std::vector<double> m = out["T_target_source"].get<std::vector<double>>();
-  for (size_t i = 0; i < 4; ++i) std::printf("%12.8f %12.8f %12.8f %12.8f\n", m[4 * i], m[4 * i + 1], m[4 * i + 2], m[4 * i + 3]);
+  for (size_t i = 0; i < 4; ++i)
+    std::printf("%12.8f %12.8f %12.8f %12.8f\n", m[4 * i], m[4 * i + 1], m[4 * i + 2], m[4 * i + 3]);
   std::printf("%zu source / %zu target points, %d correspondences, rmse %.4f m%s\n", out["source_points"].get<size_t>(),
               out["target_points"].get<size_t>(), out["correspondences"].get<int>(), out["rmse_m"].get<double>(),
               out["converged"].get<bool>() ? "" : ", NOT converged");
@@ -95,8 +117,9 @@ void print_text(const nlohmann::json& out) {
   if (!out.contains("scores")) return;
   for (const auto& sc : out["scores"]) {
     std::printf("score of %s: %zu of %zu points matched, %zu within 1 cm of a plane and %zu within 2 cm, rms %.2f mm\n",
-                sc["transform"].get<std::string>().c_str(), sc["matched"].get<size_t>(), sc["source_points"].get<size_t>(),
-                sc["within_1cm"].get<size_t>(), sc["within_2cm"].get<size_t>(), sc["rms_point_to_plane_m"].get<double>() * 1e3);
+                sc["transform"].get<std::string>().c_str(), sc["matched"].get<size_t>(),
+                sc["source_points"].get<size_t>(), sc["within_1cm"].get<size_t>(), sc["within_2cm"].get<size_t>(),
+                sc["rms_point_to_plane_m"].get<double>() * 1e3);
   }
 }
 

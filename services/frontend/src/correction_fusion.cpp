@@ -6,8 +6,9 @@ namespace cdc::frontend {
 
 CorrectionFusion::CorrectionFusion(const FrontendParams& params) : p_(params) {}
 
-bool CorrectionFusion::set_correction(const Eigen::Isometry3d& T_odom_keyframe, const Eigen::Isometry3d& T_world_keyframe,
-                                      const Eigen::Isometry3d& T_world_robot, bool levelled) {
+bool CorrectionFusion::set_correction(const Eigen::Isometry3d& T_odom_keyframe,
+                                      const Eigen::Isometry3d& T_world_keyframe, const Eigen::Isometry3d& T_world_robot,
+                                      bool levelled) {
   // The keyframe's corrected pose in the odometry frame, and the map from raw to corrected odometry.
   const Eigen::Isometry3d corrected = T_world_robot.inverse() * T_world_keyframe;
   Eigen::Isometry3d C = corrected * T_odom_keyframe.inverse();

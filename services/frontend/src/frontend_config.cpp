@@ -20,7 +20,8 @@ void read_registration(config::Reader& r, FrontendParams& p) {
   r.get<double>("registration.voxel_m", p.voxel_m, positive, "> 0");
   r.get<double>("registration.map_voxel_m", p.map.voxel_m, positive, "> 0");
   r.get<double>("registration.map_range_m", p.map.max_range_m, positive, "> 0");
-  r.get<int>("registration.map_points_per_voxel", p.map.max_points, [](const int& v) { return v > 0; }, "> 0");
+  r.get<int>(
+      "registration.map_points_per_voxel", p.map.max_points, [](const int& v) { return v > 0; }, "> 0");
   r.get<double>("registration.initial_gate_m", p.initial_gate_m, positive, "> 0");
   r.get<double>("registration.normal_voxel_m", p.normal_voxel_m, non_negative, ">= 0");
   r.get<bool>("deskew", p.deskew);
@@ -28,7 +29,8 @@ void read_registration(config::Reader& r, FrontendParams& p) {
   r.get<double>("recovery.poor_fit_ratio", p.recovery.poor_fit_ratio, fraction, "in (0, 1]");
   r.get<double>("recovery.good_fit_ratio", p.recovery.good_fit_ratio, fraction, "in (0, 1]");
   r.get<bool>("recovery.global", p.recovery.global);
-  r.get<int>("image_columns", p.image_columns, [](const int& v) { return v >= 100; }, ">= 100");
+  r.get<int>(
+      "image_columns", p.image_columns, [](const int& v) { return v >= 100; }, ">= 100");
 }
 
 // Keyframes and fusion; the angles in degrees, as the file gives them.
@@ -58,8 +60,10 @@ void read_imu(config::Reader& r, FrontendNodeOptions& o) {
   r.get<bool>("imu.window.refine_gravity", p.window.refine_gravity);
   r.get<double>("imu.window.gravity_prior_sigma", p.window.gravity_prior_sigma, positive, "> 0");
   int window = static_cast<int>(p.window.size), align = static_cast<int>(p.window.align_sweeps);
-  r.get<int>("imu.window.size", window, [](const int& v) { return v >= 2 && v <= 100; }, "2..100");
-  r.get<int>("imu.window.align_sweeps", align, [](const int& v) { return v >= 3 && v <= 1000; }, "3..1000");
+  r.get<int>(
+      "imu.window.size", window, [](const int& v) { return v >= 2 && v <= 100; }, "2..100");
+  r.get<int>(
+      "imu.window.align_sweeps", align, [](const int& v) { return v >= 3 && v <= 1000; }, "3..1000");
   r.get<double>("imu.window.gyro_noise", p.window.noise.gyro_noise, positive, "> 0");
   r.get<double>("imu.window.accel_noise", p.window.noise.accel_noise, positive, "> 0");
   r.get<double>("imu.window.gyro_bias_walk", p.window.noise.gyro_bias_walk, positive, "> 0");
@@ -68,7 +72,8 @@ void read_imu(config::Reader& r, FrontendNodeOptions& o) {
   p.window.align_sweeps = static_cast<size_t>(align);
   r.get<bool>("imu.level_with_gravity", p.level_with_gravity);
   int level_sweeps = static_cast<int>(p.level_reference_sweeps);
-  r.get<int>("imu.level_reference_sweeps", level_sweeps, [](const int& v) { return v >= 1; }, ">= 1");
+  r.get<int>(
+      "imu.level_reference_sweeps", level_sweeps, [](const int& v) { return v >= 1; }, ">= 1");
   p.level_reference_sweeps = static_cast<size_t>(level_sweeps);
 }
 
@@ -78,15 +83,18 @@ FrontendNodeOptions load_frontend_options(const std::string& path) {
   FrontendNodeOptions o;
   config::Reader r(path);
   int robots = static_cast<int>(o.robots);
-  r.get<int>("robots", robots, [](const int& v) { return v >= 1 && v <= 254; }, "1..254");
+  r.get<int>(
+      "robots", robots, [](const int& v) { return v >= 1 && v <= 254; }, "1..254");
   o.robots = static_cast<uint32_t>(robots);
   read_registration(r, o.core);
   const Degrees deg = read_keyframes_and_fusion(r, o.core);
   read_imu(r, o);
   std::vector<double> t = {0, 0, 0}, q = {0, 0, 0, 1};
-  r.get<std::vector<double>>("imu.T_lidar_imu.position", t, [](const std::vector<double>& v) { return v.size() == 3; }, "3 numbers");
-  r.get<std::vector<double>>("imu.T_lidar_imu.orientation", q, [](const std::vector<double>& v) { return v.size() == 4; },
-                             "4 numbers (x, y, z, w)");
+  r.get<std::vector<double>>(
+      "imu.T_lidar_imu.position", t, [](const std::vector<double>& v) { return v.size() == 3; }, "3 numbers");
+  r.get<std::vector<double>>(
+      "imu.T_lidar_imu.orientation", q, [](const std::vector<double>& v) { return v.size() == 4; },
+      "4 numbers (x, y, z, w)");
   r.get<std::string>("log_level", o.log_level);
   const Eigen::Quaterniond quat(q[3], q[0], q[1], q[2]);
   if (std::abs(quat.norm() - 1.0) > 1e-3) r.error("imu.T_lidar_imu.orientation: not a unit quaternion");

@@ -11,13 +11,13 @@ namespace cdc::frontend {
 
 struct FrontendNodeOptions {
   uint32_t robot = 0, robots = 3, domain = 0;
-  int sensor_domain = -1;           // >= 0: sweeps, IMU and progress on this domain (the simulator's)
+  int sensor_domain = -1;  // >= 0: sweeps, IMU and progress on this domain (the simulator's)
   std::string dds_config, stats_out, trajectory_out, log_level = "info";
-  std::string sensor_dds_config;    // configuration of the sensor domain; empty: as dds_config
+  std::string sensor_dds_config;  // configuration of the sensor domain; empty: as dds_config
   FrontendParams core;
   bool use_imu = true;
-  bool take_corrections = true;     // false: the back-end's corrections are ignored (an ablation)
-  double imu_gap_s = 0.05;          // a larger gap between IMU samples is reported and bridged by constant velocity
+  bool take_corrections = true;  // false: the back-end's corrections are ignored (an ablation)
+  double imu_gap_s = 0.05;       // a larger gap between IMU samples is reported and bridged by constant velocity
   std::chrono::milliseconds imu_wait{100};  // a sweep waits this long at most for the IMU to reach its end
   uint32_t max_scan_points = 500'000;
 };

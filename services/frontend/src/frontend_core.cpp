@@ -33,7 +33,8 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
   predictor_.update_window(stamp_ns, T_map, out.registration, std::move(prediction.pre), imu_, stats_);
   add_to_map(sweep.cloud, T_map);
   if (stats_.scans % 10 == 0) map_.remove_far(T_map.translation());
-  const Eigen::Isometry3d T_out = first_ ? T_map : leveller_.level(T_map, T_last_, T_out_last_, predictor_.running_gravity());
+  const Eigen::Isometry3d T_out =
+      first_ ? T_map : leveller_.level(T_map, T_last_, T_out_last_, predictor_.running_gravity());
   stats_.level_deg = leveller_.angle_deg();
   stats_.max_level_deg = leveller_.max_angle_deg();
   measure_motion(in.dt, T_map, T_out, out);
@@ -53,7 +54,8 @@ SweepIn FrontendCore::sweep_in(int64_t stamp_ns, const std::vector<ScanPoint>& p
 
 Sweep FrontendCore::deskew(const SweepIn& in, const Eigen::Isometry3d& motion, const ImuStart* start) const {
   // The first sweep's motion is unknown: it is taken as it is until the second one tells it.
-  const Eigen::Isometry3d over_sweep = first_ ? Eigen::Isometry3d::Identity() : Deskewer::motion_over(motion, in.t_max, in.dt);
+  const Eigen::Isometry3d over_sweep =
+      first_ ? Eigen::Isometry3d::Identity() : Deskewer::motion_over(motion, in.t_max, in.dt);
   return deskewer_.prepare(in.stamp_ns, *in.points, over_sweep, predictor_.deskew_imu(imu_, start));
 }
 
@@ -82,8 +84,8 @@ void FrontendCore::complete_first_sweep(const SweepIn& in, const RegistrationCon
   const Eigen::Isometry3d D = T_last_.inverse() * c.reg.T_map_sensor;
   map_ = odometry::VoxelMap(p_.map);
   const DeskewImu imu = predictor_.deskew_imu(imu_, nullptr);
-  const Sweep first =
-      deskewer_.prepare(first_stamp_, first_points_, Deskewer::motion_over(D, latest_point_time(first_points_), in.dt), imu);
+  const Sweep first = deskewer_.prepare(first_stamp_, first_points_,
+                                        Deskewer::motion_over(D, latest_point_time(first_points_), in.dt), imu);
   keyframes_.redeskew_held(first.cloud);
   add_to_map(first.cloud, T_last_);
   sweep = deskewer_.prepare(in.stamp_ns, *in.points, Deskewer::motion_over(D, in.t_max, in.dt), imu);
@@ -98,7 +100,8 @@ void FrontendCore::add_to_map(const std::vector<Eigen::Vector3d>& cloud, const E
   map_.add(world);
 }
 
-void FrontendCore::measure_motion(double dt, const Eigen::Isometry3d& T_map, const Eigen::Isometry3d& T_out, ScanOut& out) {
+void FrontendCore::measure_motion(double dt, const Eigen::Isometry3d& T_map, const Eigen::Isometry3d& T_out,
+                                  ScanOut& out) {
   if (first_) return;
   const Eigen::Isometry3d delta = T_last_.inverse() * T_map;
   predictor_.record_motion(delta, dt);
@@ -115,7 +118,8 @@ void FrontendCore::fuse(const Eigen::Isometry3d& T_out, ScanOut& out) {
   out.fusion_lambda = f.lambda;
 }
 
-void FrontendCore::end_sweep(const SweepIn& in, const Eigen::Isometry3d& T_map, const Eigen::Isometry3d& T_out, Sweep sweep) {
+void FrontendCore::end_sweep(const SweepIn& in, const Eigen::Isometry3d& T_map, const Eigen::Isometry3d& T_out,
+                             Sweep sweep) {
   if (first_ && p_.deskew && in.t_max > 0) {
     first_points_ = *in.points;
     first_stamp_ = in.stamp_ns;

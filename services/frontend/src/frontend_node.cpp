@@ -60,7 +60,8 @@ FrontendNode::FrontendNode(const FrontendNodeOptions& o)
       t_odom_(service_.radio(), topics::kOdometry),
       t_kf_(service_.radio(), topics::kKeyframe),
       t_progress_(service_.secondary(), topics::kProgress),
-      w_odom_(service_.radio(), t_odom_, dds::qos::sensor_stream(16, true).partitions({dds::partitions::robot(o.robot)})),
+      w_odom_(service_.radio(), t_odom_,
+              dds::qos::sensor_stream(16, true).partitions({dds::partitions::robot(o.robot)})),
       w_kf_(service_.radio(), t_kf_, dds::qos::event_stream(4096).partitions({dds::partitions::robot(o.robot)})),
       w_progress_(service_.secondary(), t_progress_, dds::qos::keyed_state()),
       core_(o.core) {
@@ -91,8 +92,9 @@ void FrontendNode::on_imu(const cdc_msg_ImuBatch& m) {
   for (uint32_t i = 0; i < m.samples._length; ++i) {
     const cdc_msg_ImuSample& s = m.samples._buffer[i];
     if (s.stamp_ns <= last_imu_stamp_) {
-      service_.boundary().refuse(topics::kImu, dds::Validation::fail("samples[" + std::to_string(i) +
-                                                                     "].stamp_ns: not after the last sample received (out of order)"));
+      service_.boundary().refuse(
+          topics::kImu, dds::Validation::fail("samples[" + std::to_string(i) +
+                                              "].stamp_ns: not after the last sample received (out of order)"));
       continue;
     }
     if (last_imu_stamp_ >= 0 && static_cast<double>(s.stamp_ns - last_imu_stamp_) * 1e-9 > o_.imu_gap_s) {

@@ -8,7 +8,8 @@ namespace cdc::frontend {
 GravityLeveller::GravityLeveller(const FrontendParams& params) : p_(params) {}
 
 Eigen::Isometry3d GravityLeveller::level(const Eigen::Isometry3d& T, const Eigen::Isometry3d& T_last,
-                                         const Eigen::Isometry3d& T_out_last, const std::optional<Eigen::Vector3d>& gravity) {
+                                         const Eigen::Isometry3d& T_out_last,
+                                         const std::optional<Eigen::Vector3d>& gravity) {
   if (!p_.level_with_gravity) return T;
   if (gravity) observe(*gravity);
   // The registered increment, turned into the levelled frame; the orientation turned likewise.

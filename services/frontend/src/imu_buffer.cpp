@@ -28,7 +28,8 @@ std::vector<std::optional<odometry::ImuDelta>> integrate_imu(const std::deque<Im
   return out;
 }
 
-Eigen::Isometry3d lidar_motion(const odometry::ImuDelta& inc, const Eigen::Isometry3d& T_lidar_imu, const ImuStart* start) {
+Eigen::Isometry3d lidar_motion(const odometry::ImuDelta& inc, const Eigen::Isometry3d& T_lidar_imu,
+                               const ImuStart* start) {
   if (start == nullptr) {
     Eigen::Isometry3d R = Eigen::Isometry3d::Identity();
     R.linear() = T_lidar_imu.linear() * inc.R * T_lidar_imu.linear().transpose();
@@ -47,10 +48,12 @@ bool ImuBuffer::add(const ImuIn& s, int64_t latest_sweep_ns) {
   return true;
 }
 
-std::unique_ptr<odometry::ImuPreintegration> ImuBuffer::preintegrate(int64_t from, int64_t to, const Eigen::Vector3d& bg,
+std::unique_ptr<odometry::ImuPreintegration> ImuBuffer::preintegrate(int64_t from, int64_t to,
+                                                                     const Eigen::Vector3d& bg,
                                                                      const Eigen::Vector3d& ba,
                                                                      const odometry::ImuNoiseParams& noise) const {
-  if (samples_.size() < 2 || samples_.front().stamp_ns > from || samples_.back().stamp_ns < to || to <= from) return nullptr;
+  if (samples_.size() < 2 || samples_.front().stamp_ns > from || samples_.back().stamp_ns < to || to <= from)
+    return nullptr;
   auto pre = std::make_unique<odometry::ImuPreintegration>(bg, ba, noise);
   for (size_t i = 0; i + 1 < samples_.size(); ++i) {
     const int64_t a = std::max(samples_[i].stamp_ns, from), b = std::min(samples_[i + 1].stamp_ns, to);

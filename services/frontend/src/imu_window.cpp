@@ -187,7 +187,8 @@ void ImuWindow::add(int64_t stamp_ns, const Eigen::Isometry3d& T_odom_lidar, con
       n.state.v = (n.state.p - prev.state.p) / since_previous->dt();
     }
     if (!gravity_known_) {
-      alignment_.push_back({prev.state.q.toRotationMatrix(), prev.state.p, n.state.p, since_previous->delta_v(n.state.bg, n.state.ba),
+      alignment_.push_back({prev.state.q.toRotationMatrix(), prev.state.p, n.state.p,
+                            since_previous->delta_v(n.state.bg, n.state.ba),
                             since_previous->delta_p(n.state.bg, n.state.ba), since_previous->dt()});
     }
     n.preint = std::move(since_previous);
@@ -300,8 +301,8 @@ void ImuWindow::add_imu_factors(ceres::Problem& problem) {
     Node& a = states_[k - 1];
     Node& b = states_[k];
     auto* f = new ImuFactor(*b.preint, p_.noise);
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<ImuFactor, 15, 4, 3, 3, 6, 4, 3, 3, 6, 3>(f), nullptr, a.qbuf, a.pbuf,
-                             a.vbuf, a.bbuf, b.qbuf, b.pbuf, b.vbuf, b.bbuf, gbuf);
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<ImuFactor, 15, 4, 3, 3, 6, 4, 3, 3, 6, 3>(f), nullptr,
+                             a.qbuf, a.pbuf, a.vbuf, a.bbuf, b.qbuf, b.pbuf, b.vbuf, b.bbuf, gbuf);
   }
 }
 
@@ -315,9 +316,9 @@ void ImuWindow::add_gravity(ceres::Problem& problem, ceres::Manifold* sphere) {
     return;
   }
   problem.SetManifold(gbuf, sphere);
-  problem.AddResidualBlock(
-      new ceres::AutoDiffCostFunction<VectorPrior<3>, 3, 3>(new VectorPrior<3>{g_, Eigen::Vector3d::Constant(1.0 / p_.gravity_prior_sigma)}),
-      nullptr, gbuf);
+  problem.AddResidualBlock(new ceres::AutoDiffCostFunction<VectorPrior<3>, 3, 3>(
+                               new VectorPrior<3>{g_, Eigen::Vector3d::Constant(1.0 / p_.gravity_prior_sigma)}),
+                           nullptr, gbuf);
 }
 
 // The anchor: the oldest state's pose held, its velocity and biases at their last estimate, and
@@ -327,16 +328,18 @@ void ImuWindow::add_anchor(ceres::Problem& problem) {
   using P3 = VectorPrior<3>;
   using P6 = VectorPrior<6>;
   P6 zero{Eigen::Matrix<double, 6, 1>::Zero(), Eigen::Matrix<double, 6, 1>::Zero()};
-  zero.weight << Eigen::Vector3d::Constant(1.0 / p_.gyro_bias_sigma), Eigen::Vector3d::Constant(1.0 / p_.accel_bias_sigma);
+  zero.weight << Eigen::Vector3d::Constant(1.0 / p_.gyro_bias_sigma),
+      Eigen::Vector3d::Constant(1.0 / p_.accel_bias_sigma);
   problem.AddResidualBlock(new ceres::AutoDiffCostFunction<P6, 6, 6>(new P6(zero)), nullptr, first.bbuf);
   if (solved_) {
     P6 last{Eigen::Matrix<double, 6, 1>::Zero(), Eigen::Matrix<double, 6, 1>::Zero()};
     last.mean << first.state.bg, first.state.ba;
-    last.weight << Eigen::Vector3d::Constant(1.0 / p_.anchor_gyro_bias_sigma), Eigen::Vector3d::Constant(1.0 / p_.anchor_accel_bias_sigma);
+    last.weight << Eigen::Vector3d::Constant(1.0 / p_.anchor_gyro_bias_sigma),
+        Eigen::Vector3d::Constant(1.0 / p_.anchor_accel_bias_sigma);
     problem.AddResidualBlock(new ceres::AutoDiffCostFunction<P6, 6, 6>(new P6(last)), nullptr, first.bbuf);
-    problem.AddResidualBlock(
-        new ceres::AutoDiffCostFunction<P3, 3, 3>(new P3{first.state.v, Eigen::Vector3d::Constant(1.0 / p_.anchor_velocity_sigma)}),
-        nullptr, first.vbuf);
+    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<P3, 3, 3>(
+                                 new P3{first.state.v, Eigen::Vector3d::Constant(1.0 / p_.anchor_velocity_sigma)}),
+                             nullptr, first.vbuf);
   }
   problem.SetParameterBlockConstant(first.qbuf);
   problem.SetParameterBlockConstant(first.pbuf);
@@ -347,8 +350,9 @@ bool ImuWindow::plausible_solution() const {
   for (size_t k = 0; k < states_.size(); ++k) {
     const Node& n = states_[k];
     const Eigen::Map<const Eigen::Vector3d> v(n.vbuf), bg(n.bbuf), ba(n.bbuf + 3);
-    const bool finite = Eigen::Map<const Eigen::Vector4d>(n.qbuf).allFinite() && Eigen::Map<const Eigen::Vector3d>(n.pbuf).allFinite() &&
-                        v.allFinite() && bg.allFinite() && ba.allFinite();
+    const bool finite = Eigen::Map<const Eigen::Vector4d>(n.qbuf).allFinite() &&
+                        Eigen::Map<const Eigen::Vector3d>(n.pbuf).allFinite() && v.allFinite() && bg.allFinite() &&
+                        ba.allFinite();
     if (!finite || bg.norm() > p_.max_gyro_bias || ba.norm() > p_.max_accel_bias) return false;
     if (k > 0) {
       const Node& a = states_[k - 1];
@@ -360,7 +364,8 @@ bool ImuWindow::plausible_solution() const {
 }
 
 void ImuWindow::take_solution() {
-  if (states_.size() > 1 && p_.refine_gravity) g_ = Eigen::Vector3d(gbuf[0], gbuf[1], gbuf[2]).normalized() * p_.gravity;
+  if (states_.size() > 1 && p_.refine_gravity)
+    g_ = Eigen::Vector3d(gbuf[0], gbuf[1], gbuf[2]).normalized() * p_.gravity;
   for (Node& n : states_) {
     n.state.q = Eigen::Quaterniond(n.qbuf[3], n.qbuf[0], n.qbuf[1], n.qbuf[2]).normalized();
     n.state.p = Eigen::Vector3d(n.pbuf[0], n.pbuf[1], n.pbuf[2]);

@@ -43,19 +43,21 @@ int main(int argc, char** argv) {
       "see services/frontend/config", rt::kRobotOption | rt::kStatsOption};
   rt::ServiceOptions common;
   FrontendFlags f;
-  return rt::service_main(argc, argv, spec, common, [&](CLI::App& app) { add_options(app, f); }, [&] {
-    cdc::frontend::FrontendNodeOptions o = cdc::frontend::load_frontend_options(common.config);
-    common.check_robot(o.robots);
-    o.robot = common.robot;
-    o.domain = common.domain_id();
-    o.dds_config = common.dds_config;
-    o.sensor_domain = f.sensor_domain;
-    o.sensor_dds_config = f.sensor_dds_config;
-    o.stats_out = common.stats_out;
-    o.trajectory_out = f.trajectory_out;
-    if (f.lidar_only) o.use_imu = false;
-    if (f.no_corrections) o.take_corrections = false;
-    if (f.imu_wait_ms >= 0) o.imu_wait = std::chrono::milliseconds(f.imu_wait_ms);
-    return rt::run_node<cdc::frontend::FrontendNode>(spec, common, o.log_level, o);
-  });
+  return rt::service_main(
+      argc, argv, spec, common, [&](CLI::App& app) { add_options(app, f); },
+      [&] {
+        cdc::frontend::FrontendNodeOptions o = cdc::frontend::load_frontend_options(common.config);
+        common.check_robot(o.robots);
+        o.robot = common.robot;
+        o.domain = common.domain_id();
+        o.dds_config = common.dds_config;
+        o.sensor_domain = f.sensor_domain;
+        o.sensor_dds_config = f.sensor_dds_config;
+        o.stats_out = common.stats_out;
+        o.trajectory_out = f.trajectory_out;
+        if (f.lidar_only) o.use_imu = false;
+        if (f.no_corrections) o.take_corrections = false;
+        if (f.imu_wait_ms >= 0) o.imu_wait = std::chrono::milliseconds(f.imu_wait_ms);
+        return rt::run_node<cdc::frontend::FrontendNode>(spec, common, o.log_level, o);
+      });
 }

@@ -6,7 +6,8 @@ namespace cdc::frontend {
 
 MotionPredictor::MotionPredictor(const FrontendParams& params) : p_(params) {}
 
-Prediction MotionPredictor::predict(int64_t last_ns, int64_t stamp_ns, double dt, const ImuBuffer& imu, FrontendStats& stats) const {
+Prediction MotionPredictor::predict(int64_t last_ns, int64_t stamp_ns, double dt, const ImuBuffer& imu,
+                                    FrontendStats& stats) const {
   Prediction out;
   Eigen::Isometry3d delta = geometry::se3_exp(geometry::se3_log(delta_) * (dt / dt_last_));
   // The IMU since the previous sweep, at the window's biases: for the prediction and the window.
@@ -51,8 +52,10 @@ void MotionPredictor::record_motion(const Eigen::Isometry3d& delta, double dt) {
   dt_last_ = dt;
 }
 
-void MotionPredictor::update_window(int64_t stamp_ns, const Eigen::Isometry3d& T, const odometry::RegistrationOutput& reg,
-                                    std::unique_ptr<odometry::ImuPreintegration> pre, const ImuBuffer& imu, FrontendStats& stats) {
+void MotionPredictor::update_window(int64_t stamp_ns, const Eigen::Isometry3d& T,
+                                    const odometry::RegistrationOutput& reg,
+                                    std::unique_ptr<odometry::ImuPreintegration> pre, const ImuBuffer& imu,
+                                    FrontendStats& stats) {
   if (!p_.imu_window || imu.empty()) return;
   if (!window_) window_ = std::make_unique<ImuWindow>(p_.window, p_.T_lidar_imu);
   const Matrix6d info = reg.converged && reg.correspondences > 0 ? Matrix6d(reg.hessian * p_.information_scale)

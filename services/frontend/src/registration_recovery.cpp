@@ -36,8 +36,9 @@ bool RegistrationRecovery::poor(const Eigen::Isometry3d& guess, const Candidate&
 // The registration from the prediction stays unless a candidate fits clearly better; it competes
 // only if it is one the robot can have made. A candidate that fits as well as the recent sweeps
 // (good_fit_ratio of their median) ends the search.
-RegistrationRecovery::Outcome RegistrationRecovery::recover(const Eigen::Isometry3d& guess, const RegistrationContext& ctx,
-                                                            Sweep& sweep, Candidate& c) {
+RegistrationRecovery::Outcome RegistrationRecovery::recover(const Eigen::Isometry3d& guess,
+                                                            const RegistrationContext& ctx, Sweep& sweep,
+                                                            Candidate& c) {
   const bool have = c.reg.converged && plausible_registration(guess, c.reg.T_map_sensor, p_);
   Search search;
   search.best = have ? c.fit.inlier_fraction + p_.recovery.min_gain : -1.0;
@@ -54,8 +55,8 @@ RegistrationRecovery::Outcome RegistrationRecovery::recover(const Eigen::Isometr
   return {search.replaced || before, search.replaced};
 }
 
-bool RegistrationRecovery::attempt(const Eigen::Isometry3d& start, const RegistrationContext& ctx, Search& search, Sweep& sweep,
-                                   Candidate& c) const {
+bool RegistrationRecovery::attempt(const Eigen::Isometry3d& start, const RegistrationContext& ctx, Search& search,
+                                   Sweep& sweep, Candidate& c) const {
   // A deskewed sweep is deskewed with the motion its start implies, and again with the motion found.
   Sweep local;
   const Sweep* sw = &sweep;
@@ -95,10 +96,12 @@ odometry::RegistrationOutput RegistrationRecovery::coarse_to_fine(const Sweep& s
   return r;
 }
 
-std::optional<Eigen::Isometry3d> RegistrationRecovery::global_guess(const Sweep& sweep, const Eigen::Isometry3d& T_last) {
+std::optional<Eigen::Isometry3d> RegistrationRecovery::global_guess(const Sweep& sweep,
+                                                                    const Eigen::Isometry3d& T_last) {
   if (!prev_features_) prev_features_ = odometry::make_feature_cloud(prev_cloud_, p_.recovery.global_params);
   current_features_ = odometry::make_feature_cloud(sweep.cloud, p_.recovery.global_params);
-  const odometry::GlobalRegistrationResult g = odometry::register_global(*current_features_, *prev_features_, p_.recovery.global_params);
+  const odometry::GlobalRegistrationResult g =
+      odometry::register_global(*current_features_, *prev_features_, p_.recovery.global_params);
   if (!g.ok) return std::nullopt;
   return T_last * g.T_target_source;
 }

@@ -4,12 +4,14 @@ namespace cdc::frontend {
 
 ScanToMapRegistration::ScanToMapRegistration(const FrontendParams& params) : p_(params), recovery_(params) {}
 
-Candidate ScanToMapRegistration::register_from(const Sweep& sweep, const RegistrationContext& ctx, const Eigen::Isometry3d& guess) const {
+Candidate ScanToMapRegistration::register_from(const Sweep& sweep, const RegistrationContext& ctx,
+                                               const Eigen::Isometry3d& guess) const {
   return Candidate{odometry::register_to_map(sweep.points, sweep.normals, ctx.map, guess, ctx.params), {}, guess};
 }
 
-ScanToMapRegistration::Result ScanToMapRegistration::complete(const Eigen::Isometry3d& guess, const RegistrationContext& ctx,
-                                                              Sweep& sweep, Candidate& c, FrontendStats& stats) {
+ScanToMapRegistration::Result ScanToMapRegistration::complete(const Eigen::Isometry3d& guess,
+                                                              const RegistrationContext& ctx, Sweep& sweep,
+                                                              Candidate& c, FrontendStats& stats) {
   if (ctx.redeskew && c.reg.converged) {
     // Deskew again with the motion just estimated (the prediction's error leaves a residual
     // distortion), and refine.

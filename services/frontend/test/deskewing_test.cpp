@@ -53,7 +53,8 @@ TEST(Deskewing, MovesEachPointToTheSweepsStartAlongTheMotion) {
   const Deskewer deskewer{FrontendParams{}};
   std::vector<uint16_t> rings;
   // The motion over the sweep, from the motion between two sweeps 0.1 s apart.
-  const Eigen::Isometry3d motion = Deskewer::motion_over(pose_at(drive_and_turn(), kSpan), latest_point_time(s.points), kSpan);
+  const Eigen::Isometry3d motion =
+      Deskewer::motion_over(pose_at(drive_and_turn(), kSpan), latest_point_time(s.points), kSpan);
   const std::vector<Eigen::Vector3d> deskewed = deskewer.deskew(0, s.points, motion, DeskewImu{}, rings);
   ASSERT_EQ(deskewed.size(), s.scene.size());
   EXPECT_EQ(rings.size(), s.scene.size());
@@ -72,8 +73,10 @@ TEST(Deskewing, TheMotionOverASweepScalesTheMotionBetweenSweeps) {
 TEST(Deskewing, CropsToTheRangeLimits) {
   FrontendParams p;  // 1.5 to 100 m
   const Deskewer deskewer(p);
-  const std::vector<ScanPoint> points = {{Eigen::Vector3f(1.0F, 0, 0), 0, 1}, {Eigen::Vector3f(0, 2.0F, 0), 0, 2},
-                                         {Eigen::Vector3f(150.0F, 0, 0), 0, 3}, {Eigen::Vector3f(0, 0, 99.0F), 0, 4}};
+  const std::vector<ScanPoint> points = {{Eigen::Vector3f(1.0F, 0, 0), 0, 1},
+                                         {Eigen::Vector3f(0, 2.0F, 0), 0, 2},
+                                         {Eigen::Vector3f(150.0F, 0, 0), 0, 3},
+                                         {Eigen::Vector3f(0, 0, 99.0F), 0, 4}};
   std::vector<uint16_t> rings;
   const auto out = deskewer.deskew(0, points, Eigen::Isometry3d::Identity(), DeskewImu{}, rings);
   ASSERT_EQ(out.size(), 2u);
@@ -105,7 +108,8 @@ TEST(Deskewing, TheImusRotationReplacesConstantVelocitysWhereItCovers) {
   xi(5) = 2.0 * kSpan;
   const MovingSweep s(xi, 1000);
   ImuBuffer imu;
-  for (int64_t t = -50'000'000; t <= 200'000'000; t += 5'000'000) imu.add({t, Eigen::Vector3d(0, 0, 2.0), Eigen::Vector3d::Zero()}, 0);
+  for (int64_t t = -50'000'000; t <= 200'000'000; t += 5'000'000)
+    imu.add({t, Eigen::Vector3d(0, 0, 2.0), Eigen::Vector3d::Zero()}, 0);
   const Deskewer deskewer{FrontendParams{}};
   std::vector<uint16_t> rings;
   DeskewImu with_imu;
@@ -122,7 +126,8 @@ TEST(Deskewing, SelectsOnePointPerVoxelWithItsNormal) {
   // A sweep without rings of a flat ground 1.7 m below the sensor, every 10 cm.
   std::vector<ScanPoint> ground;
   for (int i = -150; i <= 150; ++i) {
-    for (int j = -150; j <= 150; ++j) ground.push_back({Eigen::Vector3f(0.1F * static_cast<float>(i), 0.1F * static_cast<float>(j), -1.7F), 0, 0});
+    for (int j = -150; j <= 150; ++j)
+      ground.push_back({Eigen::Vector3f(0.1F * static_cast<float>(i), 0.1F * static_cast<float>(j), -1.7F), 0, 0});
   }
   const FrontendParams p;  // normals on 0.2 m voxels, one point per 1 m voxel
   const Sweep sw = Deskewer(p).prepare(0, ground, Eigen::Isometry3d::Identity(), DeskewImu{});

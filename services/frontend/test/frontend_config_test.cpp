@@ -6,16 +6,17 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
-#include <unistd.h>
 
 namespace cdc::frontend {
 namespace {
 
 std::string write_yaml(const std::string& text) {
-  const auto p = std::filesystem::temp_directory_path() / ("cdc-frontend-config-" + std::to_string(::getpid()) + ".yaml");
+  const auto p =
+      std::filesystem::temp_directory_path() / ("cdc-frontend-config-" + std::to_string(::getpid()) + ".yaml");
   std::ofstream(p) << text;
   return p.string();
 }

@@ -87,7 +87,8 @@ TEST(Frontend, ACorrectionIsTakenInSmoothlyAndReached) {
     if (o.keyframe && !corrected_kf && k >= 20) {
       corrected_kf = o.keyframe;
       // The back-end says: this keyframe is really at offset * its pose (T_world_robot = I).
-      ASSERT_TRUE(core.set_correction(o.keyframe->id, offset * o.keyframe->T_odom_keyframe, Eigen::Isometry3d::Identity()));
+      ASSERT_TRUE(
+          core.set_correction(o.keyframe->id, offset * o.keyframe->T_odom_keyframe, Eigen::Isometry3d::Identity()));
     } else if (k > 0) {
       // Beyond the odometry's own increment, the published pose moves by at most the thresholds.
       const Eigen::Isometry3d expected = last_pub * (last_raw.inverse() * o.T_odom_raw);
@@ -97,7 +98,8 @@ TEST(Frontend, ACorrectionIsTakenInSmoothlyAndReached) {
     }
     if (corrected_kf && o.T_world_base) {
       const Eigen::Isometry3d gap = (offset * o.T_odom_raw).inverse() * o.T_odom_base;
-      if (reached_at < 0 && gap.translation().norm() < 0.01 && geometry::rotation_angle(gap.rotation()) < 1e-3) reached_at = k;
+      if (reached_at < 0 && gap.translation().norm() < 0.01 && geometry::rotation_angle(gap.rotation()) < 1e-3)
+        reached_at = k;
     }
     last_pub = o.T_odom_base;
     last_raw = o.T_odom_raw;
@@ -188,9 +190,11 @@ TEST(Frontend, TheImuWindowPredictsTheSweepsAndFindsTheGyroBias) {
   ASSERT_TRUE(core.gravity().has_value());
   const Eigen::Vector3d g_true = T0.rotation().transpose() * sim::kGravity;
   const double g_angle = std::acos(std::clamp(core.gravity()->normalized().dot(g_true.normalized()), -1.0, 1.0));
-  std::printf("%llu of 80 sweeps predicted by the IMU window; gyro bias error %.5f rad/s; gravity off by %.2f deg; "
-              "worst position error over 100 m %.3f m\n",
-              static_cast<unsigned long long>(st.imu_predictions), (core.imu_state()->bg - bg).norm(), g_angle * 180 / M_PI, worst);
+  std::printf(
+      "%llu of 80 sweeps predicted by the IMU window; gyro bias error %.5f rad/s; gravity off by %.2f deg; "
+      "worst position error over 100 m %.3f m\n",
+      static_cast<unsigned long long>(st.imu_predictions), (core.imu_state()->bg - bg).norm(), g_angle * 180 / M_PI,
+      worst);
   // The window aligns gravity over its first 30 sweeps (3 s), then predicts every sweep.
   EXPECT_GE(st.imu_predictions, 48u);
   EXPECT_EQ(st.imu_predictions_rejected, 0u);
@@ -295,7 +299,8 @@ struct HandHeld {
     double worst_m = 0, worst_rad = 0;
     for (size_t k = 0; k < poses.size(); ++k) {
       std::vector<ScanPoint> pts;
-      for (const auto& q : sim::sweep(d.world, d.lidar, [&](double) { return poses[k]; }, d.rng)) {
+      for (const auto& q : sim::sweep(
+               d.world, d.lidar, [&](double) { return poses[k]; }, d.rng)) {
         pts.push_back({Eigen::Vector3f(q.x, q.y, q.z), 0.0F, q.ring});
       }
       const ScanOut o = core.process(static_cast<int64_t>(k) * 500'000'000, pts);
@@ -315,11 +320,13 @@ TEST(FrontendRecovery, SharpTurnsBetweenSlowSweepsAreRecovered) {
   FrontendParams off;
   off.recovery.enabled = false;
   const auto [without_m, without_rad] = h.run(off, without_stats);
-  std::printf("hand-held at 2 Hz: worst error %.3f m %.2f deg with recovery (%llu of %llu attempts, %llu global), %.3f m %.2f deg "
-              "without\n",
-              with_m, with_rad * 180 / M_PI, static_cast<unsigned long long>(with_stats.recoveries),
-              static_cast<unsigned long long>(with_stats.recovery_attempts),
-              static_cast<unsigned long long>(with_stats.recoveries_global), without_m, without_rad * 180 / M_PI);
+  std::printf(
+      "hand-held at 2 Hz: worst error %.3f m %.2f deg with recovery (%llu of %llu attempts, %llu global), %.3f m %.2f "
+      "deg "
+      "without\n",
+      with_m, with_rad * 180 / M_PI, static_cast<unsigned long long>(with_stats.recoveries),
+      static_cast<unsigned long long>(with_stats.recovery_attempts),
+      static_cast<unsigned long long>(with_stats.recoveries_global), without_m, without_rad * 180 / M_PI);
   EXPECT_EQ(with_stats.registration_failures, 0u);
   EXPECT_GT(with_stats.recoveries, 0u);
   EXPECT_LT(with_m, 0.1);

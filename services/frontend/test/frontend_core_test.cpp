@@ -6,8 +6,8 @@
 
 #include "cdc/frontend/frontend_core.hpp"
 
-#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
 
 #include <array>
 #include <cmath>
@@ -18,7 +18,8 @@ namespace cdc::frontend {
 namespace {
 
 // Fraction of `cloud`'s points with a point of `reference` within `tol` metres (a hash grid of `tol` cells).
-double fraction_near(const std::vector<Eigen::Vector3f>& cloud, const std::vector<Eigen::Vector3d>& reference, double tol) {
+double fraction_near(const std::vector<Eigen::Vector3f>& cloud, const std::vector<Eigen::Vector3d>& reference,
+                     double tol) {
   auto key = [tol](const Eigen::Vector3d& p) {
     return std::array<long, 3>{std::lround(std::floor(p.x() / tol)), std::lround(std::floor(p.y() / tol)),
                                std::lround(std::floor(p.z() / tol))};
@@ -78,7 +79,8 @@ TEST(Frontend, TheFirstKeyframeOfARobotStartingAtSpeedIsDeskewed) {
   EXPECT_LT(smeared, 0.5);  // the comparison can tell a smeared cloud
   // The next keyframe is measured from the first.
   std::optional<KeyframeOut> next;
-  for (int k = 2; k < 10 && !next; ++k) next = core.process(static_cast<int64_t>((t0 + 0.1 * k) * 1e9), d.sweep(t0 + 0.1 * k)).keyframe;
+  for (int k = 2; k < 10 && !next; ++k)
+    next = core.process(static_cast<int64_t>((t0 + 0.1 * k) * 1e9), d.sweep(t0 + 0.1 * k)).keyframe;
   ASSERT_TRUE(next.has_value());
   EXPECT_EQ(next->id, 1u);
   EXPECT_TRUE(next->T_prev.isApprox(next->T_odom_keyframe, 1e-9));
@@ -94,7 +96,8 @@ TEST(Frontend, KeyframesCarryRelativeOdometryWithInformation) {
     if (o.keyframe) kfs.push_back(std::move(*o.keyframe));
   }
   double travelled = 0;
-  for (int k = 1; k < 40; ++k) travelled += (d.traj.pose(0.2 + 0.1 * k).translation() - d.traj.pose(0.1 + 0.1 * k).translation()).norm();
+  for (int k = 1; k < 40; ++k)
+    travelled += (d.traj.pose(0.2 + 0.1 * k).translation() - d.traj.pose(0.1 + 0.1 * k).translation()).norm();
   // A keyframe every metre (the first at the start), none closer than a metre.
   EXPECT_GE(kfs.size(), static_cast<size_t>(travelled * 0.8));
   EXPECT_LE(kfs.size(), static_cast<size_t>(travelled) + 1);
@@ -134,7 +137,8 @@ TEST(FrontendRecovery, ASweepWithoutPerPointTimesIsTakenAsItIs) {
     const double t = 0.2 + 0.1 * k;
     std::vector<ScanPoint> pts = d.sweep(t);
     for (auto& p : pts) p.time_offset = 0.0F;
-    const ScanOut oa = a.process(static_cast<int64_t>(t * 1e9), pts), ob = b.process(static_cast<int64_t>(t * 1e9), pts);
+    const ScanOut oa = a.process(static_cast<int64_t>(t * 1e9), pts),
+                  ob = b.process(static_cast<int64_t>(t * 1e9), pts);
     EXPECT_TRUE(oa.T_odom_raw.isApprox(ob.T_odom_raw, 1e-12)) << "sweep " << k;
     EXPECT_EQ(oa.keyframe.has_value(), ob.keyframe.has_value()) << "sweep " << k;
     if (k == 0) {

@@ -43,20 +43,24 @@ TrackResult run(const fs::path& dir, size_t first, size_t count, const FrontendP
     char name[16];
     std::snprintf(name, sizeof name, "%06zu.bin", i);
     std::vector<ScanPoint> pts;
-    for (const io::CloudPoint& c : io::read_kitti_bin(dir / name)) pts.push_back({Eigen::Vector3f(c.x, c.y, c.z), 0.0F, 0});
+    for (const io::CloudPoint& c : io::read_kitti_bin(dir / name))
+      pts.push_back({Eigen::Vector3f(c.x, c.y, c.z), 0.0F, 0});
     est.push_back(core.process(stamps.at(i), pts).T_odom_raw);
     gt.push_back(reference.at(i).pose);
   }
-  return {core.stats(), geometry::compute_ate(est, gt, geometry::AlignMode::kSE3), geometry::compute_rpe_frames(est, gt, 1)};
+  return {core.stats(), geometry::compute_ate(est, gt, geometry::AlignMode::kSE3),
+          geometry::compute_rpe_frames(est, gt, 1)};
 }
 
 void print(const char* name, const TrackResult& r) {
-  std::printf("%s: %llu failures (%llu rejected), %llu of %llu recovery attempts recovered (%llu by global registration); "
-              "ATE %.3f m, RPE max %.3f m %.2f deg\n",
-              name, static_cast<unsigned long long>(r.stats.registration_failures),
-              static_cast<unsigned long long>(r.stats.registration_rejected), static_cast<unsigned long long>(r.stats.recoveries),
-              static_cast<unsigned long long>(r.stats.recovery_attempts), static_cast<unsigned long long>(r.stats.recoveries_global),
-              r.ate.translation.rmse, r.rpe.translation.max, r.rpe.rotation_deg.max);
+  std::printf(
+      "%s: %llu failures (%llu rejected), %llu of %llu recovery attempts recovered (%llu by global registration); "
+      "ATE %.3f m, RPE max %.3f m %.2f deg\n",
+      name, static_cast<unsigned long long>(r.stats.registration_failures),
+      static_cast<unsigned long long>(r.stats.registration_rejected),
+      static_cast<unsigned long long>(r.stats.recoveries), static_cast<unsigned long long>(r.stats.recovery_attempts),
+      static_cast<unsigned long long>(r.stats.recoveries_global), r.ate.translation.rmse, r.rpe.translation.max,
+      r.rpe.rotation_deg.max);
 }
 
 constexpr size_t kFirst = 86, kCount = 30;

@@ -18,7 +18,8 @@ constexpr int64_t kMs = 1'000'000;
 
 // Samples every 10 ms over [from, to] of a constant turn about the IMU's z axis.
 void add_turn(ImuBuffer& imu, int64_t from_ns, int64_t to_ns, double yaw_rate) {
-  for (int64_t t = from_ns; t <= to_ns; t += 10 * kMs) imu.add({t, Eigen::Vector3d(0, 0, yaw_rate), Eigen::Vector3d(0, 0, 9.81)}, 0);
+  for (int64_t t = from_ns; t <= to_ns; t += 10 * kMs)
+    imu.add({t, Eigen::Vector3d(0, 0, yaw_rate), Eigen::Vector3d(0, 0, 9.81)}, 0);
 }
 
 TEST(ImuBuffer, KeepsSamplesInTimeOrderAndForgetsThoseNoSweepNeeds) {
@@ -30,7 +31,8 @@ TEST(ImuBuffer, KeepsSamplesInTimeOrderAndForgetsThoseNoSweepNeeds) {
   EXPECT_EQ(imu.samples().size(), 1u);
   // With the latest sweep at 1.5 s, what lies more than half a second before it goes (the sample
   // held at 1.0 s stays).
-  for (int64_t t = 110 * kMs; t <= 2000 * kMs; t += 10 * kMs) imu.add({t, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()}, 1500 * kMs);
+  for (int64_t t = 110 * kMs; t <= 2000 * kMs; t += 10 * kMs)
+    imu.add({t, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()}, 1500 * kMs);
   EXPECT_LE(imu.samples().front().stamp_ns, 1000 * kMs);
   EXPECT_GE(imu.samples()[1].stamp_ns, 1000 * kMs);
   EXPECT_EQ(imu.samples().back().stamp_ns, 2000 * kMs);
@@ -59,8 +61,9 @@ TEST(ImuBuffer, TheLidarsRotationIsTheBiasCorrectedTurnInItsFrame) {
   T_lidar_imu.translation() = Eigen::Vector3d(0.3, 0, 0.1);
   const auto R = imu.lidar_rotation(200 * kMs, 600 * kMs, Eigen::Vector3d::Zero(), T_lidar_imu);
   ASSERT_TRUE(R.has_value());
-  const Eigen::Matrix3d expected =
-      T_lidar_imu.linear() * Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitZ()).toRotationMatrix() * T_lidar_imu.linear().transpose();
+  const Eigen::Matrix3d expected = T_lidar_imu.linear() *
+                                   Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitZ()).toRotationMatrix() *
+                                   T_lidar_imu.linear().transpose();
   EXPECT_TRUE(R->isApprox(expected, 1e-9));
   const auto still = imu.lidar_rotation(200 * kMs, 600 * kMs, Eigen::Vector3d(0, 0, 0.5), T_lidar_imu);
   ASSERT_TRUE(still.has_value());
@@ -86,7 +89,8 @@ TEST(ImuBuffer, TheImusMotionOverASweepFollowsAnAcceleratingTurningDrive) {
   const sim::SplineTrajectory traj(controls, 0.0, 0.1);
   Eigen::Isometry3d T_lidar_imu = Eigen::Isometry3d::Identity();
   T_lidar_imu.translation() = Eigen::Vector3d(-0.3, 0.1, -0.2);
-  T_lidar_imu.linear() = Eigen::AngleAxisd(2.0 * M_PI / 180, Eigen::Vector3d(0.3, 0.5, 1).normalized()).toRotationMatrix();
+  T_lidar_imu.linear() =
+      Eigen::AngleAxisd(2.0 * M_PI / 180, Eigen::Vector3d(0.3, 0.5, 1).normalized()).toRotationMatrix();
   std::deque<ImuIn> imu;
   for (const auto& m : sim::simulate_imu(traj, T_lidar_imu, 0.5, 18.0, 200.0, sim::ImuNoise::none(), 3)) {
     imu.push_back({static_cast<int64_t>(std::llround(m.t * 1e9)), m.gyro, m.accel});
@@ -99,7 +103,8 @@ TEST(ImuBuffer, TheImusMotionOverASweepFollowsAnAcceleratingTurningDrive) {
     const auto inc = integrate_imu(imu, from, to, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
     // The IMU's state at the start, as the window would give it.
     const Eigen::Isometry3d L0 = traj.pose(t0), I0 = L0 * T_lidar_imu;
-    const Eigen::Vector3d v_imu = traj.velocity(t0) + L0.rotation() * traj.angular_velocity(t0).cross(T_lidar_imu.translation());
+    const Eigen::Vector3d v_imu =
+        traj.velocity(t0) + L0.rotation() * traj.angular_velocity(t0).cross(T_lidar_imu.translation());
     const ImuStart start{I0.rotation().transpose() * v_imu, I0.rotation().transpose() * sim::kGravity};
     const geometry::Vector6d xi = geometry::se3_log(traj.pose(t0 - 0.1).inverse() * L0);  // constant velocity
     for (size_t k = 0; k < to.size(); ++k) {
@@ -112,12 +117,13 @@ TEST(ImuBuffer, TheImusMotionOverASweepFollowsAnAcceleratingTurningDrive) {
       worst_imu = std::max(worst_imu, (truth.translation() - full.translation()).norm());
       worst_cv = std::max(worst_cv, (truth.translation() - cv.translation()).norm());
       worst_rot = std::max(worst_rot, geometry::rotation_angle(truth.rotation().transpose() * full.rotation()));
-      worst_rot_only = std::max(worst_rot_only, geometry::rotation_angle(truth.rotation().transpose() * rot_only.rotation()));
+      worst_rot_only =
+          std::max(worst_rot_only, geometry::rotation_angle(truth.rotation().transpose() * rot_only.rotation()));
       EXPECT_LT(rot_only.translation().norm(), 1e-12);
     }
   }
-  std::printf("within a sweep: IMU %.2f mm, constant velocity %.2f mm; rotation %.4f deg\n", worst_imu * 1e3, worst_cv * 1e3,
-              worst_rot * 180 / M_PI);
+  std::printf("within a sweep: IMU %.2f mm, constant velocity %.2f mm; rotation %.4f deg\n", worst_imu * 1e3,
+              worst_cv * 1e3, worst_rot * 180 / M_PI);
   EXPECT_LT(worst_imu, 2e-3);
   EXPECT_LT(worst_imu, 0.2 * worst_cv);
   // Sample-and-hold at 200 Hz lags the gyro by half a sample: with the yaw rate changing by up to

@@ -17,7 +17,9 @@ sim::SplineTrajectory tilted_drive() {
   std::vector<Eigen::Isometry3d> controls;
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   // Parked on a slope: the first sweep's frame (the odometry frame) is 3 deg rolled, 2 deg pitched.
-  T.linear() = (Eigen::AngleAxisd(0.052, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(-0.035, Eigen::Vector3d::UnitY())).toRotationMatrix();
+  T.linear() =
+      (Eigen::AngleAxisd(0.052, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(-0.035, Eigen::Vector3d::UnitY()))
+          .toRotationMatrix();
   for (int i = 0; i < 200; ++i) {
     controls.push_back(T);
     Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
@@ -74,9 +76,11 @@ TEST(ImuWindow, FindsGravityVelocityAndGyroBias) {
     if (t > 1.0) {
       pre = r.preintegrate(w, last, t);
       if (w.ready() && t > 5.0) {
-        worst_prediction = std::max(worst_prediction, (w.predict_lidar(*pre).translation() - r.lidar(t).translation()).norm());
+        worst_prediction =
+            std::max(worst_prediction, (w.predict_lidar(*pre).translation() - r.lidar(t).translation()).norm());
         const Eigen::Isometry3d cv = r.lidar(last) * (r.lidar(last - 0.1).inverse() * r.lidar(last));
-        worst_constant_velocity = std::max(worst_constant_velocity, (cv.translation() - r.lidar(t).translation()).norm());
+        worst_constant_velocity =
+            std::max(worst_constant_velocity, (cv.translation() - r.lidar(t).translation()).norm());
         sq_prediction += (w.predict_lidar(*pre).translation() - r.lidar(t).translation()).squaredNorm();
         sq_constant_velocity += (cv.translation() - r.lidar(t).translation()).squaredNorm();
         ++predictions;
@@ -90,11 +94,13 @@ TEST(ImuWindow, FindsGravityVelocityAndGyroBias) {
   const Eigen::Vector3d v_true = r.T0.rotation().transpose() * r.traj.velocity(last);
   const Eigen::Vector3d g_true = r.T0.rotation().transpose() * sim::kGravity;
   const double g_angle = std::acos(std::clamp(w.gravity().normalized().dot(g_true.normalized()), -1.0, 1.0));
-  const double rms_prediction = std::sqrt(sq_prediction / predictions), rms_constant_velocity = std::sqrt(sq_constant_velocity / predictions);
-  std::printf("velocity error %.4f m/s; gyro bias error %.5f rad/s; gravity off by %.3f deg; prediction error %.4f m rms, "
-              "%.4f m worst (constant velocity: %.4f m, %.4f m)\n",
-              (s.v - v_true).norm(), (s.bg - bg).norm(), g_angle * 180 / M_PI, rms_prediction, worst_prediction,
-              rms_constant_velocity, worst_constant_velocity);
+  const double rms_prediction = std::sqrt(sq_prediction / predictions),
+               rms_constant_velocity = std::sqrt(sq_constant_velocity / predictions);
+  std::printf(
+      "velocity error %.4f m/s; gyro bias error %.5f rad/s; gravity off by %.3f deg; prediction error %.4f m rms, "
+      "%.4f m worst (constant velocity: %.4f m, %.4f m)\n",
+      (s.v - v_true).norm(), (s.bg - bg).norm(), g_angle * 180 / M_PI, rms_prediction, worst_prediction,
+      rms_constant_velocity, worst_constant_velocity);
   EXPECT_EQ(w.restarts(), 0u);
   EXPECT_LT((s.v - v_true).norm(), 0.05);
   EXPECT_LT((s.bg - bg).norm(), 0.002);
@@ -153,7 +159,9 @@ TEST(ImuWindow, LaterWindowsRefineAPoorGravityAlignment) {
     p.refine_gravity = refine;
     ImuWindow w(p, Eigen::Isometry3d::Identity());
     const Eigen::Vector3d g_true = r.T0.rotation().transpose() * sim::kGravity;
-    auto angle = [&] { return std::acos(std::clamp(w.gravity().normalized().dot(g_true.normalized()), -1.0, 1.0)) * 180 / M_PI; };
+    auto angle = [&] {
+      return std::acos(std::clamp(w.gravity().normalized().dot(g_true.normalized()), -1.0, 1.0)) * 180 / M_PI;
+    };
     const Eigen::Vector3d offsets[] = {{0, 0, 0}, {0.002, 0, -0.001}, {-0.002, 0.001, 0}, {0.001, -0.002, 0.001}};
     double last = 1.0;
     initial_deg = -1;
@@ -171,7 +179,8 @@ TEST(ImuWindow, LaterWindowsRefineAPoorGravityAlignment) {
   };
   double initial = 0, initial_held = 0;
   const double refined = run(true, initial), held = run(false, initial_held);
-  std::printf("gravity after the alignment %.2f deg off; 11 s later %.3f deg refined, %.2f deg held\n", initial, refined, held);
+  std::printf("gravity after the alignment %.2f deg off; 11 s later %.3f deg refined, %.2f deg held\n", initial,
+              refined, held);
   EXPECT_GT(initial, 2.0) << "the test needs a poor alignment";
   EXPECT_NEAR(held, initial_held, 1e-9);
   EXPECT_LT(refined, 0.2);

@@ -15,7 +15,8 @@ Eigen::Isometry3d at(double x, double yaw = 0.0) {
   return T;
 }
 
-const std::vector<Eigen::Vector3d> kCloud = {Eigen::Vector3d(5, 0, 0), Eigen::Vector3d(0, 5, 0), Eigen::Vector3d(0, 0, 5)};
+const std::vector<Eigen::Vector3d> kCloud = {Eigen::Vector3d(5, 0, 0), Eigen::Vector3d(0, 5, 0),
+                                             Eigen::Vector3d(0, 0, 5)};
 
 TEST(KeyframeSelection, TheFirstAtOnceThenOneEveryMetreOrTurn) {
   KeyframeSelector kf{FrontendParams{}};  // 1 m, 0.2 rad

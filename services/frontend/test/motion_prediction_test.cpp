@@ -51,7 +51,8 @@ TEST(MotionPrediction, TheGyrosRotationWhereTheImuCovers) {
   p.imu_window = false;
   MotionPredictor predictor(p);
   ImuBuffer imu;
-  for (int64_t t = 0; t <= ns(0.3); t += ns(0.005)) imu.add({t, Eigen::Vector3d(0, 0, 1.0), Eigen::Vector3d(0, 0, 9.81)}, 0);
+  for (int64_t t = 0; t <= ns(0.3); t += ns(0.005))
+    imu.add({t, Eigen::Vector3d(0, 0, 1.0), Eigen::Vector3d(0, 0, 9.81)}, 0);
   FrontendStats stats;
   predictor.record_motion(forward_and_turn(1.0, 0.3), 0.1);
   const Prediction pr = predictor.predict(ns(0.1), ns(0.2), 0.1, imu, stats);

@@ -40,14 +40,16 @@ struct Scene {
     map.add(odometry::voxel_filter(first.cloud, p.map_voxel_m));
     // The map also holds the sweeps a metre behind and ahead, as a map built while driving does.
     for (const double x : {-1.0, 1.0}) {
-      std::vector<Eigen::Vector3d> more = odometry::voxel_filter(sweep_at(P0 * turn_and_step(0, x)).cloud, p.map_voxel_m);
+      std::vector<Eigen::Vector3d> more =
+          odometry::voxel_filter(sweep_at(P0 * turn_and_step(0, x)).cloud, p.map_voxel_m);
       for (auto& q : more) q = turn_and_step(0, x) * q;
       map.add(more);
     }
   }
   Sweep sweep_at(const Eigen::Isometry3d& P) {
     std::vector<ScanPoint> pts;
-    for (const auto& q : sim::sweep(d.world, d.lidar, [&](double) { return P; }, d.rng)) {
+    for (const auto& q : sim::sweep(
+             d.world, d.lidar, [&](double) { return P; }, d.rng)) {
       pts.push_back({Eigen::Vector3f(q.x, q.y, q.z), 0.0F, q.ring});
     }
     return Deskewer(p).prepare(0, pts, Eigen::Isometry3d::Identity(), DeskewImu{});
@@ -62,10 +64,12 @@ struct Scene {
   }
   // The registration's parameters with the gate at its minimum (after standing still).
   RegistrationContext narrow() const {
-    return RegistrationContext{map, with_gate(p.registration, p.min_gate_m, p.kernel_divisor), Eigen::Isometry3d::Identity(), {}};
+    return RegistrationContext{
+        map, with_gate(p.registration, p.min_gate_m, p.kernel_divisor), Eigen::Isometry3d::Identity(), {}};
   }
   RegistrationContext wide() const {
-    return RegistrationContext{map, with_gate(p.registration, p.initial_gate_m, p.kernel_divisor), Eigen::Isometry3d::Identity(), {}};
+    return RegistrationContext{
+        map, with_gate(p.registration, p.initial_gate_m, p.kernel_divisor), Eigen::Isometry3d::Identity(), {}};
   }
 };
 
@@ -158,7 +162,8 @@ struct Missed {
   Scene s;
   Eigen::Isometry3d truth, T_last, guess;
   Sweep sweep;
-  Missed(const Eigen::Isometry3d& truth_, const Eigen::Isometry3d& T_last_, const Eigen::Isometry3d& guess_, bool global)
+  Missed(const Eigen::Isometry3d& truth_, const Eigen::Isometry3d& T_last_, const Eigen::Isometry3d& guess_,
+         bool global)
       : truth(truth_), T_last(T_last_), guess(guess_) {
     s.p.recovery.global = global;
     sweep = s.sweep_at(s.P0 * truth);

@@ -32,7 +32,8 @@ struct Drive {
       path.push_back(T.translation());
       Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
       step.translation().x() = speed * 0.1 * std::min(1.0, i / 20.0);
-      step.linear() = Eigen::AngleAxisd(yaw_rate * 0.1 * std::sin(0.05 * i), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      step.linear() =
+          Eigen::AngleAxisd(yaw_rate * 0.1 * std::sin(0.05 * i), Eigen::Vector3d::UnitZ()).toRotationMatrix();
       T = T * step;
     }
     traj = sim::SplineTrajectory(controls, 0.0, 0.1);
@@ -43,7 +44,8 @@ struct Drive {
   }
   std::vector<ScanPoint> sweep(double t0) {
     std::vector<ScanPoint> out;
-    for (const auto& p : sim::sweep(world, lidar, [&](double t) { return traj.pose(t0 + t); }, rng)) {
+    for (const auto& p : sim::sweep(
+             world, lidar, [&](double t) { return traj.pose(t0 + t); }, rng)) {
       out.push_back({Eigen::Vector3f(p.x, p.y, p.z), p.time_offset, p.ring});
     }
     return out;

@@ -1,7 +1,7 @@
 // cdc-loops: offline place recognition and outlier rejection tools of the loop-closure service.
 #include "cdc/graph/g2o.hpp"
-#include "cdc/io/dataset.hpp"
 #include "cdc/graph/pcm.hpp"
+#include "cdc/io/dataset.hpp"
 #include "cdc/loop_closure/evaluation.hpp"
 #include "cdc/loop_closure/loop_core.hpp"
 #include "loop_config.hpp"
@@ -39,10 +39,12 @@ class DatasetKeyframes {
 
   // The keyframe at scan s, or nullopt when s has no ground truth or lies within keyframe_m of its
   // robot's last keyframe. `truth`: each robot's ground-truth trajectory.
-  std::optional<loops::KeyframeIn> make(const io::DatasetScan& s, const std::map<uint32_t, geometry::Trajectory>& truth) {
+  std::optional<loops::KeyframeIn> make(const io::DatasetScan& s,
+                                        const std::map<uint32_t, geometry::Trajectory>& truth) {
     if (!s.truth) return std::nullopt;
     auto it = last_.find(s.robot);
-    if (it != last_.end() && (it->second.translation() - s.truth->translation()).norm() < o_.keyframe_m) return std::nullopt;
+    if (it != last_.end() && (it->second.translation() - s.truth->translation()).norm() < o_.keyframe_m)
+      return std::nullopt;
     loops::KeyframeIn kf;
     kf.robot = s.robot;
     kf.id = next_id_[s.robot]++;
@@ -52,7 +54,8 @@ class DatasetKeyframes {
       kf.T_prev = it->second.inverse() * (*s.truth) * noise();
     }
     const double st = std::max(o_.noise_m, 1e-3), sr = std::max(o_.noise_rad, 1e-4);
-    kf.information.diagonal() << 1 / (st * st), 1 / (st * st), 1 / (st * st), 1 / (sr * sr), 1 / (sr * sr), 1 / (sr * sr);
+    kf.information.diagonal() << 1 / (st * st), 1 / (st * st), 1 / (st * st), 1 / (sr * sr), 1 / (sr * sr),
+        1 / (sr * sr);
     last_[s.robot] = *s.truth;
     return kf;
   }
@@ -65,8 +68,8 @@ class DatasetKeyframes {
     const Eigen::Isometry3d T0_inv = s.truth->inverse();
     for (const io::CloudPoint& p : io::read_dataset_scan(s).points) {
       const auto Tt = geometry::interpolate_at(traj, s.stamp_ns + static_cast<int64_t>(p.time_offset * 1e9));
-      const Eigen::Vector3d q = Tt ? Eigen::Vector3d(T0_inv * (*Tt) * Eigen::Vector3d(p.x, p.y, p.z))
-                                   : Eigen::Vector3d(p.x, p.y, p.z);
+      const Eigen::Vector3d q =
+          Tt ? Eigen::Vector3d(T0_inv * (*Tt) * Eigen::Vector3d(p.x, p.y, p.z)) : Eigen::Vector3d(p.x, p.y, p.z);
       cloud.push_back(q.cast<float>());
     }
     return cloud;
@@ -75,8 +78,10 @@ class DatasetKeyframes {
   Eigen::Isometry3d noise() {
     Eigen::Isometry3d noise = Eigen::Isometry3d::Identity();
     noise.translation() = Eigen::Vector3d(nt_(rng_), nt_(rng_), nt_(rng_));
-    noise.linear() = (Eigen::AngleAxisd(nr_(rng_), Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(nr_(rng_), Eigen::Vector3d::UnitY()) *
-                      Eigen::AngleAxisd(nr_(rng_), Eigen::Vector3d::UnitX())).toRotationMatrix();
+    noise.linear() = (Eigen::AngleAxisd(nr_(rng_), Eigen::Vector3d::UnitZ()) *
+                      Eigen::AngleAxisd(nr_(rng_), Eigen::Vector3d::UnitY()) *
+                      Eigen::AngleAxisd(nr_(rng_), Eigen::Vector3d::UnitX()))
+                         .toRotationMatrix();
     return noise;
   }
 
@@ -93,8 +98,10 @@ class StandingLoops {
   void apply(const std::vector<loops::LoopOut>& events) {
     for (const loops::LoopOut& l : events) {
       const auto key = std::make_tuple(l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b);
-      if (l.withdrawn) standing_.erase(key);
-      else standing_[key] = l;
+      if (l.withdrawn)
+        standing_.erase(key);
+      else
+        standing_[key] = l;
     }
   }
   std::vector<loops::LoopOut> list() const {
@@ -134,8 +141,8 @@ void write_loops_csv(const std::filesystem::path& path, const loops::LoopEvaluat
   for (const auto& v : ev.loops) {
     const Eigen::Quaterniond q(v.loop.T_a_b.rotation());
     const Eigen::Vector3d t = v.loop.T_a_b.translation();
-    csv << v.loop.robot_a << ',' << v.loop.keyframe_a << ',' << v.loop.robot_b << ',' << v.loop.keyframe_b << ',' << t.x()
-        << ',' << t.y() << ',' << t.z() << ',' << q.x() << ',' << q.y() << ',' << q.z() << ',' << q.w() << ','
+    csv << v.loop.robot_a << ',' << v.loop.keyframe_a << ',' << v.loop.robot_b << ',' << v.loop.keyframe_b << ','
+        << t.x() << ',' << t.y() << ',' << t.z() << ',' << q.x() << ',' << q.y() << ',' << q.z() << ',' << q.w() << ','
         << v.loop.fitness << ',' << (v.correct ? 1 : 0) << ',' << v.error_m << ',' << v.error_deg << '\n';
   }
 }
@@ -176,9 +183,10 @@ int run_dataset(const RunOptions& o) {
   if (o.json) {
     std::cout << report.dump() << '\n';
   } else {
-    std::printf("%s: %zu keyframes, %zu loops accepted (%zu true): precision %.3f, recall %.3f of %zu revisits, %.1f s\n",
-                o.dataset.c_str(), order.size(), accepted.size(), ev.true_positives, ev.precision(), ev.recall(),
-                ev.revisits, run_s);
+    std::printf(
+        "%s: %zu keyframes, %zu loops accepted (%zu true): precision %.3f, recall %.3f of %zu revisits, %.1f s\n",
+        o.dataset.c_str(), order.size(), accepted.size(), ev.true_positives, ev.precision(), ev.recall(), ev.revisits,
+        run_s);
   }
   return 0;
 }
@@ -195,8 +203,8 @@ int run_pcm(const PcmCommand& c) {
   graph::G2oReadOptions ro;
   ro.skip_malformed = !c.strict;
   ro.warnings = &warnings;
-  const graph::PoseGraph g = std::filesystem::is_directory(c.input) ? graph::read_g2o_folder(c.input, ro)
-                                                                    : graph::read_g2o(c.input, ro);
+  const graph::PoseGraph g =
+      std::filesystem::is_directory(c.input) ? graph::read_g2o_folder(c.input, ro) : graph::read_g2o(c.input, ro);
   for (const auto& w : warnings) {
     std::cerr << "cdc-loops: warning: " << w << '\n';
   }
@@ -211,7 +219,9 @@ int run_pcm(const PcmCommand& c) {
     return a;
   };
   if (c.json) {
-    nlohmann::json j{{"accepted", ids(d.accepted)}, {"rejected", ids(d.rejected)}, {"skipped_lines", warnings.size()},
+    nlohmann::json j{{"accepted", ids(d.accepted)},
+                     {"rejected", ids(d.rejected)},
+                     {"skipped_lines", warnings.size()},
                      {"chi2_threshold", c.threshold}};
     std::cout << j.dump() << '\n';
   } else {
@@ -223,8 +233,11 @@ int run_pcm(const PcmCommand& c) {
 
 void add_pcm_command(CLI::App& app, PcmCommand& c) {
   CLI::App* pcm = app.add_subcommand("pcm", "run PCM over a multi-robot g2o folder (or one g2o file)");
-  pcm->add_option("input", c.input, "folder of per-robot .g2o files, or one .g2o file")->required()->check(CLI::ExistingPath);
-  pcm->add_option("--chi2", c.threshold, "Mahalanobis threshold on a cycle (6 DoF)")->check(CLI::PositiveNumber)
+  pcm->add_option("input", c.input, "folder of per-robot .g2o files, or one .g2o file")
+      ->required()
+      ->check(CLI::ExistingPath);
+  pcm->add_option("--chi2", c.threshold, "Mahalanobis threshold on a cycle (6 DoF)")
+      ->check(CLI::PositiveNumber)
       ->capture_default_str();
   pcm->add_flag("--json", c.json, "print one JSON object with the accepted and rejected loops (g2o vertex ids)");
   pcm->add_flag("--strict", c.strict, "fail on damaged lines instead of skipping them");
@@ -250,24 +263,31 @@ struct RunCommand {
 
 CLI::App* add_run_command(CLI::App& app, RunCommand& c) {
   RunOptions& o = c.run;
-  CLI::App* run = app.add_subcommand("run", "loop closure over a cdc-sim dataset folder, judged against its ground truth");
+  CLI::App* run =
+      app.add_subcommand("run", "loop closure over a cdc-sim dataset folder, judged against its ground truth");
   run->add_option("dataset", o.dataset, "dataset folder (cdc-sim generate)")->required()->check(CLI::ExistingDirectory);
   run->add_option("--out", o.out, "write keyframes.csv, loops.csv and report.json here");
-  run->add_option("--keyframe-m", o.keyframe_m, "keyframe every this far [m]")->check(CLI::PositiveNumber)->capture_default_str();
-  run->add_option("--noise-m", o.noise_m, "odometry noise per keyframe, translation sigma [m]")->check(CLI::NonNegativeNumber)
+  run->add_option("--keyframe-m", o.keyframe_m, "keyframe every this far [m]")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  run->add_option("--noise-m", o.noise_m, "odometry noise per keyframe, translation sigma [m]")
+      ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   run->add_option("--noise-rad", o.noise_rad, "odometry noise per keyframe, rotation sigma [rad]")
-      ->check(CLI::NonNegativeNumber)->capture_default_str();
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   run->add_option("--seed", o.seed, "noise seed")->capture_default_str();
   run->add_option("--max-scans", o.max_scans, "scans per robot (0: all)")->capture_default_str();
-  run->add_option("--config", c.config,
-                  "the service's configuration (services/loop_closure/config/loop_closure.yaml) for the core's parameters;\n"
-                  "default: their built-in defaults. --chi2 and --min-support override it")
+  run->add_option(
+         "--config", c.config,
+         "the service's configuration (services/loop_closure/config/loop_closure.yaml) for the core's parameters;\n"
+         "default: their built-in defaults. --chi2 and --min-support override it")
       ->check(CLI::ExistingFile);
   c.chi2_given = run->add_option("--chi2", c.chi2, "PCM threshold")->check(CLI::PositiveNumber)->capture_default_str();
-  c.support_given =
-      run->add_option("--min-support", c.support, "inter-robot loops are published from a PCM-consistent set at least this large")
-          ->check(CLI::PositiveNumber)->capture_default_str();
+  c.support_given = run->add_option("--min-support", c.support,
+                                    "inter-robot loops are published from a PCM-consistent set at least this large")
+                        ->check(CLI::PositiveNumber)
+                        ->capture_default_str();
   run->add_flag("--json", o.json, "print the report as one JSON object");
   return run;
 }

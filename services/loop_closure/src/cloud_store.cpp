@@ -5,7 +5,9 @@
 namespace cdc::loops {
 
 CloudStore::CloudStore(const LoopParams& params)
-    : voxel_m_(params.registration.voxel_m), cache_size_(params.cloud_cache), prepared_size_(params.prepared_clouds),
+    : voxel_m_(params.registration.voxel_m),
+      cache_size_(params.cloud_cache),
+      prepared_size_(params.prepared_clouds),
       registration_(params.registration) {
   registration_.voxel_m = 0;  // the held clouds are downsampled already
 }

@@ -20,7 +20,7 @@ struct LoopNodeOptions {
   std::string backlog_out;
   std::string state_file;  // where the loop numbering is kept across restarts (LoopNumbering); empty: nowhere
   LoopParams core;
-  PeerReachParams reach;        // a peer unheard of reach.silence is out of range: no cloud requests to it
+  PeerReachParams reach;  // a peer unheard of reach.silence is out of range: no cloud requests to it
   int tick_ms = 100;
   float reply_resolution_m = 0.02f;  // quantisation of the clouds sent in cloud replies
   SequencerParams sequencer;         // asking for missed descriptors

@@ -13,7 +13,12 @@ void LoopEvents::append(LoopEvents&& o) {
 lidar::ScanContext wire_form(const lidar::ScanContext& sc) { return lidar::dequantize(lidar::quantize(sc)); }
 
 LoopCore::LoopCore(const LoopParams& params, std::optional<uint32_t> query_robot)
-    : p_(params), retrieval_(params, query_robot), clouds_(params), requests_(params), verifier_(params), pcm_(params) {}
+    : p_(params),
+      retrieval_(params, query_robot),
+      clouds_(params),
+      requests_(params),
+      verifier_(params),
+      pcm_(params) {}
 
 LoopEvents LoopCore::add_keyframe_data(KeyframeIn kf, Nanos now) {
   const KeyframeId me{kf.robot, kf.id};

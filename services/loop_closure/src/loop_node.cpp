@@ -90,8 +90,9 @@ void LoopNode::wire_inputs() {
       .on([this](const cdc_msg_RobotStatus& m) { on_status(m); });
   requests_.filter([me](const cdc_msg_CloudRequest& m) { return m.owner_robot_id == me; })
       .on([this](const cdc_msg_CloudRequest& m) { on_cloud_request(m); });
-  keyframes_.filter([me](const cdc_msg_Keyframe& m) { return m.robot_id == me; })
-      .on([this](const cdc_msg_Keyframe& m) { on_keyframe(m); });
+  keyframes_.filter([me](const cdc_msg_Keyframe& m) { return m.robot_id == me; }).on([this](const cdc_msg_Keyframe& m) {
+    on_keyframe(m);
+  });
   // Descriptors arrive live (volatile), and those missed on request: a gap in a robot's keyframe ids
   // is asked for on cdc/place/descriptor_sync and the owner's descriptor service sends just that
   // range again, in this robot's partition (also the robot's own).
@@ -117,8 +118,9 @@ void LoopNode::log_start() const {
   }
   spdlog::info("loop-closure service of robot {} up: {} robots, PCM chi2 {}, domain {}{}", o_.robot, o_.robots,
                o_.core.pcm.chi2_threshold, o_.domain,
-               service_.split() ? ", own keyframes, descriptors and loops on local domain " + std::to_string(o_.local_domain)
-                                : std::string());
+               service_.split()
+                   ? ", own keyframes, descriptors and loops on local domain " + std::to_string(o_.local_domain)
+                   : std::string());
 }
 
 void LoopNode::spin() {
@@ -221,7 +223,8 @@ void LoopNode::poll_descriptors() {
 
 void LoopNode::ask_for_missed_descriptors() {
   std::vector<DescriptorIn> released;  // held behind a gap given up
-  for (const SyncWanted& w : sequencer_.wanted(now_, [this](uint32_t robot) { return in_reach(robot); }, released)) {
+  for (const SyncWanted& w : sequencer_.wanted(
+           now_, [this](uint32_t robot) { return in_reach(robot); }, released)) {
     const cdc_msg_DescriptorSync q = descriptor_sync(w, o_.robot);
     w_sync_.write(q);
     traffic_.sent(w.robot, dds::serialized_size(q));
@@ -241,10 +244,11 @@ void LoopNode::search_next() {
 void LoopNode::handle(LoopEvents events) {
   request_clouds(events.requests);
   for (const Verification& v : events.verifications) {
-    spdlog::debug("verified {}/{} against {}/{}: {}, fitness {:.3f} m^2, overlap {:.2f}, guess {:.1f} m, moved {:.2f} m",
-                  v.query_robot, v.query_id, v.candidate_robot, v.candidate_id,
-                  v.passed ? "passed" : (v.converged ? "failed" : "not converged"), v.fitness, v.overlap, v.guess_m,
-                  v.correction_m);
+    spdlog::debug(
+        "verified {}/{} against {}/{}: {}, fitness {:.3f} m^2, overlap {:.2f}, guess {:.1f} m, moved {:.2f} m",
+        v.query_robot, v.query_id, v.candidate_robot, v.candidate_id,
+        v.passed ? "passed" : (v.converged ? "failed" : "not converged"), v.fitness, v.overlap, v.guess_m,
+        v.correction_m);
   }
   for (const LoopOut& l : events.loops) publish(l);
 }
@@ -309,9 +313,7 @@ Backlog LoopNode::backlog() const {
           counters_.loops_published};
 }
 
-Nanos LoopNode::clock() const {
-  return std::chrono::duration_cast<Nanos>(std::chrono::steady_clock::now() - t0_);
-}
+Nanos LoopNode::clock() const { return std::chrono::duration_cast<Nanos>(std::chrono::steady_clock::now() - t0_); }
 
 // This robot's own services always; a peer while heard within the reach's silence.
 bool LoopNode::in_reach(uint32_t robot) const { return reach_.in_reach(robot, clock()); }

@@ -16,8 +16,9 @@ struct LoopFlags {
 void add_options(CLI::App& app, LoopFlags& f) {
   // What this service keeps on the shared options' domain and file.
   app.get_option("--local-domain")
-      ->description("the robot's own DDS domain: its keyframes, its own descriptors and a copy of its loop closures; "
-                    "default: none, all on --domain");
+      ->description(
+          "the robot's own DDS domain: its keyframes, its own descriptors and a copy of its loop closures; "
+          "default: none, all on --domain");
   app.get_option("--stats-out")->description("write counters and bytes per topic and peer (JSON) here at shutdown");
   app.add_option("--backlog-out", f.backlog_out,
                  "keep the work left here: descriptors waiting to be searched, cloud requests pending and parked, "
@@ -41,17 +42,19 @@ int main(int argc, char** argv) {
       "see services/loop_closure/config", rt::kRobotService};
   rt::ServiceOptions common;
   LoopFlags f;
-  return rt::service_main(argc, argv, spec, common, [&](CLI::App& app) { add_options(app, f); }, [&] {
-    cdc::loops::LoopNodeOptions o = cdc::loops::load_loop_options(common.config);
-    common.check_robot(o.robots);
-    o.robot = common.robot;
-    o.domain = common.domain_id();
-    o.dds_config = common.dds_config;
-    o.local_domain = common.local_domain;
-    o.local_dds_config = common.local_dds_config;
-    o.stats_out = common.stats_out;
-    o.backlog_out = f.backlog_out;
-    o.state_file = f.state_file;
-    return rt::run_node<cdc::loops::LoopNode>(spec, common, o.log_level, o);
-  });
+  return rt::service_main(
+      argc, argv, spec, common, [&](CLI::App& app) { add_options(app, f); },
+      [&] {
+        cdc::loops::LoopNodeOptions o = cdc::loops::load_loop_options(common.config);
+        common.check_robot(o.robots);
+        o.robot = common.robot;
+        o.domain = common.domain_id();
+        o.dds_config = common.dds_config;
+        o.local_domain = common.local_domain;
+        o.local_dds_config = common.local_dds_config;
+        o.stats_out = common.stats_out;
+        o.backlog_out = f.backlog_out;
+        o.state_file = f.state_file;
+        return rt::run_node<cdc::loops::LoopNode>(spec, common, o.log_level, o);
+      });
 }

@@ -23,7 +23,9 @@ bool IntraGate::plausible(const KeyframeId& query, const KeyframeId& candidate) 
 }
 
 Retrieval::Retrieval(const LoopParams& params, std::optional<uint32_t> query_robot)
-    : p_(params), query_robot_(query_robot), gate_(params.intra_gate_m, params.intra_gate_per_m),
+    : p_(params),
+      query_robot_(query_robot),
+      gate_(params.intra_gate_m, params.intra_gate_per_m),
       db_(params.scan_context.rings) {}
 
 bool Retrieval::waits_for_keyframe(const DescriptorIn& d, bool keyframe_held) const {

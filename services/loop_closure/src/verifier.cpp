@@ -16,8 +16,16 @@ std::optional<Verifier::Outcome> Verifier::verify(const VerificationJob& job, Cl
   const auto [robot_a, kf_a] = job.candidate;
   const auto [robot_b, kf_b] = job.query;
   Outcome out;
-  out.record = Verification{robot_b, kf_b, robot_a, kf_a, r.converged, false, r.fitness, r.overlap,
-                            job.guess.translation().norm(), (job.guess.inverse() * r.T_target_source).translation().norm()};
+  out.record = Verification{robot_b,
+                            kf_b,
+                            robot_a,
+                            kf_a,
+                            r.converged,
+                            false,
+                            r.fitness,
+                            r.overlap,
+                            job.guess.translation().norm(),
+                            (job.guess.inverse() * r.T_target_source).translation().norm()};
   if (!passes(r)) {
     return out;
   }
@@ -35,7 +43,9 @@ bool Verifier::passes(const lidar::RegistrationResult& r) {
     return true;
   }
   ++stats_.verification_failed;
-  ++(!r.converged ? stats_.failed_not_converged : r.fitness > p_.max_fitness ? stats_.failed_fitness : stats_.failed_overlap);
+  ++(!r.converged                 ? stats_.failed_not_converged
+     : r.fitness > p_.max_fitness ? stats_.failed_fitness
+                                  : stats_.failed_overlap);
   return false;
 }
 

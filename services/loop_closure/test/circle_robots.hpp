@@ -3,9 +3,9 @@
 #pragma once
 
 #include "cdc/loop_closure/loop_core.hpp"
-#include "circle_lap.hpp"
 #include "cdc/sim/lidar.hpp"
 #include "cdc/sim/world.hpp"
+#include "circle_lap.hpp"
 
 #include <gtest/gtest.h>
 
@@ -33,7 +33,9 @@ struct Circle {
         const Eigen::Isometry3d T = lap[k * 10 + 40 * r].pose;
         truth[{r, k}] = T;
         auto& c = clouds[{r, k}];
-        for (const auto& p : sim::sweep(world, sim::LidarModel::vlp16(), [&](double) { return T; }, rng)) c.emplace_back(p.x, p.y, p.z);
+        for (const auto& p : sim::sweep(
+                 world, sim::LidarModel::vlp16(), [&](double) { return T; }, rng))
+          c.emplace_back(p.x, p.y, p.z);
       }
     }
   }
@@ -58,7 +60,8 @@ struct Circle {
     return ev;
   }
   void expect_true(const LoopOut& l) const {
-    const Eigen::Isometry3d e = (truth.at({l.robot_a, l.keyframe_a}).inverse() * truth.at({l.robot_b, l.keyframe_b})).inverse() * l.T_a_b;
+    const Eigen::Isometry3d e =
+        (truth.at({l.robot_a, l.keyframe_a}).inverse() * truth.at({l.robot_b, l.keyframe_b})).inverse() * l.T_a_b;
     EXPECT_LT(e.translation().norm(), 1.0);
     EXPECT_LT(Eigen::AngleAxisd(e.rotation()).angle(), 5 * M_PI / 180);
   }

@@ -186,7 +186,7 @@ TEST(CloudRequests, ACandidateIsNotReAimedBeyondTheLimit) {
   p.peer_request_spacing = 5;
   p.reaim_max_m = 25;
   Neighbours n(p);
-  EXPECT_TRUE(n.reaim(12).job.has_value());  // 20 m
+  EXPECT_TRUE(n.reaim(12).job.has_value());        // 20 m
   const CloudRequests::Reaimed far = n.reaim(13);  // 30 m from 10 (20 is beyond the spacing)
   EXPECT_FALSE(far.job.has_value());
   EXPECT_TRUE(far.too_far);

@@ -84,7 +84,8 @@ TEST(CloudStore, AReplacedOrDroppedCloudIsPreparedAfresh) {
   ASSERT_NE(second, nullptr);
   EXPECT_NE(second, first);
   const auto& held = *store.find({1, 0});
-  EXPECT_TRUE(std::any_of(held.begin(), held.end(), [](const Eigen::Vector3f& p) { return p.x() > 13; })) << "the new cloud";
+  EXPECT_TRUE(std::any_of(held.begin(), held.end(), [](const Eigen::Vector3f& p) { return p.x() > 13; }))
+      << "the new cloud";
   store.add_received({1, 2}, grid());  // drops {1, 1}
   EXPECT_TRUE(store.holds({1, 0}));
   EXPECT_FALSE(store.holds({1, 1}));

@@ -83,8 +83,12 @@ TEST(DescriptorSequencer, AnOwnerOutOfReachIsNotAsked) {
   DescriptorSequencer s;
   s.add(desc(1, 3));  // ids 0..2 missed
   std::vector<DescriptorIn> released;
-  EXPECT_TRUE(s.wanted(seconds(0), [](uint32_t) { return false; }, released).empty());
-  EXPECT_TRUE(s.wanted(seconds(100), [](uint32_t) { return false; }, released).empty());
+  EXPECT_TRUE(s.wanted(
+                   seconds(0), [](uint32_t) { return false; }, released)
+                  .empty());
+  EXPECT_TRUE(s.wanted(
+                   seconds(100), [](uint32_t) { return false; }, released)
+                  .empty());
   EXPECT_TRUE(released.empty()) << "a gap is not given up while its owner cannot be asked";
   EXPECT_EQ(s.wanted(seconds(101), always, released).size(), 1u);
 }
@@ -175,7 +179,9 @@ TEST(DescriptorSequencer, ATailOutOfReachWaitsAndOneNeverSentIsGivenUp) {
   s.add(desc(2, 0));
   s.announce(2, 2, Nanos(0));
   std::vector<DescriptorIn> released;
-  EXPECT_TRUE(s.wanted(seconds(5), [](uint32_t) { return false; }, released).empty());
+  EXPECT_TRUE(s.wanted(
+                   seconds(5), [](uint32_t) { return false; }, released)
+                  .empty());
   for (int k = 0; k < 5; ++k) {
     EXPECT_EQ(s.wanted(seconds(10 + 2 * k), always, released).size(), 1u) << "attempt " << k;
   }

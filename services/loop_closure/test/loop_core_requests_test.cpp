@@ -22,7 +22,8 @@ TEST(LoopCore, AnUnansweredRequestTimesOutWithoutBlockingOtherCandidates) {
   params.peer_request_spacing = 0;
   params.request_timeout = std::chrono::seconds(1);
   params.request_attempts = 1;  // given up at the first timeout
-  params.lower_robot_verifies = false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
+  params.lower_robot_verifies =
+      false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
   LoopCore core(params, 2u);
   std::vector<LoopOut> loops;
   size_t to_silent = 0;
@@ -130,10 +131,10 @@ TEST(LoopCore, ARequestIsAbandonedAfterItsLastAttempt) {
     first += ev.requests.size();
   }
   ASSERT_GE(first, 2u);
-  EXPECT_TRUE(core.tick(now += std::chrono::seconds(2)).requests.empty());        // timed out: parked
-  EXPECT_EQ(core.tick(now += std::chrono::seconds(1)).requests.size(), first);   // second attempt
-  EXPECT_TRUE(core.tick(now += std::chrono::seconds(2)).requests.empty());        // timed out again
-  EXPECT_TRUE(core.tick(now += std::chrono::seconds(5)).requests.empty());        // no third
+  EXPECT_TRUE(core.tick(now += std::chrono::seconds(2)).requests.empty());      // timed out: parked
+  EXPECT_EQ(core.tick(now += std::chrono::seconds(1)).requests.size(), first);  // second attempt
+  EXPECT_TRUE(core.tick(now += std::chrono::seconds(2)).requests.empty());      // timed out again
+  EXPECT_TRUE(core.tick(now += std::chrono::seconds(5)).requests.empty());      // no third
   EXPECT_EQ(core.stats().timed_out, 2 * first);
   EXPECT_EQ(core.stats().requests_abandoned, first);
   EXPECT_EQ(core.pending_requests(), 0u);
@@ -146,7 +147,8 @@ TEST(LoopCore, PeerCloudRequestsAreSpacedAlongThePeersKeyframes) {
   LoopParams params;
   params.exclude_recent = 1000;
   params.peer_request_spacing = 5;
-  params.lower_robot_verifies = false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
+  params.lower_robot_verifies =
+      false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
   LoopCore core(params, 1u);
   std::vector<uint32_t> asked;
   std::vector<LoopOut> loops;
@@ -224,7 +226,8 @@ TEST(LoopCore, CandidatesOfAnUnreachableOwnerAreAskedForWhenItIsBackInReach) {
   const Circle c(16, 2);
   LoopParams params;
   params.exclude_recent = 1000;
-  params.lower_robot_verifies = false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
+  params.lower_robot_verifies =
+      false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
   LoopCore core(params, 1u);
   bool in_reach = false;
   core.set_reachable([&](uint32_t robot) { return robot != 0 || in_reach; });

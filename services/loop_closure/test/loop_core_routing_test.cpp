@@ -25,7 +25,9 @@ LoopParams params(uint32_t spacing = 0) {
 // Peer robot 0's keyframe k: at place 10 + k, 2 m apart along x in the peer's odometry.
 DescriptorIn peer(uint32_t k) { return DescriptorIn{0, k, test::place_context(10 + k), planar(2.0 * k, 0, 0)}; }
 // Robot 1's own keyframe k, at `place`.
-DescriptorIn own(uint32_t k, uint32_t place) { return DescriptorIn{1, k, test::place_context(place), Eigen::Isometry3d::Identity()}; }
+DescriptorIn own(uint32_t k, uint32_t place) {
+  return DescriptorIn{1, k, test::place_context(place), Eigen::Isometry3d::Identity()};
+}
 KeyframeIn own_keyframe(uint32_t k) {
   KeyframeIn kf;
   kf.robot = 1;

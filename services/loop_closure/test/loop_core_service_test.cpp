@@ -16,9 +16,10 @@ TEST(LoopCore, RequestsPeerCloudsAndVerifiesWhenTheyArrive) {
   // Robot 1's service: its own keyframes with clouds, robot 0's descriptors only (pose hints).
   const Circle c(30, 2);
   LoopParams params;
-  params.exclude_recent = 1000;  // inter-robot loops only
+  params.exclude_recent = 1000;     // inter-robot loops only
   params.peer_request_spacing = 0;  // every candidate's cloud is asked for
-  params.lower_robot_verifies = false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
+  params.lower_robot_verifies =
+      false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
   LoopCore core(params, 1u);
   std::vector<LoopOut> loops;
   std::set<std::pair<uint32_t, uint32_t>> asked;
@@ -63,7 +64,8 @@ TEST(LoopCore, ASetOfLoopsThroughOneKeyframeIsNotPublished) {
   params.exclude_recent = 1000;
   params.peer_request_spacing = 0;
   params.max_verify = 4;  // several of robot 0's keyframes against each of robot 1's
-  params.lower_robot_verifies = false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
+  params.lower_robot_verifies =
+      false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
   LoopCore core(params, 1u);
   Nanos now{0};
   for (uint32_t k = 0; c.truth.count({0, k}) != 0; ++k) core.add_descriptor(c.descriptor(0, k, params), now);
@@ -93,7 +95,8 @@ TEST(LoopCore, DescriptorsOfAPeerBackInRangeAreSearchedAmongOwnKeyframes) {
   LoopParams params;
   params.exclude_recent = 1000;  // inter-robot loops only
   params.peer_request_spacing = 0;
-  params.lower_robot_verifies = false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
+  params.lower_robot_verifies =
+      false;  // this robot verifies its pairs with robot 0 too (see LoopCore.APairWithALowerRobot...)
   LoopCore core(params, 1u);
   Nanos now{0};
   for (uint32_t k = 0; c.truth.count({1, k}) != 0; ++k) {

@@ -2,9 +2,9 @@
 // robots drive the same block; every loop it publishes is true (1 m / 5 deg), and it finds the
 // robots' shared places; own-robot candidates the odometry puts far away are never verified.
 #include "cdc/loop_closure/loop_core.hpp"
-#include "circle_lap.hpp"
 #include "cdc/sim/lidar.hpp"
 #include "cdc/sim/world.hpp"
+#include "circle_lap.hpp"
 
 #include <gtest/gtest.h>
 
@@ -45,7 +45,9 @@ TEST(LoopCore, FindsTrueLoopsBetweenTwoRobotsOnTheSameBlock) {
       if (k > 0) kf.T_prev = truth[{r, static_cast<uint32_t>(k - 1)}].inverse() * T;
       kf.information.diagonal() << 2500, 2500, 2500, 250000, 250000, 250000;
       kf.T_odom = T;  // a levelled odometry's tilt
-      for (const auto& p : sim::sweep(world, lidar, [&](double) { return T; }, rng)) kf.cloud.emplace_back(p.x, p.y, p.z);
+      for (const auto& p : sim::sweep(
+               world, lidar, [&](double) { return T; }, rng))
+        kf.cloud.emplace_back(p.x, p.y, p.z);
       truth[{r, kf.id}] = T;
       for (const auto& l : raw_core.add_keyframe(kf)) {
         raw_information[{l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b}] = l.information;
@@ -59,7 +61,8 @@ TEST(LoopCore, FindsTrueLoopsBetweenTwoRobotsOnTheSameBlock) {
     ASSERT_FALSE(l.withdrawn);
     const Eigen::Isometry3d gt = truth.at({l.robot_a, l.keyframe_a}).inverse() * truth.at({l.robot_b, l.keyframe_b});
     const Eigen::Isometry3d e = gt.inverse() * l.T_a_b;
-    EXPECT_LT(e.translation().norm(), 1.0) << l.robot_a << "/" << l.keyframe_a << " - " << l.robot_b << "/" << l.keyframe_b;
+    EXPECT_LT(e.translation().norm(), 1.0)
+        << l.robot_a << "/" << l.keyframe_a << " - " << l.robot_b << "/" << l.keyframe_b;
     EXPECT_LT(Eigen::AngleAxisd(e.rotation()).angle(), 5 * M_PI / 180);
     // The registration's information, levelled: about the query keyframe's horizontal axes the
     // rotation information is scaled by tilt_information_scale, about its vertical axis it is kept.
@@ -67,12 +70,15 @@ TEST(LoopCore, FindsTrueLoopsBetweenTwoRobotsOnTheSameBlock) {
     ASSERT_NE(raw, raw_information.end()) << "the same loop without levelling";
     const Eigen::Vector3d up = truth.at({l.robot_b, l.keyframe_b}).linear().transpose() * Eigen::Vector3d::UnitZ();
     const Eigen::Vector3d side = up.cross(Eigen::Vector3d::UnitX()).normalized(), ahead = side.cross(up);
-    const Eigen::Matrix3d info_r = l.information.bottomRightCorner<3, 3>(), raw_r = raw->second.bottomRightCorner<3, 3>();
+    const Eigen::Matrix3d info_r = l.information.bottomRightCorner<3, 3>(),
+                          raw_r = raw->second.bottomRightCorner<3, 3>();
     EXPECT_NEAR(up.dot(info_r * up), up.dot(raw_r * up), 1e-6 * up.dot(raw_r * up));
-    EXPECT_NEAR(side.dot(info_r * side), params.tilt_information_scale * side.dot(raw_r * side), 1e-6 * side.dot(raw_r * side));
+    EXPECT_NEAR(side.dot(info_r * side), params.tilt_information_scale * side.dot(raw_r * side),
+                1e-6 * side.dot(raw_r * side));
     EXPECT_NEAR(ahead.dot(info_r * ahead), params.tilt_information_scale * ahead.dot(raw_r * ahead),
                 1e-6 * ahead.dot(raw_r * ahead));
-    EXPECT_TRUE((l.information.topLeftCorner<3, 3>().isApprox(raw->second.topLeftCorner<3, 3>(), 1e-9))) << "translation untouched";
+    EXPECT_TRUE((l.information.topLeftCorner<3, 3>().isApprox(raw->second.topLeftCorner<3, 3>(), 1e-9)))
+        << "translation untouched";
     // The registration's translation information (the loop's / loop_information_scale) matches its error.
     const Eigen::Vector3d dt = l.T_a_b.translation() - gt.translation();
     chi2_t += dt.dot(l.information.topLeftCorner<3, 3>() * dt) / params.loop_information_scale;
@@ -83,8 +89,8 @@ TEST(LoopCore, FindsTrueLoopsBetweenTwoRobotsOnTheSameBlock) {
   // Neither over- nor under-confident by more than 3x in variance (3 if exact).
   EXPECT_GT(mean_chi2_t, 1.0);
   EXPECT_LT(mean_chi2_t, 9.0);
-  std::printf("%zu loops published (%zu inter-robot), %llu verified, %llu failed verification\n", published.size(), inter,
-              static_cast<unsigned long long>(core.stats().verified),
+  std::printf("%zu loops published (%zu inter-robot), %llu verified, %llu failed verification\n", published.size(),
+              inter, static_cast<unsigned long long>(core.stats().verified),
               static_cast<unsigned long long>(core.stats().verification_failed));
   EXPECT_GE(inter, 10u);
 }
@@ -110,7 +116,9 @@ TEST(LoopCore, OwnCandidatesTheOdometryPutsFarAwayAreNotVerified) {
       kf.T_prev.translation().z() += climb_m;
       prev = T;
       kf.information.diagonal() << 2500, 2500, 2500, 250000, 250000, 250000;
-      for (const auto& p : sim::sweep(world, lidar, [&](double) { return T; }, rng)) kf.cloud.emplace_back(p.x, p.y, p.z);
+      for (const auto& p : sim::sweep(
+               world, lidar, [&](double) { return T; }, rng))
+        kf.cloud.emplace_back(p.x, p.y, p.z);
       for (const auto& l : core.add_keyframe(std::move(kf))) intra += l.robot_a == l.robot_b ? 1 : 0;
     }
     return std::make_pair(intra, core.stats());

@@ -76,10 +76,10 @@ TEST(WrittenLoops, APeerHeardAgainAfterASilenceGetsItsLoopsWrittenAgain) {
   PeerReach reach(0, p);
   WrittenLoops written(reach);
   for (int t = 0; t <= 10; ++t) reach.heard(1, seconds(t));  // peer 1's last word at 10 s
-  written.wrote(loop(0, 1, 1, 1, 0), false, seconds(1));      // long before the silence: acknowledged
-  written.wrote(loop(0, 2, 1, 2, 1), false, seconds(9));      // within the margin
-  written.wrote(loop(0, 3, 0, 9, 2), false, seconds(12));     // the robot's own: no peer to catch up
-  written.wrote(loop(1, 4, 0, 4, 3), false, seconds(12));     // written into the cut
+  written.wrote(loop(0, 1, 1, 1, 0), false, seconds(1));     // long before the silence: acknowledged
+  written.wrote(loop(0, 2, 1, 2, 1), false, seconds(9));     // within the margin
+  written.wrote(loop(0, 3, 0, 9, 2), false, seconds(12));    // the robot's own: no peer to catch up
+  written.wrote(loop(1, 4, 0, 4, 3), false, seconds(12));    // written into the cut
   EXPECT_EQ(written.size(), 4u);
   reach.heard(1, seconds(30));
   EXPECT_TRUE(written.due(seconds(30)).empty()) << "waits for discovery to match the readers";

@@ -6,11 +6,11 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <unistd.h>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <unistd.h>
 
 namespace {
 
@@ -51,8 +51,9 @@ TEST(LoopsTool, RunJudgesASimulatedDatasetAgainstItsGroundTruth) {
   // Two robots on figure-eights that cross at the start, 45 s.
   fs::create_directories(tmp);
   const std::string scenario = (tmp / "crossing.yaml").string();
-  std::ofstream(scenario) << "name: crossing_2robots\nseed: 5\ntrajectories:\n  source: procedural\n  pattern: crossing\n"
-                             "  robots: 2\n  speed_mps: 4\n  size_m: 60\n  duration_s: 45\nlidar: vlp16\n";
+  std::ofstream(scenario)
+      << "name: crossing_2robots\nseed: 5\ntrajectories:\n  source: procedural\n  pattern: crossing\n"
+         "  robots: 2\n  speed_mps: 4\n  size_m: 60\n  duration_s: 45\nlidar: vlp16\n";
   Result g = run(std::string(std::getenv("CDC_SIM_BIN")) + " generate --scenario " + scenario + " --out " +
                  (tmp / "ds").string() + " --data " + data_dir());
   ASSERT_EQ(g.code, 0) << g.out;

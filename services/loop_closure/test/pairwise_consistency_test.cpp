@@ -20,7 +20,8 @@ Eigen::Isometry3d pose(uint32_t k) { return planar(2.0 * k, 0, 0); }
 
 graph::Matrix6d information(double sigma_m, double sigma_rad) {
   graph::Matrix6d info = graph::Matrix6d::Zero();
-  info.diagonal() << Eigen::Vector3d::Constant(1 / (sigma_m * sigma_m)), Eigen::Vector3d::Constant(1 / (sigma_rad * sigma_rad));
+  info.diagonal() << Eigen::Vector3d::Constant(1 / (sigma_m * sigma_m)),
+      Eigen::Vector3d::Constant(1 / (sigma_rad * sigma_rad));
   return info;
 }
 
@@ -33,7 +34,8 @@ LoopOut inter(uint32_t ka, uint32_t kb, const Eigen::Isometry3d& start = kStart)
 }
 
 void add_odometry(PairwiseConsistency& pcm, uint32_t robot, uint32_t keyframes = 10) {
-  for (uint32_t k = 0; k < keyframes; ++k) pcm.add_keyframe_odometry(robot, k, planar(2, 0, 0), information(0.02, 0.002));
+  for (uint32_t k = 0; k < keyframes; ++k)
+    pcm.add_keyframe_odometry(robot, k, planar(2, 0, 0), information(0.02, 0.002));
 }
 
 using LoopKey = std::tuple<uint32_t, uint32_t, bool>;  // (keyframe_a, keyframe_b, withdrawn)

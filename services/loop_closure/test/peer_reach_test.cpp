@@ -21,7 +21,7 @@ PeerReachParams params() {
 
 TEST(PeerReach, APeerIsInReachWhileHeardWithinTheSilence) {
   PeerReach r(0, params());
-  EXPECT_TRUE(r.in_reach(0, seconds(0)));  // the robot's own services
+  EXPECT_TRUE(r.in_reach(0, seconds(0)));   // the robot's own services
   EXPECT_FALSE(r.in_reach(1, seconds(0)));  // never heard
   r.heard(1, seconds(10));
   EXPECT_TRUE(r.in_reach(1, seconds(13)));
@@ -36,12 +36,12 @@ TEST(PeerReach, APeerHeardAgainAfterASilenceGetsTheLoopsItMayHaveMissed) {
     r.heard(2, seconds(t));
     if (t == 1) r.published(0, 0, 0, 1, 0, false, seconds(1));  // long before the silence: acknowledged
   }
-  r.published(1, 1, 1, 0, 1, false, seconds(9));    // within the margin: may still have been unacknowledged
-  r.published(2, 0, 2, 2, 2, false, seconds(11));   // involves peer 2 only
-  r.published(3, 0, 3, 1, 3, false, seconds(12));   // written into the cut
-  r.heard(2, seconds(12));             // peer 2 stays in reach throughout
+  r.published(1, 1, 1, 0, 1, false, seconds(9));   // within the margin: may still have been unacknowledged
+  r.published(2, 0, 2, 2, 2, false, seconds(11));  // involves peer 2 only
+  r.published(3, 0, 3, 1, 3, false, seconds(12));  // written into the cut
+  r.heard(2, seconds(12));                         // peer 2 stays in reach throughout
   EXPECT_TRUE(r.due(seconds(12)).empty());
-  r.heard(1, seconds(30));             // back after 20 s
+  r.heard(1, seconds(30));  // back after 20 s
   EXPECT_TRUE(r.due(milliseconds(30500)).empty()) << "waits for discovery to match the readers";
   EXPECT_EQ(r.due(seconds(31)), (Ids{1, 3}));
   EXPECT_TRUE(r.due(seconds(32)).empty()) << "each catch-up goes out once";
@@ -64,10 +64,10 @@ TEST(PeerReach, SilencesBeforeTheCatchUpWentOutMerge) {
   PeerReach r(0, params());
   r.heard(1, seconds(0));
   r.published(0, 0, 0, 1, 0, false, seconds(5));   // into the first silence
-  r.heard(1, seconds(10));            // catch-up due at 11 s, but not taken yet
+  r.heard(1, seconds(10));                         // catch-up due at 11 s, but not taken yet
   r.published(1, 0, 1, 2, 1, false, seconds(12));  // peer 2's
   r.published(2, 0, 2, 1, 2, false, seconds(13));  // into the second silence
-  r.heard(1, milliseconds(14500));    // silent again for 4.5 s: due at 15.5 s
+  r.heard(1, milliseconds(14500));                 // silent again for 4.5 s: due at 15.5 s
   EXPECT_TRUE(r.due(seconds(15)).empty());
   EXPECT_EQ(r.due(seconds(16)), (Ids{0, 2})) << "one catch-up covering both silences";
   EXPECT_EQ(r.stats().silences, 2u);
@@ -105,7 +105,8 @@ TEST(PeerReach, OnlyTheNewestLoopsAreKeptToBeWrittenAgain) {
   r.heard(1, seconds(0));
   Ids forgotten;
   for (uint64_t id = 0; id < 5; ++id) {  // all written into peer 1's silence
-    if (const auto gone = r.published(id, 0, static_cast<uint32_t>(id), 1, 0, false, seconds(5 + static_cast<int>(id)))) {
+    if (const auto gone =
+            r.published(id, 0, static_cast<uint32_t>(id), 1, 0, false, seconds(5 + static_cast<int>(id)))) {
       forgotten.push_back(*gone);
     }
   }

@@ -66,7 +66,8 @@ LoopParams params() {
 
 // The job's starting guess turns by yaw_rad about z.
 void expect_yaw(const VerificationJob& job, double yaw_rad) {
-  EXPECT_TRUE(job.guess.linear().isApprox(Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix(), 1e-9));
+  EXPECT_TRUE(
+      job.guess.linear().isApprox(Eigen::AngleAxisd(yaw_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix(), 1e-9));
   EXPECT_LT(job.guess.translation().norm(), 1e-12);
 }
 

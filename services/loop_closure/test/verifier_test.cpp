@@ -76,7 +76,8 @@ TEST(Verifier, AnUnrelatedCloudFailsUnderItsFirstReason) {
   for (int i = 0; i < 5000; ++i) noise.emplace_back(u(rng), u(rng), u(rng) / 5);
   store.add_received(kCandidate, noise);
   Verifier verifier(p);
-  const std::optional<Verifier::Outcome> out = verifier.verify({kQuery, kCandidate, Eigen::Isometry3d::Identity()}, store);
+  const std::optional<Verifier::Outcome> out =
+      verifier.verify({kQuery, kCandidate, Eigen::Isometry3d::Identity()}, store);
   ASSERT_TRUE(out.has_value());
   EXPECT_FALSE(out->loop.has_value());
   EXPECT_FALSE(out->record.passed);

@@ -14,7 +14,8 @@
 
 namespace cdc::map {
 
-MapCore::MapCore(const MapParams& params) : p_(params), tree_(std::make_unique<octomap::OcTree>(params.octree_resolution_m)) {}
+MapCore::MapCore(const MapParams& params)
+    : p_(params), tree_(std::make_unique<octomap::OcTree>(params.octree_resolution_m)) {}
 
 MapCore::~MapCore() = default;
 
@@ -86,8 +87,9 @@ const octomap::OcTree& MapCore::octree() {
         octomap::Pointcloud cloud;
         cloud.reserve(pl.world.size());
         for (const auto& p : pl.world) cloud.push_back(p.x(), p.y(), p.z());
-        tree_->insertPointCloud(cloud, octomap::point3d(static_cast<float>(o.x()), static_cast<float>(o.y()), static_cast<float>(o.z())),
-                                p_.max_range_m, false, true);
+        tree_->insertPointCloud(
+            cloud, octomap::point3d(static_cast<float>(o.x()), static_cast<float>(o.y()), static_cast<float>(o.z())),
+            p_.max_range_m, false, true);
         last_ray_origin[robot] = o;
       } else {
         for (const auto& p : pl.world) {

@@ -54,7 +54,8 @@ void MapNode::spin() {
 
 void MapNode::on_keyframe(const cdc_msg_Keyframe& m) {
   cloud_.clear();
-  for (uint32_t i = 0; i < m.cloud._length; ++i) cloud_.emplace_back(m.cloud._buffer[i].x, m.cloud._buffer[i].y, m.cloud._buffer[i].z);
+  for (uint32_t i = 0; i < m.cloud._length; ++i)
+    cloud_.emplace_back(m.cloud._buffer[i].x, m.cloud._buffer[i].y, m.cloud._buffer[i].z);
   core_.add_keyframe(m.robot_id, m.keyframe_id, cloud_);
 }
 
@@ -76,9 +77,8 @@ void MapNode::write() {
 
 nlohmann::json MapNode::stats() const {
   const MapStats& s = core_.stats();
-  return {{"keyframes", s.keyframes},       {"placed", core_.placed_keyframes()},
-          {"placements", s.placements},     {"pose_updates", s.pose_updates},
-          {"octree_rebuilds", s.octree_rebuilds}, {"writes", writes_}};
+  return {{"keyframes", s.keyframes},       {"placed", core_.placed_keyframes()},   {"placements", s.placements},
+          {"pose_updates", s.pose_updates}, {"octree_rebuilds", s.octree_rebuilds}, {"writes", writes_}};
 }
 
 void MapNode::finish() {

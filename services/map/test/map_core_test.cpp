@@ -8,10 +8,10 @@
 #include <gtest/gtest.h>
 #include <octomap/octomap.h>
 
+#include <unistd.h>
 #include <filesystem>
 #include <fstream>
 #include <random>
-#include <unistd.h>
 
 namespace cdc::map {
 namespace {
@@ -33,7 +33,9 @@ struct Scene {
       T.translation() = path[static_cast<size_t>(5 + 5 * k)];
       poses.push_back(T);
       std::vector<Eigen::Vector3f> c;
-      for (const auto& p : sim::sweep(world, sim::LidarModel::vlp16(), [&](double) { return T; }, rng)) c.emplace_back(p.x, p.y, p.z);
+      for (const auto& p : sim::sweep(
+               world, sim::LidarModel::vlp16(), [&](double) { return T; }, rng))
+        c.emplace_back(p.x, p.y, p.z);
       clouds.push_back(c);
     }
   }
@@ -92,7 +94,8 @@ TEST(MapCore, OctoMapHasOccupiedSurfacesAndFreeSpaceAndFilesRoundTrip) {
   size_t checked = 0, free_ok = 0, occ_ok = 0;
   for (int k = 0; k < 36; ++k) {
     const double el = -1.0 * M_PI / 180;  // along one of the VLP-16's beams
-    const Eigen::Vector3d d(std::cos(el) * std::cos(k * M_PI / 18), std::cos(el) * std::sin(k * M_PI / 18), std::sin(el));
+    const Eigen::Vector3d d(std::cos(el) * std::cos(k * M_PI / 18), std::cos(el) * std::sin(k * M_PI / 18),
+                            std::sin(el));
     const auto hit = s.world.cast(o, d, 40.0);
     if (!hit || hit->range < 4.0) continue;
     ++checked;
@@ -101,9 +104,10 @@ TEST(MapCore, OctoMapHasOccupiedSurfacesAndFreeSpaceAndFilesRoundTrip) {
     free_ok += (nf != nullptr && !tree.isNodeOccupied(nf)) ? 1u : 0u;
     // A ray cast through the OctoMap (unknown space passed) stops at the surface the world has.
     octomap::point3d end;
-    const bool stopped = tree.castRay(octomap::point3d(static_cast<float>(o.x()), static_cast<float>(o.y()), static_cast<float>(o.z())),
-                                      octomap::point3d(static_cast<float>(d.x()), static_cast<float>(d.y()), static_cast<float>(d.z())),
-                                      end, true, 45.0);
+    const bool stopped =
+        tree.castRay(octomap::point3d(static_cast<float>(o.x()), static_cast<float>(o.y()), static_cast<float>(o.z())),
+                     octomap::point3d(static_cast<float>(d.x()), static_cast<float>(d.y()), static_cast<float>(d.z())),
+                     end, true, 45.0);
     const double range = Eigen::Vector3d(end.x() - o.x(), end.y() - o.y(), end.z() - o.z()).norm();
     occ_ok += (stopped && std::abs(range - hit->range) < 0.5) ? 1u : 0u;
   }

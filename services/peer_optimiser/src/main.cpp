@@ -14,8 +14,9 @@ struct PeerFlags {
 
 void add_options(CLI::App& app, PeerFlags& f) {
   app.get_option("--local-domain")
-      ->description("the robot's own DDS domain: its keyframes (forwarded to the central over --domain), loop closures "
-                    "and corrections; default: none, all on --domain");
+      ->description(
+          "the robot's own DDS domain: its keyframes (forwarded to the central over --domain), loop closures "
+          "and corrections; default: none, all on --domain");
   app.add_option("--mode-out", f.mode_out, "write every mode transition (CSV) here as it happens");
   app.add_option("--trajectory-out", f.trajectory_out,
                  "write the robot's keyframes in the world frame as last corrected (TUM) here at shutdown");
@@ -38,22 +39,24 @@ int main(int argc, char** argv) {
       "see services/peer_optimiser/config", rt::kRobotService};
   rt::ServiceOptions common;
   PeerFlags f;
-  return rt::service_main(argc, argv, spec, common, [&](CLI::App& app) { add_options(app, f); }, [&] {
-    cdc::peer::PeerNodeOptions o = cdc::peer::load_options(common.config);
-    common.check_robot(o.core.robot_count);
-    o.core.robot = common.robot;
-    o.domain = common.domain_id();
-    o.dds_config = common.dds_config;
-    o.local_domain = common.local_domain;
-    o.local_dds_config = common.local_dds_config;
-    o.stats_out = common.stats_out;
-    o.mode_out = f.mode_out;
-    o.trajectory_out = f.trajectory_out;
-    o.graph_out = f.graph_out;
-    rt::start_logging(spec, common, o.log_level);
-    cdc::peer::PeerNode node(o);
-    node.spin();
-    node.finish();
-    return 0;
-  });
+  return rt::service_main(
+      argc, argv, spec, common, [&](CLI::App& app) { add_options(app, f); },
+      [&] {
+        cdc::peer::PeerNodeOptions o = cdc::peer::load_options(common.config);
+        common.check_robot(o.core.robot_count);
+        o.core.robot = common.robot;
+        o.domain = common.domain_id();
+        o.dds_config = common.dds_config;
+        o.local_domain = common.local_domain;
+        o.local_dds_config = common.local_dds_config;
+        o.stats_out = common.stats_out;
+        o.mode_out = f.mode_out;
+        o.trajectory_out = f.trajectory_out;
+        o.graph_out = f.graph_out;
+        rt::start_logging(spec, common, o.log_level);
+        cdc::peer::PeerNode node(o);
+        node.spin();
+        node.finish();
+        return 0;
+      });
 }

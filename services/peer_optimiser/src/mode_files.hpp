@@ -14,10 +14,10 @@ namespace cdc::peer {
 // What FILE.now says.
 struct BackendState {
   Mode mode = Mode::kDistributed;
-  size_t keyframes = 0;        // own keyframes taken in
+  size_t keyframes = 0;  // own keyframes taken in
   uint32_t transitions = 0;
   bool central_alive = false;
-  int64_t acknowledged = -1;   // the central's highest contiguous keyframe id (-1: none)
+  int64_t acknowledged = -1;  // the central's highest contiguous keyframe id (-1: none)
 };
 
 class ModeFiles {

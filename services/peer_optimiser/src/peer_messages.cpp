@@ -32,10 +32,14 @@ cdc_msg_BackendMode to_msg(Mode mode) {
 
 cdc_msg_SwitchReason to_msg(SwitchReason reason) {
   switch (reason) {
-    case SwitchReason::kStartup: return cdc_msg_REASON_STARTUP;
-    case SwitchReason::kLivelinessLost: return cdc_msg_REASON_LIVELINESS_LOST;
-    case SwitchReason::kOutOfRange: return cdc_msg_REASON_OUT_OF_RANGE;
-    case SwitchReason::kBackInRange: return cdc_msg_REASON_BACK_IN_RANGE;
+    case SwitchReason::kStartup:
+      return cdc_msg_REASON_STARTUP;
+    case SwitchReason::kLivelinessLost:
+      return cdc_msg_REASON_LIVELINESS_LOST;
+    case SwitchReason::kOutOfRange:
+      return cdc_msg_REASON_OUT_OF_RANGE;
+    case SwitchReason::kBackInRange:
+      return cdc_msg_REASON_BACK_IN_RANGE;
   }
   return cdc_msg_REASON_STARTUP;
 }
@@ -50,8 +54,15 @@ OwnKeyframe own_keyframe(const cdc_msg_Keyframe& m) {
 }
 
 LoopRecord loop_record(const cdc_msg_LoopClosure& m) {
-  return LoopRecord{m.sender_robot_id, m.sender_incarnation, m.loop_seq, m.robot_a, m.keyframe_a, m.robot_b,
-                    m.keyframe_b, m.status == cdc_msg_LOOP_WITHDRAWN, dds::to_eigen(m.T_a_b),
+  return LoopRecord{m.sender_robot_id,
+                    m.sender_incarnation,
+                    m.loop_seq,
+                    m.robot_a,
+                    m.keyframe_a,
+                    m.robot_b,
+                    m.keyframe_b,
+                    m.status == cdc_msg_LOOP_WITHDRAWN,
+                    dds::to_eigen(m.T_a_b),
                     dds::information_to_eigen(m.information)};
 }
 
@@ -118,8 +129,9 @@ cdc_msg_SeparatorPoses separator_message(const Origin& o, const SeparatorOut& s,
   m.incarnation = o.incarnation;
   m.round = round;
   m.stamp_ns = o.stamp_ns;
-  lend(m.poses, storage, s.poses,
-       [](uint32_t id, const Eigen::Isometry3d& T) { return cdc_msg_KeyframePoseF{id, dds::to_msg_f(T)}; });
+  lend(m.poses, storage, s.poses, [](uint32_t id, const Eigen::Isometry3d& T) {
+    return cdc_msg_KeyframePoseF{id, dds::to_msg_f(T)};
+  });
   return m;
 }
 
@@ -132,8 +144,9 @@ cdc_msg_OptimizedPoses correction_message(const Origin& o, const Correction& c, 
   m.stamp_ns = o.stamp_ns;
   m.source = c.from_central ? cdc_msg_SOURCE_CENTRAL : cdc_msg_SOURCE_DISTRIBUTED;
   m.T_world_robot = dds::to_msg(c.T_world_robot);
-  lend(m.poses, storage, c.poses,
-       [&o](uint32_t id, const Eigen::Isometry3d& T) { return cdc_msg_KeyframePose{o.robot, id, dds::to_msg(T)}; });
+  lend(m.poses, storage, c.poses, [&o](uint32_t id, const Eigen::Isometry3d& T) {
+    return cdc_msg_KeyframePose{o.robot, id, dds::to_msg(T)};
+  });
   return m;
 }
 

@@ -41,9 +41,8 @@ dds::ValidationLimits limits(const PeerNodeOptions& o) {
 // the radio, and takes loop closures from both domains (each counted once by the core).
 PeerNode::PeerNode(const PeerNodeOptions& o)
     : o_(o),
-      service_(runtime::Domains::kRobot, slam_domain(o), dds::local_domain_options(o.local_domain, o.local_dds_config,
-                                                                                  slam_domain(o)),
-               limits(o)),
+      service_(runtime::Domains::kRobot, slam_domain(o),
+               dds::local_domain_options(o.local_domain, o.local_dds_config, slam_domain(o)), limits(o)),
       keyframes_(service_, service_.secondary(), topics::kKeyframe,
                  qos::event_stream(4096).partitions(partitions::own_reader(o.core.robot))),
       loops_(service_, service_.radio(), topics::kLoopClosure,
@@ -79,22 +78,24 @@ PeerNode::PeerNode(const PeerNodeOptions& o)
       mode_period_(std::chrono::milliseconds(o.mode_period_ms)),
       radio_status_period_(std::chrono::milliseconds(o.radio_status_period_ms)),
       status_file_period_(std::chrono::milliseconds(o.status_period_ms)) {
-  if (service_.split()) local_loops_.emplace(service_, service_.secondary(), topics::kLoopClosure, qos::event_stream(4096));
+  if (service_.split())
+    local_loops_.emplace(service_, service_.secondary(), topics::kLoopClosure, qos::event_stream(4096));
   wire_inputs();
   central_.set_notify(&liveliness_changed_);
   service_.watch(liveliness_changed_);
-  spdlog::info("peer optimiser of robot {} up: CR_0 {} m, dwell {} ms, mask {} ms, domain {}{}", o.core.robot,
-               o.core.rtdos.range_m, o.core.rtdos.dwell.count() / 1'000'000, o.core.rtdos.mask.count() / 1'000'000,
-               o.domain,
-               service_.split() ? ", own keyframes, loops and corrections on local domain " + std::to_string(o.local_domain)
-                                : std::string());
+  spdlog::info(
+      "peer optimiser of robot {} up: CR_0 {} m, dwell {} ms, mask {} ms, domain {}{}", o.core.robot,
+      o.core.rtdos.range_m, o.core.rtdos.dwell.count() / 1'000'000, o.core.rtdos.mask.count() / 1'000'000, o.domain,
+      service_.split() ? ", own keyframes, loops and corrections on local domain " + std::to_string(o.local_domain)
+                       : std::string());
 }
 
 // Each input takes only what is for this robot, and hands it to its on_<topic>().
 void PeerNode::wire_inputs() {
   const uint32_t me = o_.core.robot;
-  keyframes_.filter([me](const cdc_msg_Keyframe& m) { return m.robot_id == me; })
-      .on([this](const cdc_msg_Keyframe& m) { on_keyframe(m); });
+  keyframes_.filter([me](const cdc_msg_Keyframe& m) { return m.robot_id == me; }).on([this](const cdc_msg_Keyframe& m) {
+    on_keyframe(m);
+  });
   auto wire_loops = [&](runtime::Input<cdc_msg_LoopClosure>& loops) {
     loops.filter([me](const cdc_msg_LoopClosure& m) { return m.robot_a == me || m.robot_b == me; })
         .on([this](const cdc_msg_LoopClosure& m) { on_loop(m); });
@@ -267,11 +268,11 @@ void PeerNode::log_correction(const Correction& c) const {
   const Eigen::Vector3d rv = r.angle() * r.axis() * 1e3;
   const auto& [id, P] = c.poses.back();
   const Eigen::Vector3d w = P.translation(), l = (T.inverse() * P).translation();
-  spdlog::debug("correction {} ({}, lambda {:.3f}): T_world_robot ({:.3f}, {:.3f}, {:.3f}) m ({:.3f}, {:.3f}, {:.3f}) mrad; "
-                "keyframe {} at ({:.3f}, {:.3f}, {:.3f}) in W, ({:.3f}, {:.3f}, {:.3f}) in L",
-                counters_.corrections, c.from_central ? "central" : "distributed", c.lambda, T.translation().x(),
-                T.translation().y(), T.translation().z(), rv.x(), rv.y(), rv.z(), id, w.x(), w.y(), w.z(), l.x(), l.y(),
-                l.z());
+  spdlog::debug(
+      "correction {} ({}, lambda {:.3f}): T_world_robot ({:.3f}, {:.3f}, {:.3f}) m ({:.3f}, {:.3f}, {:.3f}) mrad; "
+      "keyframe {} at ({:.3f}, {:.3f}, {:.3f}) in W, ({:.3f}, {:.3f}, {:.3f}) in L",
+      counters_.corrections, c.from_central ? "central" : "distributed", c.lambda, T.translation().x(),
+      T.translation().y(), T.translation().z(), rv.x(), rv.y(), rv.z(), id, w.x(), w.y(), w.z(), l.x(), l.y(), l.z());
 }
 
 // The robot's status on the radio every radio_status_period_ms, the launcher's file every status_period_ms.

@@ -116,7 +116,7 @@ class PeerNode {
   ModeFiles mode_files_;
   PeerNodeCounters counters_;
   uint32_t incarnation_ = 0;
-  int64_t sim_stamp_ns_ = 0;  // newest own keyframe's data time
+  int64_t sim_stamp_ns_ = 0;                 // newest own keyframe's data time
   std::vector<uint32_t> separator_matches_;  // per peer: its readers ever matched
   Period mode_period_, radio_status_period_, status_file_period_;
   std::vector<cdc_msg_KeyframePose> pose_storage_;

@@ -12,15 +12,20 @@ PeerNodeOptions load_options(const std::string& path) {
   auto positive_d = [](const double& v) { return v > 0; };
   auto positive_i = [](const int& v) { return v > 0; };
   int robots = static_cast<int>(o.core.robot_count);
-  r.get<int>("robots", robots, [](const int& v) { return v >= 1 && v <= 254; }, "1..254");
+  r.get<int>(
+      "robots", robots, [](const int& v) { return v >= 1 && v <= 254; }, "1..254");
   o.core.robot_count = static_cast<uint32_t>(robots);
   r.get<double>("range_m", o.core.rtdos.range_m, positive_d, "> 0");
-  r.get<double>("hysteresis_m", o.core.rtdos.hysteresis_m, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get<double>(
+      "hysteresis_m", o.core.rtdos.hysteresis_m, [](const double& v) { return v >= 0; }, ">= 0");
   int dwell = 3000, mask = 2000, round = 200, grace = 1500, resend = 500, refresh = 2000;
-  r.get<int>("dwell_ms", dwell, [](const int& v) { return v >= 0; }, ">= 0");
-  r.get<int>("mask_ms", mask, [](const int& v) { return v >= 0; }, ">= 0");
+  r.get<int>(
+      "dwell_ms", dwell, [](const int& v) { return v >= 0; }, ">= 0");
+  r.get<int>(
+      "mask_ms", mask, [](const int& v) { return v >= 0; }, ">= 0");
   r.get<int>("round_period_ms", round, positive_i, "> 0");
-  r.get<int>("resend_grace_ms", grace, [](const int& v) { return v >= 0; }, ">= 0");
+  r.get<int>(
+      "resend_grace_ms", grace, [](const int& v) { return v >= 0; }, ">= 0");
   r.get<int>("resend_period_ms", resend, positive_i, "> 0");
   r.get<int>("separator_refresh_ms", refresh, positive_i, "> 0");
   o.core.rtdos.dwell = std::chrono::milliseconds(dwell);
@@ -31,7 +36,8 @@ PeerNodeOptions load_options(const std::string& path) {
   o.core.separator_refresh = std::chrono::milliseconds(refresh);
   r.get<double>("peer_range_m", o.core.peer_range_m, positive_d, "> 0");
   r.get<int>("distributed_iterations", o.core.distributed_iterations, positive_i, "> 0");
-  r.get<double>("distributed_relaxation", o.core.relaxation, [](const double& v) { return v > 0 && v <= 1; }, "in (0, 1]");
+  r.get<double>(
+      "distributed_relaxation", o.core.relaxation, [](const double& v) { return v > 0 && v <= 1; }, "in (0, 1]");
   r.get<bool>("share_loop_information", o.core.share_loop_information);
   const auto non_negative_d = [](const double& v) { return v >= 0; };
   r.get<double>("separator_min_change_m", o.core.separator_min_change_m, non_negative_d, ">= 0");
@@ -43,7 +49,8 @@ PeerNodeOptions load_options(const std::string& path) {
   r.get<double>("fusion.rot_max_deg", rot_deg, positive_d, "> 0");
   o.core.fusion.rot_max = rot_deg * M_PI / 180.0;
   int central_id = static_cast<int>(o.central_id);
-  r.get<int>("central_id", central_id, [](const int& v) { return v >= 0 && v <= 254; }, "0..254");
+  r.get<int>(
+      "central_id", central_id, [](const int& v) { return v >= 0 && v <= 254; }, "0..254");
   o.central_id = static_cast<uint32_t>(central_id);
   r.get<int>("tick_ms", o.tick_ms, positive_i, "> 0");
   r.get<int>("status_period_ms", o.status_period_ms, positive_i, "> 0");

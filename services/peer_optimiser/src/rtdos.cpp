@@ -2,16 +2,18 @@
 
 namespace cdc::peer {
 
-const char* to_string(Mode mode) noexcept {
-  return mode == Mode::kCentralized ? "CENTRALIZED" : "DISTRIBUTED";
-}
+const char* to_string(Mode mode) noexcept { return mode == Mode::kCentralized ? "CENTRALIZED" : "DISTRIBUTED"; }
 
 const char* to_string(SwitchReason reason) noexcept {
   switch (reason) {
-    case SwitchReason::kStartup: return "startup";
-    case SwitchReason::kLivelinessLost: return "liveliness lost";
-    case SwitchReason::kOutOfRange: return "out of range";
-    case SwitchReason::kBackInRange: return "back in range";
+    case SwitchReason::kStartup:
+      return "startup";
+    case SwitchReason::kLivelinessLost:
+      return "liveliness lost";
+    case SwitchReason::kOutOfRange:
+      return "out of range";
+    case SwitchReason::kBackInRange:
+      return "back in range";
   }
   return "?";
 }

@@ -52,9 +52,9 @@ TEST(LocalGraph, EachPeerNeedsTheOwnKeyframesItsLoopsTouch) {
   LocalGraph g(1);
   g.add_loop(loop(1, 4, 0, 9));
   g.add_loop(loop(2, 3, 1, 6));
-  g.add_loop(loop(1, 5, 1, 2));                // within the robot: no peer needs it
-  g.add_loop(loop(1, 8, 0, 1, true));          // withdrawn
-  g.add_loop(loop(0, 2, 2, 7));                // not touching this robot
+  g.add_loop(loop(1, 5, 1, 2));        // within the robot: no peer needs it
+  g.add_loop(loop(1, 8, 0, 1, true));  // withdrawn
+  g.add_loop(loop(0, 2, 2, 7));        // not touching this robot
   const auto wanted = g.separator_ids();
   ASSERT_EQ(wanted.size(), 2u);
   EXPECT_EQ(wanted.at(0), std::set<uint32_t>{4});

@@ -5,10 +5,10 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
-#include <unistd.h>
 
 namespace cdc::peer {
 namespace {
@@ -38,8 +38,8 @@ TEST_F(ModeFilesTest, TimelineHasOneLinePerTransition) {
   EXPECT_EQ(read(csv), "wall_ns,sim_ns,robot,from,to,reason,distance_m,keyframes\n") << "the header at once";
   files.transition(Transition{Mode::kDistributed, Mode::kCentralized, SwitchReason::kBackInRange, Nanos{0}, 12.5}, 100,
                    200, 1, 40);
-  files.transition(Transition{Mode::kCentralized, Mode::kDistributed, SwitchReason::kLivelinessLost, Nanos{0}, {}},
-                   300, 400, 1, 41);
+  files.transition(Transition{Mode::kCentralized, Mode::kDistributed, SwitchReason::kLivelinessLost, Nanos{0}, {}}, 300,
+                   400, 1, 41);
   EXPECT_EQ(read(csv),
             "wall_ns,sim_ns,robot,from,to,reason,distance_m,keyframes\n"
             "100,200,1,DISTRIBUTED,CENTRALIZED,back in range,12.500000,40\n"

@@ -1,9 +1,9 @@
+#include "cdc/peer_optimiser/peer_core.hpp"
 #include "cdc/geometry/alignment.hpp"
 #include "cdc/geometry/se3.hpp"
 #include "cdc/graph/initialise.hpp"
 #include "cdc/graph/objective.hpp"
 #include "cdc/graph/solver.hpp"
-#include "cdc/peer_optimiser/peer_core.hpp"
 #include "peer_test_support.hpp"
 #include "swarm_stream.hpp"
 
@@ -141,7 +141,8 @@ TEST(PeerCore, AChangeAtTheStartOfTheTrajectoryDoesNotSwingItsEnd) {
   std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>> odom_world;
   for (const auto& [id, T] : bent.poses) odom_world.emplace_back(s.keyframes[1][id].T_odom_keyframe, T);
   bent.T_world_robot = geometry::align_poses(odom_world).T_dst_src;
-  const double span = (s.keyframes[1][49].T_world_truth.translation() - s.keyframes[1][0].T_world_truth.translation()).norm();
+  const double span =
+      (s.keyframes[1][49].T_world_truth.translation() - s.keyframes[1][0].T_world_truth.translation()).norm();
   ASSERT_GT(span * 0.5 * M_PI / 180, 0.3) << "held at the first keyframe, the end would swing by this much";
   core.on_central_result(bent);
   for (int step = 0; step < 50; ++step) {
@@ -207,7 +208,8 @@ TEST(PeerCore, AfterARejoinTheCentralIsRelayedOnlyOnceItHoldsTheNewKeyframes) {
     ASSERT_TRUE(out.correction);
     EXPECT_FALSE(out.correction->from_central) << "step " << i;
     EXPECT_EQ(out.correction->poses.back().first, 79u) << "step " << i << ": not the distributed estimate";
-    EXPECT_LT(std::abs(out.correction->T_world_robot.translation().z() - before.translation().z()), 0.05) << "step " << i;
+    EXPECT_LT(std::abs(out.correction->T_world_robot.translation().z() - before.translation().z()), 0.05)
+        << "step " << i;
   }
   // Once a result holds keyframe 79, it is relayed (and followed in bounded steps).
   core.on_central_result(central_for(s, 1, 79, up));
@@ -393,7 +395,8 @@ TEST(PeerCore, TwoPeersPlaceEachOtherThroughSeparatorsAlone) {
   for (uint32_t r = 0; r < 2; ++r) {
     for (const auto& kf : s.keyframes[r]) {
       if (kf.id > 0) {
-        central.add_between(graph::make_key(r, kf.id - 1u), graph::make_key(r, kf.id), kf.T_prev_keyframe, kf.information);
+        central.add_between(graph::make_key(r, kf.id - 1u), graph::make_key(r, kf.id), kf.T_prev_keyframe,
+                            kf.information);
       }
     }
   }
@@ -441,8 +444,8 @@ TEST(PeerCore, TwoPeersPlaceEachOtherThroughSeparatorsAlone) {
     const Key k = graph::make_key(1, id);
     worst = std::max(worst, (after40.poses.at(k).translation() - central.poses.at(k).translation()).norm());
   }
-  std::printf("joint cost: after 10 rounds %.1f, after 40 %.1f, centralized %.1f; robot 1 worst %.2f m from it\n",
-              f10, f40, f_central, worst);
+  std::printf("joint cost: after 10 rounds %.1f, after 40 %.1f, centralized %.1f; robot 1 worst %.2f m from it\n", f10,
+              f40, f_central, worst);
   EXPECT_LT(worst, 5.0) << "robot 1 is not placed in robot 0's frame";
   // What robot 1 knows, as a graph: its own keyframes and odometry, and the loops touching it whose
   // other end it has (robot 0's separator poses).

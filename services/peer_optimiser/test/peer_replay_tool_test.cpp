@@ -42,7 +42,8 @@ class PeerReplayTool : public ::testing::Test {
         kf.push_back({stamp, k.T_odom_keyframe});
         truth.push_back({stamp, k.T_world_truth});
       }
-      const fs::path rd = dir_ / "run" / ("robot_" + std::to_string(r)), td = dir_ / "truth" / ("robot_" + std::to_string(r));
+      const fs::path rd = dir_ / "run" / ("robot_" + std::to_string(r)),
+                     td = dir_ / "truth" / ("robot_" + std::to_string(r));
       fs::create_directories(rd);
       fs::create_directories(td);
       cdc::geometry::write_tum((rd / "keyframes.tum").string(), kf);
@@ -51,8 +52,8 @@ class PeerReplayTool : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(dir_); }
   std::string args(const std::string& extra) const {
-    return (dir_ / "graph.g2o").string() + " --run " + (dir_ / "run").string() + " --truth " + (dir_ / "truth").string() +
-           " " + extra;
+    return (dir_ / "graph.g2o").string() + " --run " + (dir_ / "run").string() + " --truth " +
+           (dir_ / "truth").string() + " " + extra;
   }
   fs::path dir_;
   cdc::test::SwarmStream stream_;
@@ -65,7 +66,8 @@ TEST_F(PeerReplayTool, ReplaysTheDampedRoundsCloseToTheCentralizedOptimum) {
   const cdc::test::CommandResult r = run_replay(args("--round-ms 100 --tail 60"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::smatch m;
-  ASSERT_TRUE(std::regex_search(r.output, m, std::regex(R"(joint cost: distributed ([0-9.]+), centralized optimum ([0-9.]+))")))
+  ASSERT_TRUE(
+      std::regex_search(r.output, m, std::regex(R"(joint cost: distributed ([0-9.]+), centralized optimum ([0-9.]+))")))
       << r.output;
   const double distributed = std::stod(m[1]), optimum = std::stod(m[2]);
   EXPECT_GT(optimum, 0.0);
@@ -83,12 +85,13 @@ TEST_F(PeerReplayTool, AppliesTheRunsRadioTimeline) {
   const cdc::test::CommandResult cut = run_replay(args("--links " + (dir_ / "links.csv").string()));
   ASSERT_EQ(cut.exit_code, 0) << cut.output;
   std::smatch m;
-  ASSERT_TRUE(std::regex_search(cut.output, m, std::regex(R"(joint cost: distributed ([0-9.]+), centralized optimum ([0-9.]+))")))
+  ASSERT_TRUE(std::regex_search(cut.output, m,
+                                std::regex(R"(joint cost: distributed ([0-9.]+), centralized optimum ([0-9.]+))")))
       << cut.output;
   EXPECT_GT(std::stod(m[1]), 10 * std::stod(m[2])) << cut.output;
   for (int robot = 0; robot < 3; ++robot) {
-    EXPECT_TRUE(std::regex_search(
-        cut.output, std::regex("robot " + std::to_string(robot) + R"(: 100 keyframes, \d+ rounds, 0 separator poses sent)")))
+    EXPECT_TRUE(std::regex_search(cut.output, std::regex("robot " + std::to_string(robot) +
+                                                         R"(: 100 keyframes, \d+ rounds, 0 separator poses sent)")))
         << cut.output;
   }
 
@@ -117,17 +120,19 @@ TEST_F(PeerReplayTool, ScoresTheRunsOwnEstimateFromEachRobotsGraph) {
     graph::write_g2o(path.string(), part);
     files += path.string() + " ";
   }
-  const cdc::test::CommandResult r = cdc::test::run_command(std::string(std::getenv("CDC_PEER_REPLAY_BIN")) + " " + files +
-                                                            "--run " + (dir_ / "run").string() + " --truth " +
-                                                            (dir_ / "truth").string() + " --tail 5");
+  const cdc::test::CommandResult r =
+      cdc::test::run_command(std::string(std::getenv("CDC_PEER_REPLAY_BIN")) + " " + files + "--run " +
+                             (dir_ / "run").string() + " --truth " + (dir_ / "truth").string() + " --tail 5");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::smatch m;
   ASSERT_TRUE(std::regex_search(r.output, m, std::regex(R"(centralized optimum ([0-9.]+))"))) << r.output;
   const double optimum = std::stod(m[1]);
-  ASSERT_TRUE(std::regex_search(r.output, m, std::regex(R"(joint cost of the run's own estimate[^:]*: ([0-9.]+))"))) << r.output;
+  ASSERT_TRUE(std::regex_search(r.output, m, std::regex(R"(joint cost of the run's own estimate[^:]*: ([0-9.]+))")))
+      << r.output;
   EXPECT_GE(std::stod(m[1]), optimum * (1 - 1e-4)) << r.output;
   for (int robot = 0; robot < 3; ++robot) {
-    ASSERT_TRUE(std::regex_search(r.output, m, std::regex("robot " + std::to_string(robot) + R"(: ATE of the run's own estimate ([0-9.e-]+) m)")))
+    ASSERT_TRUE(std::regex_search(
+        r.output, m, std::regex("robot " + std::to_string(robot) + R"(: ATE of the run's own estimate ([0-9.e-]+) m)")))
         << r.output;
     EXPECT_LT(std::stod(m[1]), 1e-3) << r.output;
   }

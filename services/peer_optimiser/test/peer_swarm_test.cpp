@@ -35,7 +35,8 @@ SwarmRounds run_swarm_rounds(const test::SwarmStream& s, int rounds, const PeerC
     for (const auto& kf : s.keyframes[r]) {
       cores.back().add_keyframe(kf_from(kf), 0s);
       if (kf.id > 0) {
-        central.add_between(graph::make_key(r, kf.id - 1u), graph::make_key(r, kf.id), kf.T_prev_keyframe, kf.information);
+        central.add_between(graph::make_key(r, kf.id - 1u), graph::make_key(r, kf.id), kf.T_prev_keyframe,
+                            kf.information);
       }
     }
   }

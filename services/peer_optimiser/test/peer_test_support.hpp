@@ -42,7 +42,8 @@ inline OwnKeyframe kf_from(const test::StreamKeyframe& k, uint32_t incarnation =
 }
 
 inline LoopRecord loop_from(const test::StreamLoop& l) {
-  return LoopRecord{l.sender, 3, l.seq, l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b, false, l.T_a_b, l.information};
+  return LoopRecord{l.sender,     3,     l.seq,   l.robot_a,    l.keyframe_a, l.robot_b,
+                    l.keyframe_b, false, l.T_a_b, l.information};
 }
 
 // The central's result for `robot`: its keyframes 0..upto at `offset` times the truth, with the

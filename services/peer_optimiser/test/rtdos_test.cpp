@@ -36,8 +36,8 @@ TEST(Rtdos, StartsDistributedAndJoinsAfterTheDwell) {
   Rtdos m(params());
   EXPECT_EQ(m.mode(), Mode::kDistributed);
   EXPECT_EQ(m.last_reason(), SwitchReason::kStartup);
-  EXPECT_FALSE(m.update(at(0s, false, std::nullopt)));   // no central yet
-  EXPECT_FALSE(m.update(at(1s, true, std::nullopt)));    // alive: the dwell starts now
+  EXPECT_FALSE(m.update(at(0s, false, std::nullopt)));  // no central yet
+  EXPECT_FALSE(m.update(at(1s, true, std::nullopt)));   // alive: the dwell starts now
   EXPECT_FALSE(m.update(at(3900ms, true, std::nullopt)));
   const auto t = m.update(at(4s, true, std::nullopt));
   ASSERT_TRUE(t);
@@ -67,8 +67,8 @@ TEST(Rtdos, OutOfRangeSwitchesAtCr0) {
 }
 
 TEST(Rtdos, MaskBlocksRangeTriggersRightAfterASwitch) {
-  Rtdos m = centralized_at_3s();                 // switched at 3 s; mask until 5 s
-  EXPECT_FALSE(m.update(at(4s, true, 150.0)));   // out of range but masked
+  Rtdos m = centralized_at_3s();                // switched at 3 s; mask until 5 s
+  EXPECT_FALSE(m.update(at(4s, true, 150.0)));  // out of range but masked
   const auto t = m.update(at(5s, true, 150.0));
   ASSERT_TRUE(t);
   EXPECT_EQ(t->reason, SwitchReason::kOutOfRange);
@@ -76,10 +76,10 @@ TEST(Rtdos, MaskBlocksRangeTriggersRightAfterASwitch) {
 
 TEST(Rtdos, ReturnNeedsHysteresisAndAContinuousDwell) {
   Rtdos m = centralized_at_3s();
-  ASSERT_TRUE(m.update(at(10s, true, 120.0)));   // out at 10 s
-  EXPECT_FALSE(m.update(at(20s, true, 95.0)));   // below CR_0 but not below CR_0 - hysteresis
+  ASSERT_TRUE(m.update(at(10s, true, 120.0)));  // out at 10 s
+  EXPECT_FALSE(m.update(at(20s, true, 95.0)));  // below CR_0 but not below CR_0 - hysteresis
   EXPECT_FALSE(m.update(at(30s, true, 95.0)));
-  EXPECT_FALSE(m.update(at(31s, true, 89.0)));   // dwell starts
+  EXPECT_FALSE(m.update(at(31s, true, 89.0)));  // dwell starts
   EXPECT_FALSE(m.update(at(33s, true, 89.0)));
   EXPECT_FALSE(m.update(at(33500ms, true, 91.0)));  // left the inner zone: dwell restarts
   EXPECT_FALSE(m.update(at(34s, true, 80.0)));
@@ -91,10 +91,10 @@ TEST(Rtdos, ReturnNeedsHysteresisAndAContinuousDwell) {
 
 TEST(Rtdos, ReturnNeedsALiveCentral) {
   Rtdos m = centralized_at_3s();
-  ASSERT_TRUE(m.update(at(4s, false, 50.0)));     // lost
+  ASSERT_TRUE(m.update(at(4s, false, 50.0)));  // lost
   EXPECT_FALSE(m.update(at(10s, false, 50.0)));
-  EXPECT_FALSE(m.update(at(20s, false, 50.0)));   // in range but no central
-  EXPECT_FALSE(m.update(at(21s, true, 50.0)));    // alive again: dwell starts
+  EXPECT_FALSE(m.update(at(20s, false, 50.0)));  // in range but no central
+  EXPECT_FALSE(m.update(at(21s, true, 50.0)));   // alive again: dwell starts
   EXPECT_FALSE(m.update(at(23s, true, 50.0)));
   EXPECT_FALSE(m.update(at(23500ms, false, 50.0)));  // lost during the dwell: restart
   EXPECT_FALSE(m.update(at(24s, true, 50.0)));
@@ -125,7 +125,7 @@ TEST(Rtdos, LeavingAndReturningRepeatedlyCountsEveryTransition) {
   int switches = 0;
   for (int cycle = 0; cycle < 3; ++cycle) {
     const Nanos base = Nanos(std::chrono::seconds(10 + 30 * cycle));
-    switches += m.update(at(base, true, 150.0)) ? 1 : 0;        // out
+    switches += m.update(at(base, true, 150.0)) ? 1 : 0;  // out
     for (int s = 1; s <= 10; ++s) {
       switches += m.update(at(base + Nanos(std::chrono::seconds(s)), true, 50.0)) ? 1 : 0;  // back after dwell
     }

@@ -153,8 +153,9 @@ void add_peer_options(CLI::App& app, ReplayOptions& o) {
   app.add_option("--relaxation", o.base.relaxation, "fraction of each round's step taken (distributed_relaxation)")
       ->capture_default_str()
       ->check(CLI::Range(1e-3, 1.0));
-  app.add_option("--separator-min-change", o.base.separator_min_change_m,
-                 "a separator pose is sent again once it moved this far [m] (separator_min_change_m; the angle scales with it)")
+  app.add_option(
+         "--separator-min-change", o.base.separator_min_change_m,
+         "a separator pose is sent again once it moved this far [m] (separator_min_change_m; the angle scales with it)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
   app.add_option("--separator-refresh", o.refresh_s,
@@ -259,7 +260,8 @@ std::vector<TimedLoop> loop_arrivals(const RunData& run, const ReplayOptions& o)
     const double t = std::max(run.stamp_of(f.a), run.stamp_of(f.b)) + o.latency_s + jitter(rng);
     loops.push_back({run.radio.next_up(l.robot_a, l.robot_b, t), l});
   }
-  std::stable_sort(loops.begin(), loops.end(), [](const auto& a, const auto& b) { return a.available_s < b.available_s; });
+  std::stable_sort(loops.begin(), loops.end(),
+                   [](const auto& a, const auto& b) { return a.available_s < b.available_s; });
   return loops;
 }
 
@@ -301,8 +303,15 @@ class Replay {
   static constexpr int64_t kTickNanos = 50'000'000;
 
   Replay(const ReplayOptions& o, const RunData& data, const Schedule& schedule)
-      : o_(o), run_(data), schedule_(schedule), next_(o.robots, 0), realtime_(o.robots), odom_(o.robots),
-        separator_poses_(o.robots, 0), link_up_(o.robots, std::vector<bool>(o.robots, true)), last_(o.robots) {
+      : o_(o),
+        run_(data),
+        schedule_(schedule),
+        next_(o.robots, 0),
+        realtime_(o.robots),
+        odom_(o.robots),
+        separator_poses_(o.robots, 0),
+        link_up_(o.robots, std::vector<bool>(o.robots, true)),
+        last_(o.robots) {
     for (uint32_t r = 0; r < o.robots; ++r) {
       peer::PeerConfig c = o.base;
       c.robot = r;
@@ -427,10 +436,12 @@ class Replay {
 // together, the run's own estimate too.
 void report(const Replay& replay, const RunData& run, const Schedule& schedule, const ReplayOptions& o) {
   for (uint32_t r = 0; r < o.robots; ++r) {
-    std::printf("robot %u: %zu keyframes, %llu rounds, %zu separator poses sent; ATE odometry %.4f, real-time %.4f, final %.4f m\n", r,
-                replay.odometry(r).size(), static_cast<unsigned long long>(replay.rounds(r)), replay.separator_poses(r),
-                ate_of(replay.odometry(r), run.truth[r]), ate_of(replay.realtime(r), run.truth[r]),
-                ate_of(replay.final_estimate(r), run.truth[r]));
+    std::printf(
+        "robot %u: %zu keyframes, %llu rounds, %zu separator poses sent; ATE odometry %.4f, real-time %.4f, final %.4f "
+        "m\n",
+        r, replay.odometry(r).size(), static_cast<unsigned long long>(replay.rounds(r)), replay.separator_poses(r),
+        ate_of(replay.odometry(r), run.truth[r]), ate_of(replay.realtime(r), run.truth[r]),
+        ate_of(replay.final_estimate(r), run.truth[r]));
   }
   graph::PoseGraph optimum = schedule.central;
   graph::SolverOptions so;
@@ -445,21 +456,24 @@ void report(const Replay& replay, const RunData& run, const Schedule& schedule, 
               graph::full_information_cost(own_estimate));
   std::vector<Stamped> own(o.robots);
   for (const auto& [k, T] : run.live) own[graph::robot_of(k)].emplace_back(run.stamp_of(k), T.translation());
-  for (uint32_t r = 0; r < o.robots; ++r) std::printf("robot %u: ATE of the run's own estimate %.4f m\n", r, ate_of(own[r], run.truth[r]));
+  for (uint32_t r = 0; r < o.robots; ++r)
+    std::printf("robot %u: ATE of the run's own estimate %.4f m\n", r, ate_of(own[r], run.truth[r]));
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{"Replays a run's multi-robot pose graph through the peer optimisers' distributed rounds (no central, "
-               "no DDS) and reports how close they come to the centralized optimum"};
+  CLI::App app{
+      "Replays a run's multi-robot pose graph through the peer optimisers' distributed rounds (no central, "
+      "no DDS) and reports how close they come to the centralized optimum"};
   ReplayOptions o;
   add_run_options(app, o);
   add_timing_options(app, o);
   add_peer_options(app, o);
-  app.add_option("--links", o.links_path,
-                 "the run's links.csv: separators cross, and inter-robot loops arrive, only while the pair's link is up "
-                 "(default: every link up)")
+  app.add_option(
+         "--links", o.links_path,
+         "the run's links.csv: separators cross, and inter-robot loops arrive, only while the pair's link is up "
+         "(default: every link up)")
       ->check(CLI::ExistingFile);
   app.add_flag("--verbose", o.verbose, "print the joint cost every 5 s of replayed time");
   CLI11_PARSE(app, argc, argv);

@@ -11,7 +11,8 @@ namespace cdc::velodyne_driver {
 
 std::optional<io::VelodyneModel> parse_model(std::string_view name) {
   std::string lower(name);
-  std::transform(lower.begin(), lower.end(), lower.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(lower.begin(), lower.end(), lower.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (lower == "auto") return std::nullopt;
   return io::velodyne_model_from_string(name);
 }
@@ -38,22 +39,32 @@ VelodyneDriverConfig load_driver_config(const std::string& path) {
   };
   r.get<std::string>("sensor.model", model, model_ok, "auto, VLP16, VLP32C, HDL32E, HDL64E (S2), HDL64E_S3 or VLS128");
   r.get<std::string>("sensor.calibration", calibration);
-  r.get<std::string>("sensor.return_mode", return_mode,
-                     [](const std::string& v) { return v == "auto" || v == "strongest" || v == "last" || v == "dual"; },
-                     "auto, strongest, last or dual");
-  r.get<double>("sensor.rpm", c.rpm, [](const double& v) { return v >= 60 && v <= 1500; }, "60..1500");
-  r.get<double>("sweep.scan_phase_deg", c.scan_phase_deg, [](const double& v) { return v >= 0 && v <= 360; }, "0..360");
+  r.get<std::string>(
+      "sensor.return_mode", return_mode,
+      [](const std::string& v) { return v == "auto" || v == "strongest" || v == "last" || v == "dual"; },
+      "auto, strongest, last or dual");
+  r.get<double>(
+      "sensor.rpm", c.rpm, [](const double& v) { return v >= 60 && v <= 1500; }, "60..1500");
+  r.get<double>(
+      "sweep.scan_phase_deg", c.scan_phase_deg, [](const double& v) { return v >= 0 && v <= 360; }, "0..360");
   double max_gap_ms = 50;
-  r.get<double>("sweep.max_gap_ms", max_gap_ms, [](const double& v) { return v > 0 && v <= 10000; }, "(0, 10000]");
+  r.get<double>(
+      "sweep.max_gap_ms", max_gap_ms, [](const double& v) { return v > 0 && v <= 10000; }, "(0, 10000]");
   c.max_gap = std::chrono::nanoseconds(static_cast<int64_t>(max_gap_ms * 1e6));
-  r.get<double>("filter.min_range_m", c.min_range_m, [](const double& v) { return v >= 0; }, ">= 0");
-  r.get<double>("filter.max_range_m", c.max_range_m, [](const double& v) { return v > 0; }, "> 0");
-  r.get<double>("filter.sector_min_deg", c.sector_min_deg, [](const double& v) { return v >= 0 && v <= 360; }, "0..360");
-  r.get<double>("filter.sector_max_deg", c.sector_max_deg, [](const double& v) { return v >= 0 && v <= 360; }, "0..360");
+  r.get<double>(
+      "filter.min_range_m", c.min_range_m, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get<double>(
+      "filter.max_range_m", c.max_range_m, [](const double& v) { return v > 0; }, "> 0");
+  r.get<double>(
+      "filter.sector_min_deg", c.sector_min_deg, [](const double& v) { return v >= 0 && v <= 360; }, "0..360");
+  r.get<double>(
+      "filter.sector_max_deg", c.sector_max_deg, [](const double& v) { return v >= 0 && v <= 360; }, "0..360");
   int port = c.port;
-  r.get<int>("udp.port", port, [](const int& v) { return v >= 1 && v <= 65535; }, "1..65535");
+  r.get<int>(
+      "udp.port", port, [](const int& v) { return v >= 1 && v <= 65535; }, "1..65535");
   c.port = static_cast<uint16_t>(port);
-  r.get<int>("udp.receive_buffer_bytes", c.receive_buffer_bytes, [](const int& v) { return v >= 65536; }, ">= 65536");
+  r.get<int>(
+      "udp.receive_buffer_bytes", c.receive_buffer_bytes, [](const int& v) { return v >= 65536; }, ">= 65536");
   r.get<std::string>("log_level", c.log_level);
   if (c.min_range_m >= c.max_range_m) r.error("filter.min_range_m must be below filter.max_range_m");
   r.finish();
@@ -61,7 +72,8 @@ VelodyneDriverConfig load_driver_config(const std::string& path) {
   c.return_mode = parse_return_mode(return_mode);
   if (!calibration.empty()) {
     c.calibration = calibration;
-    if (c.calibration.is_relative() && !path.empty()) c.calibration = std::filesystem::path(path).parent_path() / c.calibration;
+    if (c.calibration.is_relative() && !path.empty())
+      c.calibration = std::filesystem::path(path).parent_path() / c.calibration;
   }
   return c;
 }

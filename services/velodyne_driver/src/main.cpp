@@ -4,8 +4,8 @@
 
 #include "cdc/runtime/options.hpp"
 
-#include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include <fstream>
 #include <random>
@@ -21,9 +21,11 @@ struct CommandLine {
 };
 
 void add_options(CLI::App& app, CommandLine& c) {
-  app.add_option("--calibration", c.calibration, "the unit's calibration YAML (ROS driver format); overrides sensor.calibration")
+  app.add_option("--calibration", c.calibration,
+                 "the unit's calibration YAML (ROS driver format); overrides sensor.calibration")
       ->check(CLI::ExistingFile);
-  app.add_option("--model", c.model, "VLP16, VLP32C, HDL32E, HDL64E (S2), HDL64E_S3, VLS128 or auto; overrides sensor.model");
+  app.add_option("--model", c.model,
+                 "VLP16, VLP32C, HDL32E, HDL64E (S2), HDL64E_S3, VLS128 or auto; overrides sensor.model");
   app.add_option("--bind", c.node.bind_address, "IPv4 address to listen on")->capture_default_str();
   app.add_option("--port", c.port, "UDP data port (default: udp.port, 2368)")->check(CLI::Range(1, 65535));
   app.add_option("--pcap", c.node.pcap, "replay this capture's datagrams to the data port instead of listening")
@@ -72,6 +74,6 @@ int main(int argc, char** argv) {
       "see services/velodyne_driver/config", rt::kRobotOption | rt::kStatsOption};
   rt::ServiceOptions common;
   CommandLine c;
-  return rt::service_main(argc, argv, spec, common, [&](CLI::App& app) { add_options(app, c); },
-                          [&] { return run(spec, common, c); });
+  return rt::service_main(
+      argc, argv, spec, common, [&](CLI::App& app) { add_options(app, c); }, [&] { return run(spec, common, c); });
 }

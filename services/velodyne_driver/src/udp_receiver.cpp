@@ -14,7 +14,9 @@
 namespace cdc::velodyne_driver {
 namespace {
 
-std::runtime_error system_error(const std::string& what) { return std::runtime_error(what + ": " + std::strerror(errno)); }
+std::runtime_error system_error(const std::string& what) {
+  return std::runtime_error(what + ": " + std::strerror(errno));
+}
 
 int64_t realtime_ns() {
   timespec ts{};

@@ -10,7 +10,8 @@ namespace {
 
 io::VelodyneCalibration make_calibration(const VelodyneDriverConfig& c) {
   if (!c.calibration.empty()) return io::read_velodyne_calibration(c.calibration, c.model);
-  if (!c.model) throw std::invalid_argument("Velodyne driver: give the sensor's calibration or its model (for the built-in table)");
+  if (!c.model)
+    throw std::invalid_argument("Velodyne driver: give the sensor's calibration or its model (for the built-in table)");
   return io::default_velodyne_calibration(*c.model);
 }
 
@@ -40,23 +41,34 @@ io::VelodyneSweepOptions sweep_options(const VelodyneDriverConfig& c) {
 
 DatagramStatus from_packet_status(io::VelodynePacketStatus s) {
   switch (s) {
-    case io::VelodynePacketStatus::kOk: return DatagramStatus::kOk;
-    case io::VelodynePacketStatus::kTruncated: return DatagramStatus::kTruncated;
-    case io::VelodynePacketStatus::kMalformed: return DatagramStatus::kMalformed;
-    case io::VelodynePacketStatus::kWrongModel: return DatagramStatus::kWrongModel;
-    case io::VelodynePacketStatus::kOutOfOrder: return DatagramStatus::kOutOfOrder;
+    case io::VelodynePacketStatus::kOk:
+      return DatagramStatus::kOk;
+    case io::VelodynePacketStatus::kTruncated:
+      return DatagramStatus::kTruncated;
+    case io::VelodynePacketStatus::kMalformed:
+      return DatagramStatus::kMalformed;
+    case io::VelodynePacketStatus::kWrongModel:
+      return DatagramStatus::kWrongModel;
+    case io::VelodynePacketStatus::kOutOfOrder:
+      return DatagramStatus::kOutOfOrder;
   }
   return DatagramStatus::kMalformed;
 }
 
 uint64_t& counter(DriverStats& s, DatagramStatus status) {
   switch (status) {
-    case DatagramStatus::kOk: return s.ok;
-    case DatagramStatus::kOtherPort: return s.other_port;
-    case DatagramStatus::kTruncated: return s.truncated;
-    case DatagramStatus::kMalformed: return s.malformed;
-    case DatagramStatus::kWrongModel: return s.wrong_model;
-    case DatagramStatus::kOutOfOrder: return s.out_of_order;
+    case DatagramStatus::kOk:
+      return s.ok;
+    case DatagramStatus::kOtherPort:
+      return s.other_port;
+    case DatagramStatus::kTruncated:
+      return s.truncated;
+    case DatagramStatus::kMalformed:
+      return s.malformed;
+    case DatagramStatus::kWrongModel:
+      return s.wrong_model;
+    case DatagramStatus::kOutOfOrder:
+      return s.out_of_order;
   }
   return s.malformed;
 }
@@ -65,12 +77,18 @@ uint64_t& counter(DriverStats& s, DatagramStatus status) {
 
 std::string_view to_string(DatagramStatus status) {
   switch (status) {
-    case DatagramStatus::kOk: return "ok";
-    case DatagramStatus::kOtherPort: return "other_port";
-    case DatagramStatus::kTruncated: return "truncated";
-    case DatagramStatus::kMalformed: return "malformed";
-    case DatagramStatus::kWrongModel: return "wrong_model";
-    case DatagramStatus::kOutOfOrder: return "out_of_order";
+    case DatagramStatus::kOk:
+      return "ok";
+    case DatagramStatus::kOtherPort:
+      return "other_port";
+    case DatagramStatus::kTruncated:
+      return "truncated";
+    case DatagramStatus::kMalformed:
+      return "malformed";
+    case DatagramStatus::kWrongModel:
+      return "wrong_model";
+    case DatagramStatus::kOutOfOrder:
+      return "out_of_order";
   }
   return "unknown";
 }
@@ -80,8 +98,8 @@ VelodyneDriverCore::VelodyneDriverCore(const VelodyneDriverConfig& config)
 
 DatagramStatus VelodyneDriverCore::add_datagram(std::span<const uint8_t> payload, int64_t stamp_ns, uint16_t dst_port) {
   ++stats_.datagrams;
-  const DatagramStatus status =
-      dst_port == config_.port ? from_packet_status(assembler_.add_packet(payload, stamp_ns)) : DatagramStatus::kOtherPort;
+  const DatagramStatus status = dst_port == config_.port ? from_packet_status(assembler_.add_packet(payload, stamp_ns))
+                                                         : DatagramStatus::kOtherPort;
   ++counter(stats_, status);
   stats_.gaps = assembler_.stats().gaps;
   return status;
@@ -100,8 +118,9 @@ std::optional<DriverSweep> VelodyneDriverCore::next_sweep() {
       ++stats_.stale_sweeps;
       continue;
     }
-    const auto latest = std::max_element(v.points.begin(), v.points.end(),
-                                         [](const io::VelodynePoint& a, const io::VelodynePoint& b) { return a.time_ns < b.time_ns; });
+    const auto latest =
+        std::max_element(v.points.begin(), v.points.end(),
+                         [](const io::VelodynePoint& a, const io::VelodynePoint& b) { return a.time_ns < b.time_ns; });
     out.duration_ns = latest->time_ns - out.stamp_ns;
     out.packets = v.packets;
     out.seq = stats_.sweeps++;

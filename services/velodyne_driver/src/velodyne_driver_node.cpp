@@ -109,11 +109,13 @@ int VelodyneDriverNode::spin_udp() {
   UdpReceiver socket(options_.bind_address, options_.driver.port, options_.driver.receive_buffer_bytes);
   source_.port = socket.port();
   source_.receive_buffer_bytes = socket.receive_buffer_bytes();
-  spdlog::info("listening on UDP {}:{} (receive buffer {} bytes), publishing sweeps of robot {} on {}", options_.bind_address,
-               socket.port(), socket.receive_buffer_bytes(), options_.robot, dds::topics::kLidar);
+  spdlog::info("listening on UDP {}:{} (receive buffer {} bytes), publishing sweeps of robot {} on {}",
+               options_.bind_address, socket.port(), socket.receive_buffer_bytes(), options_.robot,
+               dds::topics::kLidar);
   if (socket.receive_buffer_bytes() < options_.driver.receive_buffer_bytes) {
-    spdlog::warn("the kernel capped the receive buffer at {} bytes ({} asked for): raise net.core.rmem_max to at least {}",
-                 socket.receive_buffer_bytes(), options_.driver.receive_buffer_bytes, options_.driver.receive_buffer_bytes);
+    spdlog::warn(
+        "the kernel capped the receive buffer at {} bytes ({} asked for): raise net.core.rmem_max to at least {}",
+        socket.receive_buffer_bytes(), options_.driver.receive_buffer_bytes, options_.driver.receive_buffer_bytes);
   }
   std::vector<uint8_t> buffer(65536);  // above any UDP payload: nothing is cut short
   while (!dds::ShutdownSignal::requested()) {

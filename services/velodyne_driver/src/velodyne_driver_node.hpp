@@ -19,25 +19,25 @@ namespace cdc::velodyne_driver {
 
 struct VelodyneNodeOptions {
   uint32_t robot = 0;
-  uint32_t incarnation = 0;           // drawn at start-up: tells receivers a restarted driver from the old one
+  uint32_t incarnation = 0;  // drawn at start-up: tells receivers a restarted driver from the old one
   uint32_t domain = 0;
-  std::string dds_config;             // empty: CYCLONEDDS_URI (the participant refuses to start without one)
+  std::string dds_config;  // empty: CYCLONEDDS_URI (the participant refuses to start without one)
   std::string bind_address = "0.0.0.0";
-  std::string pcap;                   // non-empty: replay this capture instead of listening
-  double rate = 1.0;                  // replay speed: 1 the capture's own, 2 twice as fast, 0 as fast as possible
-  uint32_t wait_readers = 0;          // wait (up to 30 s) for this many LidarScan readers before the first datagram
+  std::string pcap;           // non-empty: replay this capture instead of listening
+  double rate = 1.0;          // replay speed: 1 the capture's own, 2 twice as fast, 0 as fast as possible
+  uint32_t wait_readers = 0;  // wait (up to 30 s) for this many LidarScan readers before the first datagram
   VelodyneDriverConfig driver;
 };
 
 struct VelodyneNodeStats {
   DriverStats core;
-  uint64_t published = 0;             // LidarScan samples written
-  uint64_t kernel_drops = 0;          // datagrams the socket dropped (its buffer was full)
-  int receive_buffer_bytes = 0;       // as the kernel granted it (UDP)
-  uint16_t port = 0;                  // the UDP port listened on (UDP)
-  uint64_t pcap_records = 0;          // capture records read (replay)
-  uint64_t pcap_skipped = 0;          // records that were not UDP/IPv4, or damaged (replay)
-  std::string error;                  // why the source stopped early, empty when it did not
+  uint64_t published = 0;        // LidarScan samples written
+  uint64_t kernel_drops = 0;     // datagrams the socket dropped (its buffer was full)
+  int receive_buffer_bytes = 0;  // as the kernel granted it (UDP)
+  uint16_t port = 0;             // the UDP port listened on (UDP)
+  uint64_t pcap_records = 0;     // capture records read (replay)
+  uint64_t pcap_skipped = 0;     // records that were not UDP/IPv4, or damaged (replay)
+  std::string error;             // why the source stopped early, empty when it did not
 };
 nlohmann::json to_json(const VelodyneNodeStats& s);
 

@@ -9,11 +9,11 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
-#include <unistd.h>
 #include <vector>
 
 namespace cdc::velodyne_driver {
@@ -45,7 +45,8 @@ std::vector<Packet> vlp16_packets() {
   io::BagMessage m;
   while (reader->next(m)) {
     if (m.type != "velodyne_msgs/msg/VelodyneScan") continue;
-    for (const io::VelodynePacketMsg& p : io::decode_velodyne_scan(m).packets) out.push_back({{p.data.begin(), p.data.end()}, p.stamp_ns});
+    for (const io::VelodynePacketMsg& p : io::decode_velodyne_scan(m).packets)
+      out.push_back({{p.data.begin(), p.data.end()}, p.stamp_ns});
   }
   return out;
 }
@@ -63,7 +64,7 @@ std::vector<DriverSweep> drain(VelodyneDriverCore& core) {
   return out;
 }
 
-#define SKIP_WITHOUT_FIXTURE(packets)                                                                              \
+#define SKIP_WITHOUT_FIXTURE(packets) \
   if ((packets).empty()) GTEST_SKIP() << "no Velodyne fixture under " << fixture_dir() << " (set CDC_DATA_DIR)"
 
 TEST(VelodyneDriverCore, SameSweepsAsTheAssemblerWithImportSettings) {
@@ -117,7 +118,8 @@ TEST(VelodyneDriverCore, SameSweepsAsTheAssemblerWithImportSettings) {
     points += s.sweep.points.size();
   }
   EXPECT_EQ(core.stats().points, points);
-  std::printf("%zu packets -> %zu sweeps, %llu points\n", packets.size(), sweeps.size(), static_cast<unsigned long long>(points));
+  std::printf("%zu packets -> %zu sweeps, %llu points\n", packets.size(), sweeps.size(),
+              static_cast<unsigned long long>(points));
 }
 
 TEST(VelodyneDriverCore, BadDatagramsAreCountedAndChangeNothing) {
@@ -175,9 +177,12 @@ TEST(VelodyneDriverCore, PacketsGoingBackAreOutOfOrder) {
   const std::vector<Packet> packets = vlp16_packets();
   SKIP_WITHOUT_FIXTURE(packets);
   VelodyneDriverCore core(vlp16_config());
-  for (size_t i = 0; i < 20; ++i) ASSERT_EQ(core.add_datagram(packets[i].data, packets[i].stamp_ns, kPort), DatagramStatus::kOk);
-  EXPECT_EQ(core.add_datagram(packets[10].data, packets[10].stamp_ns, kPort), DatagramStatus::kOutOfOrder);  // older stamp
-  EXPECT_EQ(core.add_datagram(packets[10].data, packets[19].stamp_ns, kPort), DatagramStatus::kOutOfOrder);  // azimuth back
+  for (size_t i = 0; i < 20; ++i)
+    ASSERT_EQ(core.add_datagram(packets[i].data, packets[i].stamp_ns, kPort), DatagramStatus::kOk);
+  EXPECT_EQ(core.add_datagram(packets[10].data, packets[10].stamp_ns, kPort),
+            DatagramStatus::kOutOfOrder);  // older stamp
+  EXPECT_EQ(core.add_datagram(packets[10].data, packets[19].stamp_ns, kPort),
+            DatagramStatus::kOutOfOrder);  // azimuth back
   EXPECT_EQ(core.stats().out_of_order, 2u);
 }
 

@@ -12,7 +12,8 @@ struct Segment {
 };
 
 // Integrates a closed sequence of segments at constant speed from (start, heading), 10 Hz.
-geometry::Trajectory drive(const std::vector<Segment>& lap, Eigen::Vector2d p, double heading, double speed, double duration) {
+geometry::Trajectory drive(const std::vector<Segment>& lap, Eigen::Vector2d p, double heading, double speed,
+                           double duration) {
   geometry::Trajectory out;
   const double dt = 0.1;
   size_t seg = 0;
@@ -73,7 +74,8 @@ std::vector<geometry::Trajectory> procedural_mission(const MissionOptions& o) {
       }
       case MissionPattern::kLoops: {
         const double r = o.size_m * (k + 1) / o.robots;
-        out.push_back(drive({{2 * M_PI * r, 1 / r}}, Eigen::Vector2d(0, -r) + offset * 0, 0.0, o.speed_mps, o.duration_s));
+        out.push_back(
+            drive({{2 * M_PI * r, 1 / r}}, Eigen::Vector2d(0, -r) + offset * 0, 0.0, o.speed_mps, o.duration_s));
         break;
       }
       case MissionPattern::kCrossing: {

@@ -7,7 +7,8 @@
 
 namespace cdc::sim {
 
-std::vector<LinkSample> radio_timeline(const std::vector<RadioNode>& nodes, double t0, double t1, const RadioOptions& o) {
+std::vector<LinkSample> radio_timeline(const std::vector<RadioNode>& nodes, double t0, double t1,
+                                       const RadioOptions& o) {
   std::vector<LinkSample> out;
   const auto steps = static_cast<int64_t>(std::floor((t1 - t0) / o.period_s + 1e-9));
   for (int64_t k = 0; k <= steps; ++k) {
@@ -66,7 +67,8 @@ std::string radio_csv(const std::vector<LinkSample>& timeline) {
   std::string out = "t,a,b,in_range,distance,loss\n";
   char line[128];
   for (const auto& s : timeline) {
-    std::snprintf(line, sizeof line, "%.3f,%u,%u,%d,%.3f,%.4f\n", s.t, s.a, s.b, s.in_range ? 1 : 0, s.distance, s.loss);
+    std::snprintf(line, sizeof line, "%.3f,%u,%u,%d,%.3f,%.4f\n", s.t, s.a, s.b, s.in_range ? 1 : 0, s.distance,
+                  s.loss);
     out += line;
   }
   return out;

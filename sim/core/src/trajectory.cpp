@@ -33,8 +33,8 @@ Eigen::Isometry3d SplineTrajectory::pose(double t) const {
   const size_t i = segment(t, u);
   const double u2 = u * u, u3 = u2 * u;
   // Uniform cubic B-spline basis and its cumulative form.
-  const double b0 = (1 - 3 * u + 3 * u2 - u3) / 6, b1 = (4 - 6 * u2 + 3 * u3) / 6, b2 = (1 + 3 * u + 3 * u2 - 3 * u3) / 6,
-               b3 = u3 / 6;
+  const double b0 = (1 - 3 * u + 3 * u2 - u3) / 6, b1 = (4 - 6 * u2 + 3 * u3) / 6,
+               b2 = (1 + 3 * u + 3 * u2 - 3 * u3) / 6, b3 = u3 / 6;
   const double c1 = (5 + 3 * u - 3 * u2 + u3) / 6, c2 = (1 + 3 * u + 3 * u2 - 2 * u3) / 6, c3 = u3 / 6;
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.translation() = b0 * controls_[i - 1].translation() + b1 * controls_[i].translation() +
@@ -48,7 +48,8 @@ Eigen::Vector3d SplineTrajectory::velocity(double t) const {
   double u = 0;
   const size_t i = segment(t, u);
   const double u2 = u * u;
-  const double d0 = (-3 + 6 * u - 3 * u2) / 6, d1 = (-12 * u + 9 * u2) / 6, d2 = (3 + 6 * u - 9 * u2) / 6, d3 = 3 * u2 / 6;
+  const double d0 = (-3 + 6 * u - 3 * u2) / 6, d1 = (-12 * u + 9 * u2) / 6, d2 = (3 + 6 * u - 9 * u2) / 6,
+               d3 = 3 * u2 / 6;
   return (d0 * controls_[i - 1].translation() + d1 * controls_[i].translation() + d2 * controls_[i + 1].translation() +
           d3 * controls_[i + 2].translation()) /
          dt_;
@@ -70,8 +71,8 @@ Eigen::Vector3d SplineTrajectory::angular_velocity(double t) const {
   return geometry::so3_log(Ra.transpose() * Rb) / (2 * h);
 }
 
-std::vector<ImuSample> simulate_imu(const SplineTrajectory& tr, const Eigen::Isometry3d& T_body_imu, double t0, double t1,
-                                    double rate_hz, const ImuNoise& n, uint64_t seed) {
+std::vector<ImuSample> simulate_imu(const SplineTrajectory& tr, const Eigen::Isometry3d& T_body_imu, double t0,
+                                    double t1, double rate_hz, const ImuNoise& n, uint64_t seed) {
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> g(0.0, 1.0);
   auto gauss3 = [&] { return Eigen::Vector3d(g(rng), g(rng), g(rng)); };
@@ -86,7 +87,8 @@ std::vector<ImuSample> simulate_imu(const SplineTrajectory& tr, const Eigen::Iso
     // Lever arm: the IMU at p_bi feels a + alpha x r + w x (w x r) (world frame).
     const double h = 1e-4;
     const Eigen::Vector3d alpha_b = (tr.angular_velocity(t + h) - tr.angular_velocity(t - h)) / (2 * h);
-    const Eigen::Vector3d a_b = T.rotation().transpose() * tr.acceleration(t) + alpha_b.cross(p_bi) + w_b.cross(w_b.cross(p_bi));
+    const Eigen::Vector3d a_b =
+        T.rotation().transpose() * tr.acceleration(t) + alpha_b.cross(p_bi) + w_b.cross(w_b.cross(p_bi));
     const Eigen::Vector3d f_b = a_b - T.rotation().transpose() * kGravity;
     ImuSample s;
     s.t = t;

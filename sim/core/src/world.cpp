@@ -93,8 +93,8 @@ double distance_to_box_2d(const Box& b, const Eigen::Vector2d& p) {
 }
 
 // Moller-Trumbore ray/triangle intersection; normal faces the ray.
-bool hit_triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, const Eigen::Vector3d& o,
-                  const Eigen::Vector3d& d, double& t_out, Eigen::Vector3d& n_out) {
+bool hit_triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                  const Eigen::Vector3d& o, const Eigen::Vector3d& d, double& t_out, Eigen::Vector3d& n_out) {
   const Eigen::Vector3d e1 = b - a, e2 = c - a;
   const Eigen::Vector3d pv = d.cross(e2);
   const double det = e1.dot(pv);
@@ -157,7 +157,8 @@ bool World::hit_terrain_cell(int i, int j, const Eigen::Vector3d& o, const Eigen
 
 World::World(Terrain terrain, std::vector<Box> boxes, std::vector<Cylinder> cylinders)
     : terrain_(std::move(terrain)), boxes_(std::move(boxes)), cylinders_(std::move(cylinders)) {
-  if (terrain_.empty() || terrain_.z.size() != static_cast<size_t>(terrain_.nx + 1) * static_cast<size_t>(terrain_.ny + 1)) {
+  if (terrain_.empty() ||
+      terrain_.z.size() != static_cast<size_t>(terrain_.nx + 1) * static_cast<size_t>(terrain_.ny + 1)) {
     throw std::invalid_argument("World: terrain needs nx, ny > 0 and (nx + 1) * (ny + 1) heights");
   }
   cell_ = terrain_.cell;
@@ -257,9 +258,7 @@ std::optional<Hit> World::cast(const Eigen::Vector3d& o, const Eigen::Vector3d& 
   int i = std::clamp(static_cast<int>((p.x() - min_.x()) / cell_), 0, nx_ - 1);
   int j = std::clamp(static_cast<int>((p.y() - min_.y()) / cell_), 0, ny_ - 1);
   const int si = d2.x() > 0 ? 1 : -1, sj = d2.y() > 0 ? 1 : -1;
-  auto boundary = [&](int idx, int step, int axis) {
-    return min_[axis] + (idx + (step > 0 ? 1 : 0)) * cell_;
-  };
+  auto boundary = [&](int idx, int step, int axis) { return min_[axis] + (idx + (step > 0 ? 1 : 0)) * cell_; };
   double tx = std::abs(d2.x()) > 1e-12 ? (boundary(i, si, 0) - o2.x()) / d2.x() : kInf;
   double ty = std::abs(d2.y()) > 1e-12 ? (boundary(j, sj, 1) - o2.y()) / d2.y() : kInf;
   const double dtx = std::abs(d2.x()) > 1e-12 ? cell_ / std::abs(d2.x()) : kInf;
@@ -421,7 +420,8 @@ World World::generate(const std::vector<std::vector<Eigen::Vector3d>>& paths, co
   const double cell = 20.0;
   std::unordered_map<int64_t, std::vector<Eigen::Vector2d>> near;
   auto key = [&](double x, double y) {
-    return (static_cast<int64_t>(std::floor(x / cell)) << 32) ^ static_cast<int64_t>(static_cast<uint32_t>(std::floor(y / cell)));
+    return (static_cast<int64_t>(std::floor(x / cell)) << 32) ^
+           static_cast<int64_t>(static_cast<uint32_t>(std::floor(y / cell)));
   };
   for (const auto& s : samples) {
     near[key(s.x(), s.y())].push_back(s);
@@ -465,15 +465,19 @@ World World::generate(const std::vector<std::vector<Eigen::Vector3d>>& paths, co
         const double r = u(rng);
         const Eigen::Vector2d c = base + side * left * uni(4.0, 7.0) + dir * uni(-5, 5);
         if (r < 0.35) {  // a pole
-          Cylinder p{c.x(), c.y(), uni(0.08, 0.2), ground_at(c.x(), c.y()), ground_at(c.x(), c.y()) + uni(3, 8),
+          Cylinder p{c.x(),
+                     c.y(),
+                     uni(0.08, 0.2),
+                     ground_at(c.x(), c.y()),
+                     ground_at(c.x(), c.y()) + uni(3, 8),
                      static_cast<float>(uni(0.4, 0.9))};
           Box probe{Eigen::Vector3d(p.x, p.y, 0), Eigen::Vector3d(p.radius, p.radius, 1), 0, 0};
           if (clear_of_paths(probe)) cylinders.push_back(p);
         } else if (r < 0.65) {  // a tree: trunk and crown
           const double h = uni(4, 9);
           Cylinder t{c.x(), c.y(), uni(0.15, 0.35), ground_at(c.x(), c.y()), ground_at(c.x(), c.y()) + h * 0.6, 0.35f};
-          Box crown{Eigen::Vector3d(c.x(), c.y(), ground_at(c.x(), c.y()) + h * 0.75), Eigen::Vector3d::Constant(uni(1.2, 2.2)),
-                    uni(0, 3.14), 0.25f};
+          Box crown{Eigen::Vector3d(c.x(), c.y(), ground_at(c.x(), c.y()) + h * 0.75),
+                    Eigen::Vector3d::Constant(uni(1.2, 2.2)), uni(0, 3.14), 0.25f};
           crown.half.z() = h * 0.2;
           if (clear_of_paths(crown)) {
             cylinders.push_back(t);
@@ -484,8 +488,9 @@ World World::generate(const std::vector<std::vector<Eigen::Vector3d>>& paths, co
                   heading + uni(-0.05, 0.05), static_cast<float>(uni(0.5, 0.9))};
           if (clear_of_paths(car)) boxes.push_back(car);
         } else {  // a wall segment or clutter
-          Box w{Eigen::Vector3d(c.x(), c.y(), ground_at(c.x(), c.y()) + 1.0), Eigen::Vector3d(uni(0.3, 4), uni(0.2, 0.6), uni(0.4, 1.5)),
-                heading + uni(-0.5, 0.5), static_cast<float>(uni(0.2, 0.7))};
+          Box w{Eigen::Vector3d(c.x(), c.y(), ground_at(c.x(), c.y()) + 1.0),
+                Eigen::Vector3d(uni(0.3, 4), uni(0.2, 0.6), uni(0.4, 1.5)), heading + uni(-0.5, 0.5),
+                static_cast<float>(uni(0.2, 0.7))};
           if (clear_of_paths(w)) boxes.push_back(w);
         }
       }

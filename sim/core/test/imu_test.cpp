@@ -8,7 +8,6 @@
 namespace cdc::sim {
 namespace {
 
-
 // A car-like S curve with a little pitch and roll, sampled at 10 Hz.
 SplineTrajectory curve() {
   std::vector<Eigen::Isometry3d> c;

@@ -70,7 +70,8 @@ TEST(Lidar, StaticSensorInARoomSeesEveryWallExactly) {
   const World w = room();
   const LidarModel m = exact(LidarModel::vlp16());
   std::mt19937_64 rng(1);
-  const auto pts = sweep(w, m, [](double) { return at(0, 0, 1.7); }, rng);
+  const auto pts = sweep(
+      w, m, [](double) { return at(0, 0, 1.7); }, rng);
   EXPECT_EQ(pts.size(), m.rays());  // closed room: every ray returns
   for (const auto& p : pts) {
     const Eigen::Vector3d q(p.x, p.y, p.z + 1.7);  // world coordinates
@@ -90,7 +91,8 @@ TEST(Lidar, RangeNoiseAndDropoutsHaveTheConfiguredSize) {
   m.range_sigma_m = 0.05;
   m.dropout = 0.1;
   std::mt19937_64 rng(2);
-  const auto pts = sweep(w, m, [](double) { return at(0, 0, 1.7); }, rng);
+  const auto pts = sweep(
+      w, m, [](double) { return at(0, 0, 1.7); }, rng);
   EXPECT_NEAR(static_cast<double>(pts.size()) / static_cast<double>(m.rays()), 0.9, 0.01);
   // Points on the +x wall: the range error along the ray is x / (cos el cos az) - true range.
   double sum = 0, sq = 0;
@@ -121,7 +123,8 @@ TEST(Lidar, ElevationCalibrationErrorPutsPointsAlongTheNominalBeam) {
   m.elevation_error_deg.assign(m.elevations_deg.size(), 0.0);
   m.elevation_error_deg[0] = -0.5;
   std::mt19937_64 rng(1);
-  const auto pts = sweep(w, m, [](double) { return at(0, 0, 0); }, rng);
+  const auto pts = sweep(
+      w, m, [](double) { return at(0, 0, 0); }, rng);
   const double range = 2.0 / std::sin(15.5 * M_PI / 180), z = -range * std::sin(15.0 * M_PI / 180);
   int n0 = 0, n1 = 0;
   for (const auto& p : pts) {
@@ -137,7 +140,9 @@ TEST(Lidar, ElevationCalibrationErrorPutsPointsAlongTheNominalBeam) {
   EXPECT_EQ(n0, m.columns);
   EXPECT_EQ(n1, m.columns);
   m.elevation_error_deg.resize(3);
-  EXPECT_THROW(sweep(w, m, [](double) { return at(0, 0, 0); }, rng), std::invalid_argument);
+  EXPECT_THROW(sweep(
+                   w, m, [](double) { return at(0, 0, 0); }, rng),
+               std::invalid_argument);
 }
 
 TEST(Lidar, AzimuthCalibrationErrorTurnsTheBeamButNotItsReportedDirection) {
@@ -151,7 +156,8 @@ TEST(Lidar, AzimuthCalibrationErrorTurnsTheBeamButNotItsReportedDirection) {
   m.azimuth_error_deg.assign(m.elevations_deg.size(), 0.0);
   m.azimuth_error_deg[8] = 0.5;
   std::mt19937_64 rng(1);
-  const auto pts = sweep(w, m, [](double) { return at(0, 0, 0); }, rng);
+  const auto pts = sweep(
+      w, m, [](double) { return at(0, 0, 0); }, rng);
   const double d = 0.5 * M_PI / 180;
   int n8 = 0, n9 = 0;
   double max_bend = 0;
@@ -172,7 +178,9 @@ TEST(Lidar, AzimuthCalibrationErrorTurnsTheBeamButNotItsReportedDirection) {
   EXPECT_GT(n9, 500);
   EXPECT_GT(max_bend, 0.1);  // near az = 0.3 rad the point sits about 0.14 m off the wall
   m.azimuth_error_deg.resize(3);
-  EXPECT_THROW(sweep(w, m, [](double) { return at(0, 0, 0); }, rng), std::invalid_argument);
+  EXPECT_THROW(sweep(
+                   w, m, [](double) { return at(0, 0, 0); }, rng),
+               std::invalid_argument);
 }
 
 TEST(Lidar, RangeOffsetLengthensEveryReturnOfItsBeam) {
@@ -184,7 +192,8 @@ TEST(Lidar, RangeOffsetLengthensEveryReturnOfItsBeam) {
   m.range_offset_m.assign(m.elevations_deg.size(), 0.0);
   m.range_offset_m[0] = 0.05;
   std::mt19937_64 rng(1);
-  const auto pts = sweep(w, m, [](double) { return at(0, 0, 0); }, rng);
+  const auto pts = sweep(
+      w, m, [](double) { return at(0, 0, 0); }, rng);
   const double r0 = 2.0 / std::sin(15.0 * M_PI / 180) + 0.05, r1 = 2.0 / std::sin(13.0 * M_PI / 180);
   int n0 = 0, n1 = 0;
   for (const auto& p : pts) {
@@ -200,7 +209,9 @@ TEST(Lidar, RangeOffsetLengthensEveryReturnOfItsBeam) {
   EXPECT_EQ(n0, m.columns);
   EXPECT_EQ(n1, m.columns);
   m.range_offset_m.resize(17);
-  EXPECT_THROW(sweep(w, m, [](double) { return at(0, 0, 0); }, rng), std::invalid_argument);
+  EXPECT_THROW(sweep(
+                   w, m, [](double) { return at(0, 0, 0); }, rng),
+               std::invalid_argument);
 }
 
 TEST(Lidar, AMovingSensorsSweepIsDistortedByExactlyTheMotion) {
@@ -208,7 +219,8 @@ TEST(Lidar, AMovingSensorsSweepIsDistortedByExactlyTheMotion) {
   const LidarModel m = exact(LidarModel::vlp16());
   const double v = 8.0;  // [m/s] along +x
   std::mt19937_64 rng(3);
-  const auto pts = sweep(w, m, [&](double t) { return at(-2.0 + v * t, 0, 1.7); }, rng);
+  const auto pts = sweep(
+      w, m, [&](double t) { return at(-2.0 + v * t, 0, 1.7); }, rng);
   // First and last column look almost the same way (+x wall), 0.1 s apart: each range is the wall
   // distance at its own instant, so the sweep does not close on itself.
   const LidarReturn* first = nullptr;

@@ -9,12 +9,12 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
+#include <unistd.h>
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
 #include <random>
-#include <sys/wait.h>
-#include <unistd.h>
 
 namespace cdc::sim {
 namespace {
@@ -47,7 +47,8 @@ class ImportBag : public ::testing::Test {
     }
     std::vector<io::DatasetImu> imu;
     for (int i = 0; i < 90; ++i) {
-      imu.push_back({12'290'000'000 + i * 5'000'000, Eigen::Vector3d(0.1 * i, -0.5, 9.81), Eigen::Vector3d(0.01, 0.002 * i, -0.03)});
+      imu.push_back({12'290'000'000 + i * 5'000'000, Eigen::Vector3d(0.1 * i, -0.5, 9.81),
+                     Eigen::Vector3d(0.01, 0.002 * i, -0.03)});
     }
     w.set_imu(0, imu);
     w.commit({});
@@ -57,8 +58,8 @@ class ImportBag : public ::testing::Test {
   // Runs the independent writer; the path of the bag it wrote.
   fs::path write_bag(const std::string& format, const std::string& extra = "") {
     const fs::path out = root_ / (format == "db3" ? "bag_db3" : "bag." + format);
-    const std::string cmd = std::string(CDC_PYTHON3) + " " + CDC_DATASET_TO_BAG + " " + (root_ / "source").string() + " " +
-                            out.string() + " --format " + format + extra;
+    const std::string cmd = std::string(CDC_PYTHON3) + " " + CDC_DATASET_TO_BAG + " " + (root_ / "source").string() +
+                            " " + out.string() + " --format " + format + extra;
     const int rc = std::system(cmd.c_str());
     EXPECT_TRUE(WIFEXITED(rc) && WEXITSTATUS(rc) == 0) << cmd;
     return out;
@@ -132,14 +133,16 @@ TEST_F(ImportBag, ACloudWithAWrongFieldLayoutIsSkippedCountedAndNamed) {
   EXPECT_EQ(sum.skipped, 1u);
   EXPECT_EQ(sum.info.scans, 3u);
   bool named = false;
-  for (const std::string& n : sum.notes) named = named || (n.find("skipped 1 x") != std::string::npos && n.find("time") != std::string::npos);
+  for (const std::string& n : sum.notes)
+    named = named || (n.find("skipped 1 x") != std::string::npos && n.find("time") != std::string::npos);
   EXPECT_TRUE(named) << "no note names the skipped cloud's bad field";
   // The sweeps that did decode are the source's sweeps 0, 1 and 3.
   const std::vector<int64_t> ta = geometry::read_times((root_ / "source" / "robot_0" / "times.txt").string());
   const std::vector<int64_t> tb = geometry::read_times((o.out / "robot_0" / "times.txt").string());
   ASSERT_EQ(tb.size(), 3u);
   EXPECT_EQ(tb[2] - tb[1], ta[3] - ta[1]);
-  EXPECT_EQ(bytes_of(o.out / "robot_0" / "velodyne" / "000002.bin"), bytes_of(root_ / "source" / "robot_0" / "velodyne" / "000003.bin"));
+  EXPECT_EQ(bytes_of(o.out / "robot_0" / "velodyne" / "000002.bin"),
+            bytes_of(root_ / "source" / "robot_0" / "velodyne" / "000003.bin"));
 }
 
 TEST_F(ImportBag, ATopicOfAnotherTypeIsRefusedByName) {

@@ -5,11 +5,11 @@
 
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cstdlib>
 #include <fstream>
 #include <iterator>
 #include <random>
-#include <unistd.h>
 
 namespace cdc::sim {
 namespace {
@@ -86,7 +86,8 @@ TEST(Import, KittiSplitIntoRobotsKeepsEverySweepItsPoseAndMakesTheRadioFromThePo
       std::snprintf(src, sizeof src, "%06zu.bin", i);
       EXPECT_EQ(bytes_of(o.out / ("robot_" + std::to_string(r)) / "velodyne" / name), bytes_of(seq / "velodyne" / src));
       const auto& sp = gt[r][i - range.first];
-      EXPECT_EQ(sp.stamp_ns, static_cast<int64_t>(r) * 1'000'000'000 + static_cast<int64_t>(i - range.first) * 500'000'000);
+      EXPECT_EQ(sp.stamp_ns,
+                static_cast<int64_t>(r) * 1'000'000'000 + static_cast<int64_t>(i - range.first) * 500'000'000);
       EXPECT_NEAR(sp.pose.translation().x(), 2.0 * static_cast<double>(i), 1e-9);
     }
     EXPECT_FALSE(fs::exists(o.out / ("robot_" + std::to_string(r)) / "velodyne_meta"));
@@ -125,7 +126,8 @@ TEST(Import, AFailedImportLeavesNoDatasetBehind) {
   o.out = root / "ds";
   o.robots = 3;
   // Several robots with poses but no range: refused before anything is committed.
-  EXPECT_THROW(write_import(kitti_recording(seq, lidar_poses(seq), io::PointTimes::kNone, "ground_truth"), o), std::invalid_argument);
+  EXPECT_THROW(write_import(kitti_recording(seq, lidar_poses(seq), io::PointTimes::kNone, "ground_truth"), o),
+               std::invalid_argument);
   EXPECT_FALSE(fs::exists(o.out));
   EXPECT_FALSE(fs::exists(root / "ds.partial"));
   // A sweep that disappears after listing (a damaged recording): the import stops, nothing is left.

@@ -1,9 +1,10 @@
-#include "cdc/config/reader.hpp"
 #include "scenario.hpp"
+#include "cdc/config/reader.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <unistd.h>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -11,7 +12,6 @@
 #include <fstream>
 #include <iterator>
 #include <map>
-#include <unistd.h>
 
 namespace cdc::sim {
 namespace {
@@ -65,9 +65,11 @@ TEST_F(ScenarioFiles, SameScenarioAndSeedGiveByteIdenticalDatasets) {
     ASSERT_EQ(read_all(e.path()), read_all(dir_ / "b" / rel)) << rel << " differs";
     ++files;
   }
-  EXPECT_EQ(files, 2u * (3 + 3 + 4) + 5);  // per robot: scans, point metadata, times/imu/gt/calib; radio x2, world, scenario, summary
-  for (const char* f : {"robot_0/times.txt", "robot_0/imu.csv", "robot_0/groundtruth.tum", "robot_1/velodyne/000002.bin",
-                        "robot_1/velodyne_meta/000002.bin", "radio.csv", "radio_periods.csv", "world.json", "scenario.yaml"}) {
+  EXPECT_EQ(files, 2u * (3 + 3 + 4) +
+                       5);  // per robot: scans, point metadata, times/imu/gt/calib; radio x2, world, scenario, summary
+  for (const char* f :
+       {"robot_0/times.txt", "robot_0/imu.csv", "robot_0/groundtruth.tum", "robot_1/velodyne/000002.bin",
+        "robot_1/velodyne_meta/000002.bin", "radio.csv", "radio_periods.csv", "world.json", "scenario.yaml"}) {
     EXPECT_TRUE(fs::exists(dir_ / "a" / f)) << f;
   }
   // The IMU agrees with the ground truth it was simulated from: at rest on the ground plane gravity
@@ -118,7 +120,8 @@ TEST_F(ScenarioFiles, AzimuthAndRangeErrorsAreSeededPerBeamAndLeaveTheElevationD
   const LidarModel clean = scenario_lidar(load_scenario(write("c.yaml", "seed: 3\nlidar_elevation_error_deg: 0.2\n")));
   EXPECT_TRUE(clean.azimuth_error_deg.empty());
   EXPECT_TRUE(clean.range_offset_m.empty());
-  const std::string all = "seed: 3\nlidar_elevation_error_deg: 0.2\nlidar_azimuth_error_deg: 0.2\nlidar_range_offset_m: 0.02\n";
+  const std::string all =
+      "seed: 3\nlidar_elevation_error_deg: 0.2\nlidar_azimuth_error_deg: 0.2\nlidar_range_offset_m: 0.02\n";
   const LidarModel a = scenario_lidar(load_scenario(write("a.yaml", all)));
   const LidarModel again = scenario_lidar(load_scenario(write("a2.yaml", all)));
   const LidarModel other = scenario_lidar(load_scenario(write("o.yaml", "seed: 4\nlidar_azimuth_error_deg: 0.2\n")));
@@ -127,7 +130,7 @@ TEST_F(ScenarioFiles, AzimuthAndRangeErrorsAreSeededPerBeamAndLeaveTheElevationD
   EXPECT_EQ(a.elevation_error_deg, clean.elevation_error_deg);  // adding errors does not redraw the others
   EXPECT_EQ(a.azimuth_error_deg, again.azimuth_error_deg);      // the seed fixes the sensor
   EXPECT_NE(a.azimuth_error_deg, other.azimuth_error_deg);
-  EXPECT_NE(a.azimuth_error_deg, a.elevation_error_deg);        // streams of their own
+  EXPECT_NE(a.azimuth_error_deg, a.elevation_error_deg);  // streams of their own
   double az_sq = 0, r_sq = 0;
   for (size_t i = 0; i < a.azimuth_error_deg.size(); ++i) {
     az_sq += a.azimuth_error_deg[i] * a.azimuth_error_deg[i];
@@ -143,10 +146,11 @@ TEST_F(ScenarioFiles, AzimuthAndRangeErrorsAreSeededPerBeamAndLeaveTheElevationD
 }
 
 TEST_F(ScenarioFiles, EachRobotCanCarryALidarOfItsOwn) {
-  const Scenario shared = load_scenario(write("sh.yaml", "seed: 3\nlidar_azimuth_error_deg: 0.2\nlidar_elevation_error_deg: 0.2\n"));
+  const Scenario shared =
+      load_scenario(write("sh.yaml", "seed: 3\nlidar_azimuth_error_deg: 0.2\nlidar_elevation_error_deg: 0.2\n"));
   EXPECT_EQ(scenario_lidar(shared, 0).azimuth_error_deg, scenario_lidar(shared, 2).azimuth_error_deg);
-  const Scenario own = load_scenario(
-      write("own.yaml", "seed: 3\nlidar_azimuth_error_deg: 0.2\nlidar_elevation_error_deg: 0.2\nlidar_per_robot: true\n"));
+  const Scenario own = load_scenario(write(
+      "own.yaml", "seed: 3\nlidar_azimuth_error_deg: 0.2\nlidar_elevation_error_deg: 0.2\nlidar_per_robot: true\n"));
   const LidarModel r0 = scenario_lidar(own, 0), r1 = scenario_lidar(own, 1), r1_again = scenario_lidar(own, 1);
   EXPECT_NE(r0.azimuth_error_deg, r1.azimuth_error_deg);
   EXPECT_NE(r0.elevation_error_deg, r1.elevation_error_deg);
@@ -156,7 +160,8 @@ TEST_F(ScenarioFiles, EachRobotCanCarryALidarOfItsOwn) {
 }
 
 TEST_F(ScenarioFiles, BadScenariosNameTheField) {
-  const std::string bad = write("bad.yaml", "trajectories:\n  source: carla\n  robots: 0\nlidar: vlp32\nradio:\n  rnage_m: 3\n");
+  const std::string bad =
+      write("bad.yaml", "trajectories:\n  source: carla\n  robots: 0\nlidar: vlp32\nradio:\n  rnage_m: 3\n");
   try {
     load_scenario(bad);
     FAIL();
@@ -196,7 +201,8 @@ TEST_F(ScenarioFiles, EveryShippedScenarioTakesEachRobotOutOfRangeAtLeastTwice) 
     }
     for (int r = 0; r < s.robots; ++r) {
       if (r == s.central_robot) continue;
-      std::printf("%s: robot %d leaves the central's range %d times\n", s.name.c_str(), r, out[static_cast<uint32_t>(r)]);
+      std::printf("%s: robot %d leaves the central's range %d times\n", s.name.c_str(), r,
+                  out[static_cast<uint32_t>(r)]);
       EXPECT_GE(out[static_cast<uint32_t>(r)], 2) << s.name << " robot " << r;
     }
     ++checked;

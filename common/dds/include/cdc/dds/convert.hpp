@@ -31,8 +31,7 @@ void information_to_msg(const Matrix6d& info, cdc_msg_Information6& out);
 
 // Wall-clock time now, integer nanoseconds since the epoch.
 inline int64_t now_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::system_clock::now().time_since_epoch())
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
       .count();
 }
 

@@ -41,7 +41,7 @@ class Participant {
   void set_deafmute(bool deaf, bool mute) const;
 
  private:
-  Entity domain_;        // owned only when this participant created the domain
+  Entity domain_;  // owned only when this participant created the domain
   Entity participant_;
   uint32_t domain_id_ = 0;
   std::string config_;

@@ -67,9 +67,9 @@ class Topic {
   Topic(const Participant& participant, const std::string& name)
       : name_(name),
         domain_(participant.domain_id()),
-        topic_(check(dds_create_topic(participant.handle(), TypeSupport<T>::descriptor(),
-                                      name.c_str(), nullptr, nullptr),
-                     "create topic '" + name + "'")) {}
+        topic_(
+            check(dds_create_topic(participant.handle(), TypeSupport<T>::descriptor(), name.c_str(), nullptr, nullptr),
+                  "create topic '" + name + "'")) {}
 
   dds_entity_t handle() const noexcept { return topic_.handle(); }
   const std::string& name() const noexcept { return name_; }
@@ -102,7 +102,8 @@ class Writer {
   void discard_unacknowledged() {
     Entity fresh_publisher = detail::make_group(*participant_, qos_, true);
     Entity fresh_writer(create(fresh_publisher));
-    retirement_.retire(std::exchange(publisher_, std::move(fresh_publisher)), std::exchange(writer_, std::move(fresh_writer)));
+    retirement_.retire(std::exchange(publisher_, std::move(fresh_publisher)),
+                       std::exchange(writer_, std::move(fresh_writer)));
   }
 
   // True once every writer replaced by discard_unacknowledged() is deleted (for tests).
@@ -116,9 +117,7 @@ class Writer {
   }
 
   // Disposes the instance the sample's key fields name.
-  void dispose(const T& sample) {
-    check(dds_dispose(writer_.handle(), &sample), "dispose on '" + topic_name_ + "'");
-  }
+  void dispose(const T& sample) { check(dds_dispose(writer_.handle(), &sample), "dispose on '" + topic_name_ + "'"); }
 
   // Tells readers this writer is alive (MANUAL_BY_TOPIC liveliness); writes do this too.
   void assert_liveliness() {
@@ -152,17 +151,18 @@ class Writer {
  private:
   dds_entity_t create() const { return create(publisher_); }
   dds_entity_t create(const Entity& publisher) const {
-    return check(dds_create_writer(publisher ? publisher.handle() : participant_->handle(), topic_handle_, qos_.get(), nullptr),
-                 "create writer on '" + topic_name_ + "'");
+    return check(
+        dds_create_writer(publisher ? publisher.handle() : participant_->handle(), topic_handle_, qos_.get(), nullptr),
+        "create writer on '" + topic_name_ + "'");
   }
 
   const Participant* participant_;  // outlives the writer, as every DDS entity's parent must
   dds_entity_t topic_handle_;
   Qos qos_;
   std::string topic_name_;
-  TopicCounters* counters_;  // this process's counters of the topic (traffic.hpp)
+  TopicCounters* counters_;              // this process's counters of the topic (traffic.hpp)
   detail::WriterRetirement retirement_;  // declared before the entities: destroyed after them
-  Entity publisher_;  // own publisher when the QoS names partitions (deleted after the writer)
+  Entity publisher_;                     // own publisher when the QoS names partitions (deleted after the writer)
   Entity writer_;
   std::atomic<uint64_t> samples_written_{0};
 };
@@ -209,8 +209,10 @@ class Samples {
   Samples(const Samples&) = delete;
   Samples& operator=(const Samples&) = delete;
   Samples(Samples&& other) noexcept
-      : home_(std::exchange(other.home_, nullptr)), buffers_(std::move(other.buffers_)),
-        infos_(std::move(other.infos_)), count_(std::exchange(other.count_, 0)) {}
+      : home_(std::exchange(other.home_, nullptr)),
+        buffers_(std::move(other.buffers_)),
+        infos_(std::move(other.infos_)),
+        count_(std::exchange(other.count_, 0)) {}
   Samples& operator=(Samples&&) = delete;
 
   size_t size() const noexcept { return count_; }
@@ -254,8 +256,7 @@ class Reader {
   // Takes up to max samples (removing them from the reader's cache). Each is deserialised once
   // and its serialised size counted as it came (traffic.hpp), without serialising it again.
   Samples<T> take(size_t max = 64) {
-    auto buffers = spare_ ? std::move(spare_)
-                          : std::make_unique<detail::SampleBuffers>(TypeSupport<T>::descriptor());
+    auto buffers = spare_ ? std::move(spare_) : std::make_unique<detail::SampleBuffers>(TypeSupport<T>::descriptor());
     Samples<T> s(&spare_, std::move(buffers));
     uint64_t valid = 0, bytes = 0, failed = 0;
     s.count_ = s.buffers_->take(reader_.handle(), max, s.infos_, valid, bytes, failed, topic_name_.c_str());
@@ -283,7 +284,7 @@ class Reader {
  private:
   std::string topic_name_;
   TopicCounters* counters_;  // this process's counters of the topic (traffic.hpp)
-  Entity subscriber_;  // own subscriber when the QoS names partitions (deleted after the reader)
+  Entity subscriber_;        // own subscriber when the QoS names partitions (deleted after the reader)
   Entity reader_;
   std::unique_ptr<detail::SampleBuffers> spare_;  // buffers not lent out, reused by the next take
   std::atomic<uint64_t> samples_taken_{0};

@@ -68,9 +68,9 @@ Qos monitored_reader();
 // so that it never crosses the radio to other robots. Readers of such data also accept the
 // default partition (tools and tests that do not partition).
 namespace partitions {
-std::string robot(uint32_t robot_id);                      // "robot/<id>"
-inline const char* const kAllRobots = "robot/*";           // the central node's readers
-std::vector<std::string> own_reader(uint32_t robot_id);    // {"robot/<id>", ""}
-std::vector<std::string> all_robots_reader();              // {"robot/*", ""}
+std::string robot(uint32_t robot_id);                    // "robot/<id>"
+inline const char* const kAllRobots = "robot/*";         // the central node's readers
+std::vector<std::string> own_reader(uint32_t robot_id);  // {"robot/<id>", ""}
+std::vector<std::string> all_robots_reader();            // {"robot/*", ""}
 }  // namespace partitions
 }  // namespace cdc::dds

@@ -30,8 +30,8 @@ class SampleBuffers {
   // 4 bytes, as on the wire). The buffer of an invalid sample (an instance state change) is left
   // as it was. A sample Cyclone cannot deserialise comes back marked as invalid and is counted in
   // `failed`. Throws DdsError (naming `what`) when the take itself fails.
-  size_t take(dds_entity_t reader, size_t max, std::vector<dds_sample_info_t>& infos, uint64_t& valid,
-              uint64_t& bytes, uint64_t& failed, const char* what);
+  size_t take(dds_entity_t reader, size_t max, std::vector<dds_sample_info_t>& infos, uint64_t& valid, uint64_t& bytes,
+              uint64_t& failed, const char* what);
 
   const void* operator[](size_t i) const noexcept { return samples_[i]; }
 
@@ -41,7 +41,7 @@ class SampleBuffers {
 
  private:
   const dds_topic_descriptor_t* descriptor_;
-  std::vector<void*> samples_;  // dds_alloc'ed, zero-initialised, owned
+  std::vector<void*> samples_;          // dds_alloc'ed, zero-initialised, owned
   std::vector<ddsi_serdata*> serdata_;  // what dds_takecdr hands over, kept to spare an allocation per take
 };
 

@@ -13,11 +13,11 @@ namespace cdc::dds {
 template <class T>
 struct TypeSupport;  // defined below for every topic type; a missing one is a compile error
 
-#define CDC_DDS_TYPE(T)                                                      \
-  template <>                                                                \
-  struct TypeSupport<T> {                                                    \
+#define CDC_DDS_TYPE(T)                                                     \
+  template <>                                                               \
+  struct TypeSupport<T> {                                                   \
     static const dds_topic_descriptor_t* descriptor() { return &T##_desc; } \
-    static constexpr const char* kName = #T;                                 \
+    static constexpr const char* kName = #T;                                \
   }
 
 CDC_DDS_TYPE(cdc_msg_LidarScan);

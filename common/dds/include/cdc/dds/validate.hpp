@@ -14,14 +14,14 @@
 namespace cdc::dds {
 
 struct ValidationLimits {
-  uint32_t robot_count = 16;            // robot ids must be < robot_count (at most 255)
-  std::vector<uint32_t> extra_node_ids; // other node ids accepted (e.g. a ground-station central)
-  double quaternion_tolerance = 1e-3;   // |1 - |q|| allowed
+  uint32_t robot_count = 16;             // robot ids must be < robot_count (at most 255)
+  std::vector<uint32_t> extra_node_ids;  // other node ids accepted (e.g. a ground-station central)
+  double quaternion_tolerance = 1e-3;    // |1 - |q|| allowed
   uint32_t max_scan_points = 2'000'000;
   uint32_t max_cloud_points = 500'000;  // keyframe clouds and cloud replies
   uint32_t max_imu_samples = 10'000;
   uint32_t max_descriptor_cells = 65'536;
-  uint32_t max_poses = 1'000'000;       // poses in one optimiser result
+  uint32_t max_poses = 1'000'000;  // poses in one optimiser result
 };
 
 // ok() or the reason a sample is rejected.

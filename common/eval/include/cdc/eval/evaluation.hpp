@@ -15,7 +15,7 @@ namespace cdc::eval {
 
 struct EvalOptions {
   geometry::AlignMode align = geometry::AlignMode::kSE3;
-  int64_t max_dt_ns = 10'000'000;     // association tolerance
+  int64_t max_dt_ns = 10'000'000;  // association tolerance
   size_t rpe_delta_frames = 1;
   double rpe_delta_m = 100.0;
 };
@@ -57,8 +57,7 @@ struct SvgMarker {
   std::string label;
 };
 
-std::string render_svg(const std::vector<Evaluation>& evaluations, const std::string& plane,
-                       const std::string& title, const std::vector<SvgMarker>& markers = {},
-                       const std::string& marker_legend = "");
+std::string render_svg(const std::vector<Evaluation>& evaluations, const std::string& plane, const std::string& title,
+                       const std::vector<SvgMarker>& markers = {}, const std::string& marker_legend = "");
 
 }  // namespace cdc::eval

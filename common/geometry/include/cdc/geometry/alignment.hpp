@@ -10,8 +10,8 @@ namespace cdc::geometry {
 
 struct Alignment {
   Eigen::Isometry3d T_dst_src = Eigen::Isometry3d::Identity();  // rotation and translation
-  double scale = 1.0;  // dst ~= scale * R * src + t
-  bool ok = false;     // false when the points are too few or degenerate
+  double scale = 1.0;                                           // dst ~= scale * R * src + t
+  bool ok = false;                                              // false when the points are too few or degenerate
 };
 
 // Finds s, R, t minimising sum |dst_i - (s R src_i + t)|^2; scale stays 1 unless with_scale.

@@ -28,17 +28,17 @@ ErrorStats compute_stats(std::vector<double> values);
 
 // Absolute trajectory error: translation error [m] after aligning est onto gt.
 struct AteResult {
-  ErrorStats translation;     // [m]
-  ErrorStats rotation_deg;    // orientation error after alignment [deg]
-  Alignment alignment;        // maps est into gt's frame
+  ErrorStats translation;   // [m]
+  ErrorStats rotation_deg;  // orientation error after alignment [deg]
+  Alignment alignment;      // maps est into gt's frame
 };
 AteResult compute_ate(const Poses& est, const Poses& gt, AlignMode mode);
 
 // Relative pose error between pairs (i, j): E = inv(inv(gt_i) gt_j) * inv(est_i) est_j.
 struct RpeResult {
-  ErrorStats translation;     // [m]
-  ErrorStats rotation_deg;    // [deg]
-  std::string delta;          // "1 frame", "100 m"
+  ErrorStats translation;   // [m]
+  ErrorStats rotation_deg;  // [deg]
+  std::string delta;        // "1 frame", "100 m"
 };
 // Pairs (i, i + delta_frames).
 RpeResult compute_rpe_frames(const Poses& est, const Poses& gt, size_t delta_frames);

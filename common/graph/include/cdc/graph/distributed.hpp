@@ -27,8 +27,8 @@ struct DistributedOptions {
 struct DistributedResult {
   int rounds = 0;
   bool converged = false;
-  std::vector<double> objective_per_round;           // after initialisation (index 0) and each round
-  std::map<uint32_t, uint64_t> bytes_sent;           // separator poses sent, per robot [bytes]
+  std::vector<double> objective_per_round;  // after initialisation (index 0) and each round
+  std::map<uint32_t, uint64_t> bytes_sent;  // separator poses sent, per robot [bytes]
   std::map<uint32_t, uint64_t> poses_sent;
 };
 

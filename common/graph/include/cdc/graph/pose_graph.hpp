@@ -22,19 +22,19 @@ enum class FactorKind { kPrior, kOdometry, kLoop };
 
 struct Factor {
   FactorKind kind = FactorKind::kLoop;
-  Key a = 0;                                          // for a prior: the constrained pose
-  Key b = 0;                                          // for a prior: equal to a
+  Key a = 0;                                                      // for a prior: the constrained pose
+  Key b = 0;                                                      // for a prior: equal to a
   Eigen::Isometry3d measurement = Eigen::Isometry3d::Identity();  // T_a_b, or T_world_a for a prior
   Matrix6d information = Matrix6d::Identity();
-  bool robust = false;                                // robust loss (loop closures)
+  bool robust = false;  // robust loss (loop closures)
   bool inter_robot() const { return robot_of(a) != robot_of(b); }
 };
 
 struct PoseGraph {
   std::map<Key, Eigen::Isometry3d> poses;  // current estimate T_world_key
   std::vector<Factor> factors;
-  int dimension = 3;                       // 2 for planar graphs lifted into 3D
-  bool symbol_keys = false;                // read from GTSAM-symbol keys (('a' + robot) << 56 | index)
+  int dimension = 3;         // 2 for planar graphs lifted into 3D
+  bool symbol_keys = false;  // read from GTSAM-symbol keys (('a' + robot) << 56 | index)
 
   void add_prior(Key key, const Eigen::Isometry3d& T_world_key, const Matrix6d& information);
   // Between factor; kind is odometry when b follows a on the same robot, loop otherwise.

@@ -26,14 +26,14 @@ struct SolverOptions {
   double function_tolerance = 1e-12;
   double gradient_tolerance = 1e-12;
   double parameter_tolerance = 1e-12;
-  double robust_loss_scale = 0.0;   // > 0: Cauchy loss with this scale on factors marked robust
+  double robust_loss_scale = 0.0;  // > 0: Cauchy loss with this scale on factors marked robust
   int threads = 1;
   // Levenberg-Marquardt's initial trust-region radius (1 / initial damping). Ceres' default is
   // 1e4; from a good initial estimate (chordal) nearly Gauss-Newton steps converge in a few
   // iterations (parking-garage: 2 instead of 18), and LM still shrinks the region after a
   // rejected step.
   double initial_trust_region_radius = 1e12;
-  bool full_report = false;         // fill SolveResult::report with Ceres' full report
+  bool full_report = false;  // fill SolveResult::report with Ceres' full report
 };
 
 struct SolveResult {

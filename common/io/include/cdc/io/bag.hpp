@@ -28,10 +28,10 @@ struct BagTopic {
 
 struct BagMessage {
   std::string topic;
-  std::string type;            // as in BagTopic::type
-  int64_t log_time_ns = 0;     // when the recorder received it
+  std::string type;         // as in BagTopic::type
+  int64_t log_time_ns = 0;  // when the recorder received it
   Serialization serialization = Serialization::kCdr;
-  std::vector<uint8_t> data;   // the serialised message (CDR with its 4-byte encapsulation header, or ROS 1)
+  std::vector<uint8_t> data;  // the serialised message (CDR with its 4-byte encapsulation header, or ROS 1)
 };
 
 class BagReader {

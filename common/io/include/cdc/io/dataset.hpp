@@ -39,16 +39,16 @@ std::optional<PointTimes> parse_point_times(const std::string& s);
 // dataset.json.
 struct DatasetInfo {
   std::string name = "dataset";
-  std::string source = "simulated";     // simulated | kitti | sweeps | rosbag1 | rosbag2 | ...
+  std::string source = "simulated";  // simulated | kitti | sweeps | rosbag1 | rosbag2 | ...
   size_t robots = 0;
   size_t scans = 0;
   size_t points = 0;
   uint32_t central_id = 200;
   size_t out_of_range_periods = 0;
   PointTimes point_times = PointTimes::kSensor;
-  double sweep_period_s = 0.1;          // nominal time between sweeps
-  std::string radio = "simulated";      // simulated | reference_poses | timeline | none: where radio.csv comes from
-  std::string poses = "ground_truth";   // ground_truth | reference | none: what groundtruth.tum holds
+  double sweep_period_s = 0.1;         // nominal time between sweeps
+  std::string radio = "simulated";     // simulated | reference_poses | timeline | none: where radio.csv comes from
+  std::string poses = "ground_truth";  // ground_truth | reference | none: what groundtruth.tum holds
 };
 
 // Reads dataset.json; fields it lacks keep their defaults (older simulated datasets). Throws FormatError
@@ -60,8 +60,8 @@ struct DatasetScan {
   int64_t stamp_ns = 0;  // sweep start
   uint32_t robot = 0;
   uint64_t seq = 0;
-  std::filesystem::path bin, meta;          // meta empty: the sweep has no per-point times or rings
-  std::optional<Eigen::Isometry3d> truth;   // LiDAR pose at the sweep start
+  std::filesystem::path bin, meta;         // meta empty: the sweep has no per-point times or rings
+  std::optional<Eigen::Isometry3d> truth;  // LiDAR pose at the sweep start
 };
 
 struct DatasetImu {
@@ -104,7 +104,8 @@ class DatasetWriter {
   void add_sweep(uint32_t robot, int64_t stamp_ns, const Sweep& sweep);
   void set_groundtruth(uint32_t robot, const geometry::Trajectory& poses);
   void set_imu(uint32_t robot, const std::vector<DatasetImu>& imu);
-  void set_calib(uint32_t robot, const Eigen::Isometry3d& T_lidar_imu, const std::string& lidar_name, double imu_rate_hz);
+  void set_calib(uint32_t robot, const Eigen::Isometry3d& T_lidar_imu, const std::string& lidar_name,
+                 double imu_rate_hz);
   // radio.csv content (header included) and the out-of-range periods CSV (a,b,start,end).
   void set_radio(const std::string& radio_csv, const std::string& periods_csv);
   // Writes every robot's times.txt and dataset.json (robots, scans and points counted here), then

@@ -19,8 +19,8 @@ geometry::Trajectory kitti_lidar_trajectory(const std::string& poses_path, const
 
 struct SplitOptions {
   int robots = 3;
-  double overlap = 0.15;        // fraction of a piece shared with the next piece
-  double time_shift_s = 0.0;    // robot k starts k * time_shift_s after robot 0
+  double overlap = 0.15;      // fraction of a piece shared with the next piece
+  double time_shift_s = 0.0;  // robot k starts k * time_shift_s after robot 0
 };
 
 // The index ranges [first, last) of a sequence of n samples that split_robots gives each robot.
@@ -41,13 +41,13 @@ enum class KittiPosesFrame {
 };
 
 struct KittiSequenceOptions {
-  std::filesystem::path times;   // default: DIR/times.txt when present, else frame * period_ns
-  std::filesystem::path poses;   // optional 3x4 row-major poses, one line per frame
+  std::filesystem::path times;  // default: DIR/times.txt when present, else frame * period_ns
+  std::filesystem::path poses;  // optional 3x4 row-major poses, one line per frame
   KittiPosesFrame poses_frame = KittiPosesFrame::kCamera;
   std::filesystem::path calib;   // default: DIR/calib.txt (for camera-frame poses)
   std::string calib_key = "Tr";  // the entry of calib holding T_cam0_velo
   int64_t period_ns = 100'000'000;
-  bool allow_gaps = false;       // accept missing frame numbers (else a missing sweep is an error)
+  bool allow_gaps = false;  // accept missing frame numbers (else a missing sweep is an error)
 };
 
 // A KITTI odometry sequence folder (velodyne/NNNNNN.bin, times.txt, calib.txt) or a bare folder of
@@ -55,10 +55,10 @@ struct KittiSequenceOptions {
 // (stamped like the sweeps). Throws FormatError naming the file for a missing sweep, a times or poses
 // file too short for the frames, or times that do not increase.
 struct KittiSequence {
-  std::vector<size_t> frames;                   // frame numbers
-  std::vector<std::filesystem::path> sweeps;    // one .bin per frame
-  std::vector<int64_t> stamps_ns;               // one per frame
-  geometry::Trajectory poses;                   // LiDAR poses, one per frame, or empty
+  std::vector<size_t> frames;                 // frame numbers
+  std::vector<std::filesystem::path> sweeps;  // one .bin per frame
+  std::vector<int64_t> stamps_ns;             // one per frame
+  geometry::Trajectory poses;                 // LiDAR poses, one per frame, or empty
   size_t first_frame = 0;
   bool times_from_file = false;
 };

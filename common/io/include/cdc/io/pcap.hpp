@@ -19,11 +19,11 @@
 namespace cdc::io {
 
 struct UdpDatagram {
-  int64_t stamp_ns = 0;          // capture time [ns since the epoch]
+  int64_t stamp_ns = 0;             // capture time [ns since the epoch]
   uint32_t src_ip = 0, dst_ip = 0;  // IPv4, host order (127.0.0.1 = 0x7F000001)
   uint16_t src_port = 0, dst_port = 0;
   std::vector<uint8_t> payload;
-  uint64_t record = 0;           // index of the capture record that completed it (0-based)
+  uint64_t record = 0;  // index of the capture record that completed it (0-based)
 };
 
 struct PcapStats {

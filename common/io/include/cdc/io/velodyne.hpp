@@ -47,24 +47,24 @@ int velodyne_laser_count(VelodyneModel model);
 // Calibration
 
 struct VelodyneLaserCalibration {
-  int laser_id = 0;                        // the laser's index in the packet's firing order
-  double rot_correction = 0.0;             // [rad] subtracted from the sensor's azimuth
-  double vert_correction = 0.0;            // [rad] elevation, up positive
-  double dist_correction = 0.0;            // [m] added to the measured distance
-  bool two_pt_correction = false;          // apply dist_correction_x/y (HDL-64E two-point model)
-  double dist_correction_x = 0.0;          // [m]
-  double dist_correction_y = 0.0;          // [m]
-  double vert_offset_correction = 0.0;     // [m] height of the laser's origin
-  double horiz_offset_correction = 0.0;    // [m] sideways offset of the laser's origin
-  double focal_distance = 0.0;             // [cm] HDL-64E intensity model
+  int laser_id = 0;                      // the laser's index in the packet's firing order
+  double rot_correction = 0.0;           // [rad] subtracted from the sensor's azimuth
+  double vert_correction = 0.0;          // [rad] elevation, up positive
+  double dist_correction = 0.0;          // [m] added to the measured distance
+  bool two_pt_correction = false;        // apply dist_correction_x/y (HDL-64E two-point model)
+  double dist_correction_x = 0.0;        // [m]
+  double dist_correction_y = 0.0;        // [m]
+  double vert_offset_correction = 0.0;   // [m] height of the laser's origin
+  double horiz_offset_correction = 0.0;  // [m] sideways offset of the laser's origin
+  double focal_distance = 0.0;           // [cm] HDL-64E intensity model
   double focal_slope = 0.0;
   double min_intensity = 0.0, max_intensity = 255.0;
-  int ring = 0;                            // 0 = lowest elevation, counting upwards
+  int ring = 0;  // 0 = lowest elevation, counting upwards
 };
 
 struct VelodyneCalibration {
-  std::string source;                      // file path or "built-in <model>"
-  double distance_resolution = 0.0;        // [m] as the file states it (informative; see decoder)
+  std::string source;                            // file path or "built-in <model>"
+  double distance_resolution = 0.0;              // [m] as the file states it (informative; see decoder)
   std::vector<VelodyneLaserCalibration> lasers;  // indexed by laser_id, 0..n-1
 };
 
@@ -110,14 +110,14 @@ struct VelodynePoint {
   uint16_t ring = 0;          // 0 = lowest elevation (VelodyneLaserCalibration::ring)
   uint16_t laser_id = 0;      // index in the packet's firing order
   VelodyneReturnType return_type = VelodyneReturnType::kStrongest;
-  uint8_t block = 0;          // data block in its packet, 0..11
+  uint8_t block = 0;  // data block in its packet, 0..11
 };
 
 // The fixed fields of a packet, read without decoding its points.
 struct VelodynePacketHeader {
-  uint32_t gps_time_us = 0;  // bytes 1200-1203: microseconds past the hour (top of the hour, UTC)
-  uint8_t return_mode = 0;   // byte 1204
-  uint8_t product_id = 0;    // byte 1205
+  uint32_t gps_time_us = 0;                      // bytes 1200-1203: microseconds past the hour (top of the hour, UTC)
+  uint8_t return_mode = 0;                       // byte 1204
+  uint8_t product_id = 0;                        // byte 1205
   uint16_t first_azimuth = 0, last_azimuth = 0;  // [0.01 deg] of blocks 0 and 11
 };
 // nullopt when the packet is not kVelodynePacketSize bytes long.
@@ -133,13 +133,13 @@ enum class VelodynePacketStatus {
 std::string_view to_string(VelodynePacketStatus status);
 
 struct VelodyneDecoderOptions {
-  std::optional<VelodyneModel> model;              // nullopt: from each packet's product id
-  std::optional<VelodyneReturnMode> return_mode;   // nullopt: from each packet's byte 1204 (the HDL-64E
-                                                   // has none: strongest unless set)
-  double min_range = 0.4;                          // [m] a point is kept when min < distance < max
-  double max_range = 200.0;                        // [m]
-  double sector_min_deg = 0.0;                     // kept when the corrected azimuth lies in
-  double sector_max_deg = 360.0;                   // [min, max] (wrapping through 0 when min > max)
+  std::optional<VelodyneModel> model;             // nullopt: from each packet's product id
+  std::optional<VelodyneReturnMode> return_mode;  // nullopt: from each packet's byte 1204 (the HDL-64E
+                                                  // has none: strongest unless set)
+  double min_range = 0.4;                         // [m] a point is kept when min < distance < max
+  double max_range = 200.0;                       // [m]
+  double sector_min_deg = 0.0;                    // kept when the corrected azimuth lies in
+  double sector_max_deg = 360.0;                  // [min, max] (wrapping through 0 when min > max)
   double rpm = 600.0;  // nominal speed, only for a packet whose own azimuths give no rate (VLS-128 dual)
 };
 
@@ -168,7 +168,8 @@ class VelodyneDecoder {
   VelodynePacketStatus identify(std::span<const uint8_t> packet, Packet& p);
   static bool read_blocks(std::span<const uint8_t> packet, Packet& p);
   void rotation_rates(Packet& p);
-  void emit_points(std::span<const uint8_t> packet, const Packet& p, int64_t stamp_ns, std::vector<VelodynePoint>& out) const;
+  void emit_points(std::span<const uint8_t> packet, const Packet& p, int64_t stamp_ns,
+                   std::vector<VelodynePoint>& out) const;
   bool make_point(const Packet& p, std::size_t block, std::size_t channel, uint16_t raw, uint8_t raw_intensity,
                   VelodynePoint& point) const;
 
@@ -177,7 +178,7 @@ class VelodyneDecoder {
   std::optional<VelodyneModel> model_;
   std::vector<double> cos_elev_, sin_elev_;
   std::vector<double> rot_correction_h_;  // [0.01 deg]
-  std::vector<double> cos_az_, sin_az_;    // per 0.01 deg
+  std::vector<double> cos_az_, sin_az_;   // per 0.01 deg
   double last_rate_h_per_us_ = 0.0;       // [0.01 deg / us] from the last packet that gave one
 };
 
@@ -185,26 +186,26 @@ class VelodyneDecoder {
 // Sweeps
 
 struct VelodyneSweep {
-  int64_t stamp_ns = 0;        // stamp of the packet holding the first point: the time origin
-  int64_t end_stamp_ns = 0;    // stamp of the last packet
-  uint32_t packets = 0;        // packets that contributed
+  int64_t stamp_ns = 0;      // stamp of the packet holding the first point: the time origin
+  int64_t end_stamp_ns = 0;  // stamp of the last packet
+  uint32_t packets = 0;      // packets that contributed
   uint32_t first_gps_time_us = 0;
-  bool complete = true;        // false: ended by a gap, a reset or the end of the stream
+  bool complete = true;  // false: ended by a gap, a reset or the end of the stream
   std::vector<VelodynePoint> points;
 
   double time_offset_s(const VelodynePoint& p) const { return 1e-9 * static_cast<double>(p.time_ns - stamp_ns); }
 };
 
 struct VelodyneSweepStats {
-  uint64_t packets = 0;        // fed
-  uint64_t decoded = 0;        // decoded into points
-  uint64_t truncated = 0;      // shorter than a packet
-  uint64_t malformed = 0;      // too long, bad block id / azimuth / return mode, wrong model
-  uint64_t out_of_order = 0;   // stamp before the previous packet's, or azimuth back within a sweep
-  uint64_t gaps = 0;           // more than max_gap_ns after the previous packet
-  uint64_t sweeps = 0;         // emitted (complete or not)
+  uint64_t packets = 0;       // fed
+  uint64_t decoded = 0;       // decoded into points
+  uint64_t truncated = 0;     // shorter than a packet
+  uint64_t malformed = 0;     // too long, bad block id / azimuth / return mode, wrong model
+  uint64_t out_of_order = 0;  // stamp before the previous packet's, or azimuth back within a sweep
+  uint64_t gaps = 0;          // more than max_gap_ns after the previous packet
+  uint64_t sweeps = 0;        // emitted (complete or not)
   uint64_t incomplete_sweeps = 0;
-  uint64_t points = 0;         // in emitted sweeps
+  uint64_t points = 0;  // in emitted sweeps
 };
 
 struct VelodyneSweepOptions {
@@ -243,8 +244,8 @@ class VelodyneSweepAssembler {
   // completed sweeps queue up for take().
   VelodynePacketStatus add_packet(std::span<const uint8_t> payload, int64_t stamp_ns);
   bool has_sweep() const { return !ready_.empty(); }
-  VelodyneSweep take();            // the oldest completed sweep; call only when has_sweep()
-  void flush();                    // ends the sweep in progress (incomplete) at the end of a stream
+  VelodyneSweep take();  // the oldest completed sweep; call only when has_sweep()
+  void flush();          // ends the sweep in progress (incomplete) at the end of a stream
   const VelodyneSweepStats& stats() const { return stats_; }
   const VelodyneDecoder& decoder() const { return decoder_; }
 

@@ -19,9 +19,9 @@ struct RegistrationParams {
   // to the limit and then fails on overlap. At 15 (was 40), cdc-loops run on the simulated KITTI 05 (900
   // scans) and 06 splits keeps the same 330 / 313 loops with the same errors, in 22 % / 12 % less time.
   int max_iterations = 15;
-  int neighbours = 20;                // points per GICP covariance (10 leaves a sparse sweep's ground line-like: tilt errors)
-  double inlier_distance_m = 0.5;     // for fitness and overlap after convergence
-  double voxel_m = 0.4;               // downsampling of both clouds before registration (0: none)
+  int neighbours = 20;  // points per GICP covariance (10 leaves a sparse sweep's ground line-like: tilt errors)
+  double inlier_distance_m = 0.5;  // for fitness and overlap after convergence
+  double voxel_m = 0.4;            // downsampling of both clouds before registration (0: none)
   // GICP Hessian at the solution -> information. 0.03 puts sigma at about 1.4x the error measured on the
   // simulated KITTI-05 loops (cdc-loops run: 8 / 3 / 6 mm, 0.05 / 0.07 / 0.007 deg RMS, x y z, roll pitch yaw).
   double information_scale = 0.03;
@@ -30,14 +30,15 @@ struct RegistrationParams {
 struct RegistrationResult {
   bool converged = false;  // it ran to the end (converged or at max_iterations) with 20 or more correspondences
   Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();
-  double fitness = 1e9;   // mean squared distance of inliers [m^2]
-  double overlap = 0;     // fraction of source points with a target point within inlier_distance
+  double fitness = 1e9;  // mean squared distance of inliers [m^2]
+  double overlap = 0;    // fraction of source points with a target point within inlier_distance
   // information_scale x the GICP Hessian, in the pose graph's between-factor residual: translation in
   // the target's frame, rotation in the source's, (t, r) order. Identity when it did not converge.
   Eigen::Matrix<double, 6, 6> information = Eigen::Matrix<double, 6, 6>::Identity();
 };
 
-RegistrationResult register_clouds(const std::vector<Eigen::Vector3f>& source, const std::vector<Eigen::Vector3f>& target,
+RegistrationResult register_clouds(const std::vector<Eigen::Vector3f>& source,
+                                   const std::vector<Eigen::Vector3f>& target,
                                    const Eigen::Isometry3d& initial_T_target_source, const RegistrationParams& params);
 
 // A cloud reduced (params.voxel_m) and made ready for registration once (its k-d tree and GICP

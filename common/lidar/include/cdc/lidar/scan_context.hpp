@@ -80,7 +80,7 @@ class ScanContextDatabase {
 
 template <class Allowed>
 std::vector<ScanContextDatabase::Candidate> ScanContextDatabase::query(const ScanContext& q, size_t knn,
-                                                                        Allowed allowed) const {
+                                                                       Allowed allowed) const {
   std::vector<Candidate> out;
   // Ask for extra neighbours so that excluded ids do not starve the result.
   for (size_t id : nearest(q.ring_key, std::min(contexts_.size(), knn * 4 + 16))) {
@@ -88,7 +88,8 @@ std::vector<ScanContextDatabase::Candidate> ScanContextDatabase::query(const Sca
     out.push_back({id, compare(q, contexts_[id])});
     if (out.size() >= knn) break;
   }
-  std::sort(out.begin(), out.end(), [](const Candidate& a, const Candidate& b) { return a.match.distance < b.match.distance; });
+  std::sort(out.begin(), out.end(),
+            [](const Candidate& a, const Candidate& b) { return a.match.distance < b.match.distance; });
   return out;
 }
 

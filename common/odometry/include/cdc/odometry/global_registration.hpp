@@ -26,12 +26,13 @@ struct GlobalRegistrationParams {
 // sensor, at the cloud's origin) and FPFH features; points without a normal carry none.
 struct FeatureCloud {
   std::vector<Eigen::Vector3d> points;
-  std::vector<Eigen::Vector3d> normals;                   // zero: no normal (and no feature)
-  std::vector<Eigen::Matrix<float, 33, 1>> features;      // FPFH, each of its 3 histograms sums to 100
-  std::vector<size_t> with_feature;                       // indices of the points that carry one
+  std::vector<Eigen::Vector3d> normals;               // zero: no normal (and no feature)
+  std::vector<Eigen::Matrix<float, 33, 1>> features;  // FPFH, each of its 3 histograms sums to 100
+  std::vector<size_t> with_feature;                   // indices of the points that carry one
 };
 
-FeatureCloud make_feature_cloud(const std::vector<Eigen::Vector3d>& points_sensor, const GlobalRegistrationParams& params);
+FeatureCloud make_feature_cloud(const std::vector<Eigen::Vector3d>& points_sensor,
+                                const GlobalRegistrationParams& params);
 
 struct GlobalRegistrationResult {
   Eigen::Isometry3d T_target_source = Eigen::Isometry3d::Identity();

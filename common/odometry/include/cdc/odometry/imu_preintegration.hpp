@@ -11,10 +11,10 @@
 namespace cdc::odometry {
 
 struct ImuNoiseParams {
-  double gyro_noise = 1.7e-4;        // [rad/s/sqrt(Hz)]
-  double accel_noise = 2.0e-3;       // [m/s^2/sqrt(Hz)]
-  double gyro_bias_walk = 2.0e-5;    // [rad/s^2/sqrt(Hz)]
-  double accel_bias_walk = 3.0e-4;   // [m/s^3/sqrt(Hz)]
+  double gyro_noise = 1.7e-4;       // [rad/s/sqrt(Hz)]
+  double accel_noise = 2.0e-3;      // [m/s^2/sqrt(Hz)]
+  double gyro_bias_walk = 2.0e-5;   // [rad/s^2/sqrt(Hz)]
+  double accel_bias_walk = 3.0e-4;  // [m/s^3/sqrt(Hz)]
 };
 
 // The mean increments of bias-corrected IMU samples held over intervals (sample-and-hold), in the
@@ -37,7 +37,8 @@ class ImuPreintegration {
  public:
   using Matrix9d = Eigen::Matrix<double, 9, 9>;
 
-  ImuPreintegration(const Eigen::Vector3d& gyro_bias, const Eigen::Vector3d& accel_bias, const ImuNoiseParams& noise = {});
+  ImuPreintegration(const Eigen::Vector3d& gyro_bias, const Eigen::Vector3d& accel_bias,
+                    const ImuNoiseParams& noise = {});
 
   // One sample held over dt seconds (sample-and-hold).
   void integrate(const Eigen::Vector3d& gyro, const Eigen::Vector3d& accel, double dt);
@@ -58,14 +59,15 @@ class ImuPreintegration {
   const Eigen::Matrix3d& dp_dba() const noexcept { return dp_dba_; }
 
   // The state at the end from the state at the start: R_j, v_j, p_j.
-  void predict(const Eigen::Matrix3d& Ri, const Eigen::Vector3d& vi, const Eigen::Vector3d& pi, const Eigen::Vector3d& g,
-               Eigen::Matrix3d& Rj, Eigen::Vector3d& vj, Eigen::Vector3d& pj) const;
+  void predict(const Eigen::Matrix3d& Ri, const Eigen::Vector3d& vi, const Eigen::Vector3d& pi,
+               const Eigen::Vector3d& g, Eigen::Matrix3d& Rj, Eigen::Vector3d& vj, Eigen::Vector3d& pj) const;
 
  private:
   ImuNoiseParams noise_;
   Eigen::Vector3d bg_, ba_;
   ImuDelta d_;  // the increments at the biases integrated with
-  Eigen::Matrix3d dR_dbg_ = Eigen::Matrix3d::Zero(), dv_dbg_ = Eigen::Matrix3d::Zero(), dv_dba_ = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d dR_dbg_ = Eigen::Matrix3d::Zero(), dv_dbg_ = Eigen::Matrix3d::Zero(),
+                  dv_dba_ = Eigen::Matrix3d::Zero();
   Eigen::Matrix3d dp_dbg_ = Eigen::Matrix3d::Zero(), dp_dba_ = Eigen::Matrix3d::Zero();
   Matrix9d cov_ = Matrix9d::Zero();
 };

@@ -22,17 +22,17 @@ enum class PairMethod {
 
 struct PairRegistrationParams {
   PairMethod method = PairMethod::kPointToPlane;
-  double source_voxel_m = 0.5;        // downsampling of the registered source points
-  double target_voxel_m = 0.1;        // downsampling of the target points put in the map
-  double map_voxel_m = 0.5;           // the map's voxel
-  int normal_neighbours = 10;         // source normals: k nearest points within normal_radius_m
+  double source_voxel_m = 0.5;  // downsampling of the registered source points
+  double target_voxel_m = 0.1;  // downsampling of the target points put in the map
+  double map_voxel_m = 0.5;     // the map's voxel
+  int normal_neighbours = 10;   // source normals: k nearest points within normal_radius_m
   double normal_radius_m = 1.5;
   std::vector<double> gates_m = {2.0, 1.0, 0.5, 0.25, 0.1};  // coarse to fine; kernel = gate / 3
   // GICP: both clouds reduced to voxel centroids (gicp_voxel_m), covariances from gicp_neighbours
   // points (flattened to planes), correspondences within gicp_max_correspondence_m. The defaults
   // suit dense sweeps (64 beams); on sparse ones (16 beams) a point's neighbours lie on its own ring,
   // and voxels coarser than the ring spacing (0.5 m) are needed.
-  double gicp_voxel_m = 0.1;          // 0: the clouds as given (already reduced)
+  double gicp_voxel_m = 0.1;  // 0: the clouds as given (already reduced)
   int gicp_neighbours = 10;
   double gicp_max_correspondence_m = 1.0;
   int gicp_max_iterations = 64;
@@ -44,7 +44,8 @@ RegistrationOutput register_pair(const std::vector<Eigen::Vector3d>& source, con
 
 // For each source point moved by T_target_source, the distance to its nearest target point (loop
 // verification's fitness and overlap start from these).
-std::vector<double> nearest_distances(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
+std::vector<double> nearest_distances(const std::vector<Eigen::Vector3d>& source,
+                                      const std::vector<Eigen::Vector3d>& target,
                                       const Eigen::Isometry3d& T_target_source);
 
 // A cloud made ready for GICP once: its points as given (no reduction), their k-d tree and plane
@@ -59,7 +60,8 @@ class GicpCloud {
 
   const std::vector<Eigen::Vector3d>& points() const;
   // For each source point moved by T_this_source, the distance to its nearest point here.
-  std::vector<double> nearest_distances(const std::vector<Eigen::Vector3d>& source, const Eigen::Isometry3d& T_this_source) const;
+  std::vector<double> nearest_distances(const std::vector<Eigen::Vector3d>& source,
+                                        const Eigen::Isometry3d& T_this_source) const;
 
   struct Impl;  // points, tree, covariances (pair_registration.cpp)
   const Impl& impl() const { return *impl_; }
@@ -84,7 +86,8 @@ struct AlignmentScore {
   double rms_point_to_plane_m = 0;
 };
 AlignmentScore score_alignment(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
-                               const Eigen::Isometry3d& T_target_source, double voxel_m = 0.1, double max_distance_m = 0.2);
+                               const Eigen::Isometry3d& T_target_source, double voxel_m = 0.1,
+                               double max_distance_m = 0.2);
 
 // x, y, z of a saved sweep: KITTI velodyne .bin (float32 x y z i), binary .pcd (float32 x y z
 // fields; other fields skipped) or binary little-endian .ply (float32 vertex properties). Throws

@@ -29,7 +29,7 @@ struct RegistrationOutput {
   Matrix6d hessian = Matrix6d::Zero();  // (t, r) order, right perturbation, last iteration, [1/m^2]
   int correspondences = 0;
   int iterations = 0;
-  double rmse = 0;                      // of the correspondences [m]
+  double rmse = 0;  // of the correspondences [m]
   bool converged = false;
 };
 
@@ -43,13 +43,14 @@ RegistrationOutput register_to_map(const std::vector<Eigen::Vector3d>& points_se
 // point lies within max_distance_m and whose distance to the plane through it (the point's own
 // normal) is below inlier_m.
 struct FitQuality {
-  int points = 0;              // points with a normal
+  int points = 0;  // points with a normal
   int inliers = 0;
   double inlier_fraction = 0;  // inliers / points
   double inlier_rms = 0;       // plane distance of the inliers [m]
 };
-FitQuality evaluate_fit(const std::vector<Eigen::Vector3d>& points_sensor, const std::vector<Eigen::Vector3d>& normals_sensor,
-                        const VoxelMap& map, const Eigen::Isometry3d& T_map_sensor, double max_distance_m, double inlier_m);
+FitQuality evaluate_fit(const std::vector<Eigen::Vector3d>& points_sensor,
+                        const std::vector<Eigen::Vector3d>& normals_sensor, const VoxelMap& map,
+                        const Eigen::Isometry3d& T_map_sensor, double max_distance_m, double inlier_m);
 
 // Normals of a sweep on its range image: `ring` per point (0 = lowest beam), azimuth from x, y.
 // Each normal is the cross product of the neighbours along the ring and across the rings; points
@@ -61,7 +62,8 @@ std::vector<Eigen::Vector3d> range_image_normals(const std::vector<Eigen::Vector
 // Normals for clouds without ring structure (a saved scan, a map): the smallest principal
 // direction of each query point's k nearest neighbours in `cloud` (nanoflann k-d tree); zero
 // when the neighbourhood is not planar or spans more than max_neighbour_m.
-std::vector<Eigen::Vector3d> knn_normals(const std::vector<Eigen::Vector3d>& queries, const std::vector<Eigen::Vector3d>& cloud,
-                                         int k = 10, double max_neighbour_m = 2.0);
+std::vector<Eigen::Vector3d> knn_normals(const std::vector<Eigen::Vector3d>& queries,
+                                         const std::vector<Eigen::Vector3d>& cloud, int k = 10,
+                                         double max_neighbour_m = 2.0);
 
 }  // namespace cdc::odometry

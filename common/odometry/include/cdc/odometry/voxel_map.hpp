@@ -19,8 +19,8 @@ namespace cdc::odometry {
 
 struct VoxelMapParams {
   double voxel_m = 1.0;
-  double max_range_m = 100.0;   // voxels whose centre is farther from the robot are dropped
-  int max_points = 20;          // points kept per voxel
+  double max_range_m = 100.0;  // voxels whose centre is farther from the robot are dropped
+  int max_points = 20;         // points kept per voxel
 };
 
 class VoxelMap {

@@ -33,9 +33,9 @@ enum SharedOption : unsigned {
 inline constexpr unsigned kRobotService = kRobotOption | kLocalDomainOption | kStatsOption;
 
 struct ServiceSpec {
-  std::string name;          // process name, e.g. "cdc-loop-closure"
-  std::string description;   // --help text
-  std::string config_help;   // what --config holds, e.g. "see services/loop_closure/config"
+  std::string name;         // process name, e.g. "cdc-loop-closure"
+  std::string description;  // --help text
+  std::string config_help;  // what --config holds, e.g. "see services/loop_closure/config"
   unsigned shared = kRobotService;
 };
 
@@ -48,7 +48,7 @@ struct ServiceOptions {
   int local_domain = -1;         // < 0: none
   std::string local_dds_config;  // empty: as dds_config
   std::string stats_out;
-  std::string log_level;         // empty: the configuration's
+  std::string log_level;  // empty: the configuration's
 
   uint32_t domain_id() const;
   dds::ParticipantOptions radio() const;

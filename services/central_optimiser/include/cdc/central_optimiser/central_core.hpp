@@ -85,8 +85,8 @@ struct Acknowledgement {
 
 struct UpdateStats {
   bool solved = false;
-  bool full = false;       // whole graph, or the changed part only
-  bool converged = true;   // the solver converged within the budget (or had nothing to solve)
+  bool full = false;      // whole graph, or the changed part only
+  bool converged = true;  // the solver converged within the budget (or had nothing to solve)
   int iterations = 0;
   double time_s = 0;
   double cost = 0;  // full-information cost after the update
@@ -139,9 +139,9 @@ class CentralCore {
     std::map<uint32_t, KeyframeIn> keyframes;
     std::set<uint32_t> in_graph;
     bool placed = false;
-    std::optional<Eigen::Isometry3d> hint;  // T_world_robot from the robot
+    std::optional<Eigen::Isometry3d> hint;                           // T_world_robot from the robot
     Eigen::Isometry3d T_world_odom = Eigen::Isometry3d::Identity();  // once placed
-    std::set<uint32_t> loop_seqs;  // loops sent by this session
+    std::set<uint32_t> loop_seqs;                                    // loops sent by this session
     uint32_t inserted_since_full = 0;  // keyframes put in the graph since the last full pass
   };
   struct StoredLoop {
@@ -167,10 +167,10 @@ class CentralCore {
   graph::PoseGraph graph_;
   uint64_t version_ = 0;
   bool dirty_ = false;
-  std::set<Key> touched_;        // keys changed since the last update
+  std::set<Key> touched_;  // keys changed since the last update
   uint32_t updates_since_full_ = 0;
-  bool need_full_ = false;       // a robot joined the world, or one grew beyond the window
-  bool settled_ = true;          // the last update converged
+  bool need_full_ = false;  // a robot joined the world, or one grew beyond the window
+  bool settled_ = true;     // the last update converged
   Counters counters_;
 };
 

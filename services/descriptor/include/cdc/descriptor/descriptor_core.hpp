@@ -54,7 +54,7 @@ class DescriptorCore {
   uint32_t max_per_sync_;
   std::set<std::pair<uint32_t, uint32_t>> described_;  // (incarnation, keyframe id)
   uint32_t incarnation_ = 0;
-  std::map<uint32_t, DescriptorRecord> kept_;          // this incarnation's, by keyframe id
+  std::map<uint32_t, DescriptorRecord> kept_;  // this incarnation's, by keyframe id
   DescriptorCounters counters_;
 };
 

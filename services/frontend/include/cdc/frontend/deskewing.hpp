@@ -51,8 +51,9 @@ class Deskewer {
   static Eigen::Isometry3d motion_over(const Eigen::Isometry3d& D, float t_max, double dt);
   // The sweep cropped and deskewed along `sweep_motion` (the motion over its span), in the sensor
   // frame at its start; `rings` gets the ring of each point kept.
-  std::vector<Eigen::Vector3d> deskew(int64_t stamp_ns, const std::vector<ScanPoint>& points, const Eigen::Isometry3d& sweep_motion,
-                                      const DeskewImu& imu, std::vector<uint16_t>& rings) const;
+  std::vector<Eigen::Vector3d> deskew(int64_t stamp_ns, const std::vector<ScanPoint>& points,
+                                      const Eigen::Isometry3d& sweep_motion, const DeskewImu& imu,
+                                      std::vector<uint16_t>& rings) const;
   // Deskewed, then the points registered selected with their normals.
   Sweep prepare(int64_t stamp_ns, const std::vector<ScanPoint>& points, const Eigen::Isometry3d& sweep_motion,
                 const DeskewImu& imu) const;

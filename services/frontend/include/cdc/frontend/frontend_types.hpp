@@ -40,7 +40,7 @@ struct RecoveryParams {
   size_t fit_history = 20;
   size_t min_history = 5;  // fewer fits than this: only failures and slides are poor
   std::vector<double> gates_m = {2.0, 1.0, 0.5};
-  double min_gain = 0.05;  // a candidate replaces a plausible registration only if it fits this much better
+  double min_gain = 0.05;       // a candidate replaces a plausible registration only if it fits this much better
   double good_fit_ratio = 0.9;  // a candidate fitting this fraction of the recent median ends the search
   // Also from a global registration (FPFH features, RANSAC) of the sweep onto the previous one.
   bool global = true;
@@ -56,19 +56,19 @@ struct FrontendParams {
   double normal_voxel_m = 0.2;
   odometry::VoxelMapParams map;
   odometry::RegistrationParams registration;
-  double initial_gate_m = 2.0;                    // correspondence gate until the motion model has history
+  double initial_gate_m = 2.0;  // correspondence gate until the motion model has history
   double min_gate_m = 0.3, max_gate_m = 2.0;
-  double max_jump_rad = 0.35;                     // a registration this far (or max_gate_m) from its start is rejected
-  double kernel_divisor = 9.0;                    // Geman-McClure scale = gate / this (KISS-ICP: 9)
+  double max_jump_rad = 0.35;   // a registration this far (or max_gate_m) from its start is rejected
+  double kernel_divisor = 9.0;  // Geman-McClure scale = gate / this (KISS-ICP: 9)
   // Deskewing needs per-point times: a sweep whose points all carry time_offset 0 (a sensor without
   // them, motion-compensated or saved sweeps) is taken as it is whatever this says, and its first
   // keyframe goes out at once.
   bool deskew = true;
-  bool redeskew = true;                           // deskew again with the registered motion, and refine
-  int image_columns = 1800;                       // range-image width for normals (0.2 deg)
-  double keyframe_distance_m = 1.0;               // LIO-SAM defaults
+  bool redeskew = true;              // deskew again with the registered motion, and refine
+  int image_columns = 1800;          // range-image width for normals (0.2 deg)
+  double keyframe_distance_m = 1.0;  // LIO-SAM defaults
   double keyframe_angle_rad = 0.2;
-  double keyframe_voxel_m = 0.4;                  // keyframe clouds (for loop closure and maps)
+  double keyframe_voxel_m = 0.4;  // keyframe clouds (for loop closure and maps)
   // Registration Hessian -> information of a sweep's pose in the IMU window (LiDAR factors against
   // the IMU's preintegration).
   double information_scale = 20.0;
@@ -85,7 +85,7 @@ struct FrontendParams {
   // driven since the keyframe.
   bool correction_holds_tilt = true;
   Eigen::Isometry3d T_lidar_imu = Eigen::Isometry3d::Identity();  // extrinsic (IMU frame -> LiDAR frame)
-  bool imu_window = true;                         // sliding-window IMU estimation when there is IMU
+  bool imu_window = true;                                         // sliding-window IMU estimation when there is IMU
   // Deskew with the IMU's whole motion over the sweep (translation from the window's velocity, no
   // second deskew after registration) instead of its rotation with the translation of constant
   // velocity, deskewed again with the registered motion. Off: on the simulated KITTI 05 drive the
@@ -127,7 +127,7 @@ struct KeyframeOut {
   Eigen::Isometry3d T_odom_keyframe = Eigen::Isometry3d::Identity();  // raw odometry
   Eigen::Isometry3d T_prev = Eigen::Isometry3d::Identity();           // relative to keyframe id - 1
   Matrix6d information = Matrix6d::Identity();
-  std::vector<Eigen::Vector3f> cloud;                                  // keyframe frame, deskewed
+  std::vector<Eigen::Vector3f> cloud;  // keyframe frame, deskewed
 };
 
 struct ScanOut {
@@ -139,21 +139,22 @@ struct ScanOut {
   Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();     // sensor frame [rad/s]
   std::optional<KeyframeOut> keyframe;
   odometry::RegistrationOutput registration;
-  odometry::FitQuality fit;                                       // of the registration taken (recovery.fit_*)
-  bool recovered = false;                                         // the registration taken came from recovery
-  double fusion_lambda = 1.0;                                     // eq. 12 for this scan (1: no limit)
+  odometry::FitQuality fit;    // of the registration taken (recovery.fit_*)
+  bool recovered = false;      // the registration taken came from recovery
+  double fusion_lambda = 1.0;  // eq. 12 for this scan (1: no limit)
   size_t points_used = 0;
 };
 
 struct FrontendStats {
-  uint64_t scans = 0, keyframes = 0, registration_failures = 0, corrections = 0, corrections_levelled = 0, imu_samples = 0;
-  uint64_t registration_rejected = 0;  // converged too far from where it started (counted in failures too)
-  uint64_t imu_predictions = 0;        // sweeps predicted by the IMU window
-  uint64_t imu_predictions_rejected = 0;  // ... whose prediction was implausible (constant velocity used)
-  uint64_t imu_window_restarts = 0;    // IMU gaps and implausible window solutions
-  uint64_t recovery_attempts = 0;      // sweeps whose fit was poor: registration retried from other guesses
-  uint64_t recoveries = 0;             // ... and a retry fitted clearly better
-  uint64_t recoveries_global = 0;      // ... the one taken started from the global registration
+  uint64_t scans = 0, keyframes = 0, registration_failures = 0, corrections = 0, corrections_levelled = 0,
+           imu_samples = 0;
+  uint64_t registration_rejected = 0;       // converged too far from where it started (counted in failures too)
+  uint64_t imu_predictions = 0;             // sweeps predicted by the IMU window
+  uint64_t imu_predictions_rejected = 0;    // ... whose prediction was implausible (constant velocity used)
+  uint64_t imu_window_restarts = 0;         // IMU gaps and implausible window solutions
+  uint64_t recovery_attempts = 0;           // sweeps whose fit was poor: registration retried from other guesses
+  uint64_t recoveries = 0;                  // ... and a retry fitted clearly better
+  uint64_t recoveries_global = 0;           // ... the one taken started from the global registration
   double level_deg = 0, max_level_deg = 0;  // levelling rotation now and its largest [deg]
 };
 

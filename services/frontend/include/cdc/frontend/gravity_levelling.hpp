@@ -21,8 +21,8 @@ class GravityLeveller {
   // The registered pose T (map frame) in the levelled frame, from the previous sweep's registered
   // (T_last) and levelled (T_out_last) poses; `gravity`: the running window's estimate for this
   // sweep (none: the levelling rotation stays). Off, T as it is.
-  Eigen::Isometry3d level(const Eigen::Isometry3d& T, const Eigen::Isometry3d& T_last, const Eigen::Isometry3d& T_out_last,
-                          const std::optional<Eigen::Vector3d>& gravity);
+  Eigen::Isometry3d level(const Eigen::Isometry3d& T, const Eigen::Isometry3d& T_last,
+                          const Eigen::Isometry3d& T_out_last, const std::optional<Eigen::Vector3d>& gravity);
 
   // The reference is known: the odometry is levelled from now on.
   bool reference_known() const noexcept { return reference_.has_value(); }
@@ -35,7 +35,7 @@ class GravityLeveller {
 
   FrontendParams p_;
   Eigen::Quaterniond level_ = Eigen::Quaterniond::Identity();  // map frame -> odometry frame (tilt)
-  std::optional<Eigen::Vector3d> reference_, smoothed_;         // map frame, unit
+  std::optional<Eigen::Vector3d> reference_, smoothed_;        // map frame, unit
   Eigen::Vector3d trend_ = Eigen::Vector3d::Zero();
   size_t sweeps_ = 0;
   double angle_deg_ = 0, max_angle_deg_ = 0;

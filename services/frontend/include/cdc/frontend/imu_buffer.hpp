@@ -20,7 +20,8 @@ namespace cdc::frontend {
 // `from` to each instant of `to` (ascending), in one pass over the bias-corrected samples (time
 // order, sample-and-hold); none where the samples do not cover.
 std::vector<std::optional<odometry::ImuDelta>> integrate_imu(const std::deque<ImuIn>& imu, int64_t from_ns,
-                                                             const std::vector<int64_t>& to_ns, const Eigen::Vector3d& gyro_bias,
+                                                             const std::vector<int64_t>& to_ns,
+                                                             const Eigen::Vector3d& gyro_bias,
                                                              const Eigen::Vector3d& accel_bias);
 // The IMU's velocity and gravity at the start of an increment, in its body frame there.
 struct ImuStart {
@@ -28,7 +29,8 @@ struct ImuStart {
 };
 // The LiDAR's pose at the end of `inc` relative to its pose at the start: rotation and translation
 // when the start is known, else the rotation alone (no translation).
-Eigen::Isometry3d lidar_motion(const odometry::ImuDelta& inc, const Eigen::Isometry3d& T_lidar_imu, const ImuStart* start);
+Eigen::Isometry3d lidar_motion(const odometry::ImuDelta& inc, const Eigen::Isometry3d& T_lidar_imu,
+                               const ImuStart* start);
 
 // The samples in time order, from half a second before the latest sweep on (what later sweeps can
 // still need).
@@ -43,11 +45,13 @@ class ImuBuffer {
 
   // integrate_imu over the samples kept.
   std::vector<std::optional<odometry::ImuDelta>> increments(int64_t from_ns, const std::vector<int64_t>& to_ns,
-                                                            const Eigen::Vector3d& gyro_bias, const Eigen::Vector3d& accel_bias) const {
+                                                            const Eigen::Vector3d& gyro_bias,
+                                                            const Eigen::Vector3d& accel_bias) const {
     return integrate_imu(samples_, from_ns, to_ns, gyro_bias, accel_bias);
   }
   // The preintegration over [from, to] at the given biases; none where the samples do not cover.
-  std::unique_ptr<odometry::ImuPreintegration> preintegrate(int64_t from_ns, int64_t to_ns, const Eigen::Vector3d& gyro_bias,
+  std::unique_ptr<odometry::ImuPreintegration> preintegrate(int64_t from_ns, int64_t to_ns,
+                                                            const Eigen::Vector3d& gyro_bias,
                                                             const Eigen::Vector3d& accel_bias,
                                                             const odometry::ImuNoiseParams& noise) const;
   // The LiDAR's rotation from `from` to `to` (bias-corrected gyro); none where the samples do not cover.

@@ -42,23 +42,23 @@ struct ImuState {
 };
 
 struct ImuWindowParams {
-  size_t size = 10;                 // sweeps in the window (1 s at 10 Hz)
-  size_t align_sweeps = 30;         // sweeps the gravity alignment spans (at least 3; longer averages the LiDAR's noise)
-  odometry::ImuNoiseParams noise;   // of the IMU's samples (inflated when the IMU model is rough)
-  double gravity = 9.80665;         // [m/s^2]
-  double max_gravity_error = 0.5;   // [m/s^2] an alignment whose |g| is further off is retried later
+  size_t size = 10;                // sweeps in the window (1 s at 10 Hz)
+  size_t align_sweeps = 30;        // sweeps the gravity alignment spans (at least 3; longer averages the LiDAR's noise)
+  odometry::ImuNoiseParams noise;  // of the IMU's samples (inflated when the IMU model is rough)
+  double gravity = 9.80665;        // [m/s^2]
+  double max_gravity_error = 0.5;  // [m/s^2] an alignment whose |g| is further off is retried later
   // After the alignment, every window refines gravity's direction, drawn to its last estimate with
   // this sigma: the alignment's few seconds of early, noisy LiDAR poses can leave it degrees off.
   bool refine_gravity = true;
   double gravity_prior_sigma = 0.05;  // [m/s^2]
   int max_iterations = 10;
-  double gyro_bias_sigma = 0.01;    // [rad/s] zero-mean bias priors
-  double accel_bias_sigma = 0.1;    // [m/s^2]
-  double anchor_velocity_sigma = 0.05;     // [m/s] the oldest state's velocity at its last estimate
-  double anchor_gyro_bias_sigma = 2e-3;    // [rad/s] ... and its biases
-  double anchor_accel_bias_sigma = 0.02;   // [m/s^2]
-  double max_gyro_bias = 0.1;       // [rad/s] estimates beyond these restart the window
-  double max_accel_bias = 1.0;      // [m/s^2]
+  double gyro_bias_sigma = 0.01;          // [rad/s] zero-mean bias priors
+  double accel_bias_sigma = 0.1;          // [m/s^2]
+  double anchor_velocity_sigma = 0.05;    // [m/s] the oldest state's velocity at its last estimate
+  double anchor_gyro_bias_sigma = 2e-3;   // [rad/s] ... and its biases
+  double anchor_accel_bias_sigma = 0.02;  // [m/s^2]
+  double max_gyro_bias = 0.1;             // [rad/s] estimates beyond these restart the window
+  double max_accel_bias = 1.0;            // [m/s^2]
 };
 
 class ImuWindow {

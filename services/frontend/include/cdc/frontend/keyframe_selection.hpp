@@ -28,8 +28,8 @@ class KeyframeSelector {
   void add_registration(const odometry::RegistrationOutput& reg);
   // The keyframe this sweep (at T_odom, its deskewed cloud) gives, if any: the held first keyframe
   // goes out with the sweep after it, which cuts none. `hold`: a new keyframe is held back.
-  std::optional<KeyframeOut> select(int64_t stamp_ns, const Eigen::Isometry3d& T_odom, const std::vector<Eigen::Vector3d>& deskewed,
-                                    bool hold);
+  std::optional<KeyframeOut> select(int64_t stamp_ns, const Eigen::Isometry3d& T_odom,
+                                    const std::vector<Eigen::Vector3d>& deskewed, bool hold);
   // The held keyframe's cloud made again from its sweep deskewed anew.
   void redeskew_held(const std::vector<Eigen::Vector3d>& deskewed);
   bool holding() const noexcept { return held_.has_value(); }

@@ -23,8 +23,8 @@ namespace cdc::frontend {
 
 struct Prediction {
   Eigen::Isometry3d delta = Eigen::Isometry3d::Identity();  // the motion since the previous sweep
-  std::unique_ptr<odometry::ImuPreintegration> pre;        // the IMU since the previous sweep, for the window
-  std::optional<ImuStart> imu_start;                       // the IMU's state at the sweep's start (imu_deskew)
+  std::unique_ptr<odometry::ImuPreintegration> pre;         // the IMU since the previous sweep, for the window
+  std::optional<ImuStart> imu_start;                        // the IMU's state at the sweep's start (imu_deskew)
 };
 
 class MotionPredictor {
@@ -51,8 +51,9 @@ class MotionPredictor {
 
  private:
   // The window's prediction, if plausible against the constant-velocity `delta`.
-  std::optional<Eigen::Isometry3d> window_prediction(const odometry::ImuPreintegration& pre, const Eigen::Isometry3d& delta,
-                                                     Prediction& out, FrontendStats& stats) const;
+  std::optional<Eigen::Isometry3d> window_prediction(const odometry::ImuPreintegration& pre,
+                                                     const Eigen::Isometry3d& delta, Prediction& out,
+                                                     FrontendStats& stats) const;
 
   FrontendParams p_;
   std::unique_ptr<ImuWindow> window_;

@@ -46,7 +46,8 @@ class RegistrationRecovery {
  public:
   explicit RegistrationRecovery(const FrontendParams& params);
 
-  odometry::FitQuality fit_of(const Sweep& sweep, const odometry::VoxelMap& map, const odometry::RegistrationOutput& reg) const;
+  odometry::FitQuality fit_of(const Sweep& sweep, const odometry::VoxelMap& map,
+                              const odometry::RegistrationOutput& reg) const;
   // The median fit of the recent registrations; 0 while there are fewer than recovery.min_history.
   double recent_fit() const;
   // Whether a registration from `guess` needs recovery.
@@ -73,9 +74,11 @@ class RegistrationRecovery {
     bool replaced = false;
   };
   // One attempt from `start`: true when it fits well enough to end the search.
-  bool attempt(const Eigen::Isometry3d& start, const RegistrationContext& ctx, Search& search, Sweep& sweep, Candidate& c) const;
+  bool attempt(const Eigen::Isometry3d& start, const RegistrationContext& ctx, Search& search, Sweep& sweep,
+               Candidate& c) const;
   // Registration from `start` through the wide gates down to the adaptive one.
-  odometry::RegistrationOutput coarse_to_fine(const Sweep& sweep, const RegistrationContext& ctx, const Eigen::Isometry3d& start) const;
+  odometry::RegistrationOutput coarse_to_fine(const Sweep& sweep, const RegistrationContext& ctx,
+                                              const Eigen::Isometry3d& start) const;
   // The global registration of `sweep` onto the previous sweep, put on the previous pose.
   std::optional<Eigen::Isometry3d> global_guess(const Sweep& sweep, const Eigen::Isometry3d& T_last);
 

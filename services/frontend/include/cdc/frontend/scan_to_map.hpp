@@ -24,11 +24,12 @@ class ScanToMapRegistration {
   struct Result {
     odometry::RegistrationOutput reg;  // not converged: failed, or rejected as implausible
     odometry::FitQuality fit;
-    bool recovered = false;            // taken from recovery
+    bool recovered = false;  // taken from recovery
   };
   // The registration `c` from `guess` completed: refined on the sweep deskewed again (when
   // ctx.redeskew is set; `sweep` is replaced), recovered if poor, and checked (counted in stats).
-  Result complete(const Eigen::Isometry3d& guess, const RegistrationContext& ctx, Sweep& sweep, Candidate& c, FrontendStats& stats);
+  Result complete(const Eigen::Isometry3d& guess, const RegistrationContext& ctx, Sweep& sweep, Candidate& c,
+                  FrontendStats& stats);
 
   RegistrationRecovery& recovery() noexcept { return recovery_; }
   const RegistrationRecovery& recovery() const noexcept { return recovery_; }

@@ -65,10 +65,10 @@ class DescriptorSequencer {
     uint32_t next = 0;                       // every id below it has been delivered (or skipped)
     std::map<uint32_t, DescriptorIn> ahead;  // held back behind a gap
     Nanos last_ask{Nanos::min()};
-    uint32_t asked_for = 0;                  // the gap start the attempts count for
+    uint32_t asked_for = 0;  // the gap start the attempts count for
     int attempts = 0;
-    int64_t announced = -1;                  // the owner's last keyframe, as it says (-1: not heard)
-    Nanos announced_at{Nanos::min()};        // when `announced` was last raised
+    int64_t announced = -1;            // the owner's last keyframe, as it says (-1: not heard)
+    Nanos announced_at{Nanos::min()};  // when `announced` was last raised
   };
   // The last id of the gap starting at s.next, if there is one to ask for now; -1 for none.
   int64_t gap_end(const Stream& s, Nanos now) const;

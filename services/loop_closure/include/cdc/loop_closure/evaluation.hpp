@@ -33,7 +33,7 @@ struct LoopVerdict {
 };
 
 struct LoopEvaluation {
-  std::vector<LoopVerdict> loops;   // every accepted loop, judged
+  std::vector<LoopVerdict> loops;  // every accepted loop, judged
   size_t true_positives = 0, false_intra = 0, false_inter = 0;
   size_t revisits = 0, recalled = 0;
   std::vector<std::pair<uint32_t, uint32_t>> missed;  // revisits not recalled (robot, keyframe)

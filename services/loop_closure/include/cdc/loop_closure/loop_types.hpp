@@ -20,16 +20,16 @@ using Nanos = std::chrono::nanoseconds;
 
 struct LoopParams {
   lidar::ScanContextParams scan_context;
-  size_t knn = 10;                 // ring-key neighbours examined
-  double max_sc_distance = 0.35;   // Scan Context distance for a candidate
-  uint32_t exclude_recent = 50;    // same-robot keyframes too recent to close a loop with
+  size_t knn = 10;                // ring-key neighbours examined
+  double max_sc_distance = 0.35;  // Scan Context distance for a candidate
+  uint32_t exclude_recent = 50;   // same-robot keyframes too recent to close a loop with
   // A same-robot candidate is only verified when the robot's own odometry puts it within
   // intra_gate_m + intra_gate_per_m * (path driven between the two) of the query: Scan Context
   // confuses look-alike streets, and each verification costs a registration. 0: no gate.
   double intra_gate_m = 15, intra_gate_per_m = 0.05;
-  size_t max_verify = 2;           // candidates verified per keyframe
+  size_t max_verify = 2;  // candidates verified per keyframe
   lidar::RegistrationParams registration;
-  double max_fitness = 0.15;       // [m^2] mean squared inlier distance
+  double max_fitness = 0.15;  // [m^2] mean squared inlier distance
   double min_overlap = 0.55;
   // The front-ends hold roll and pitch with gravity, so a loop's tilt (two sparse sweeps seen from
   // different places, whose ground rings disagree) is the weakest part of it: its roll/pitch
@@ -52,7 +52,7 @@ struct LoopParams {
   // request_attempts requests in all; then its verifications are dropped.
   int request_attempts = 3;
   Nanos request_retry = std::chrono::seconds(5);
-  size_t cloud_cache = 256;        // peers' clouds kept after verification (least recently received dropped)
+  size_t cloud_cache = 256;  // peers' clouds kept after verification (least recently received dropped)
   // Clouds kept ready for registration (k-d tree and GICP covariances, ~1 MB each), most recently used
   // first: the verifications of one query, or against one requested cloud, come in bursts. 0: none.
   size_t prepared_clouds = 8;
@@ -82,12 +82,12 @@ struct KeyframeIn {
   Eigen::Isometry3d T_prev = Eigen::Isometry3d::Identity();  // relative odometry from id - 1
   graph::Matrix6d information = graph::Matrix6d::Identity();
   Eigen::Isometry3d T_odom = Eigen::Isometry3d::Identity();  // T_odom_keyframe (its tilt: where up is)
-  std::vector<Eigen::Vector3f> cloud;                          // keyframe frame, sensor at the origin
+  std::vector<Eigen::Vector3f> cloud;                        // keyframe frame, sensor at the origin
 };
 
 struct DescriptorIn {
   uint32_t robot = 0, id = 0;
-  lidar::ScanContext context;       // as received (dequantised)
+  lidar::ScanContext context;                                   // as received (dequantised)
   Eigen::Isometry3d pose_hint = Eigen::Isometry3d::Identity();  // T_odom_keyframe
 };
 
@@ -112,8 +112,8 @@ struct Verification {
 };
 
 struct LoopEvents {
-  std::vector<LoopOut> loops;           // newly accepted loops and withdrawals, in order
-  std::vector<CloudWanted> requests;    // clouds to ask their owners for
+  std::vector<LoopOut> loops;         // newly accepted loops and withdrawals, in order
+  std::vector<CloudWanted> requests;  // clouds to ask their owners for
   std::vector<Verification> verifications;
   void append(LoopEvents&& o);
 };

@@ -41,7 +41,8 @@ class PairwiseConsistency {
 
  private:
   using RobotPair = std::pair<uint32_t, uint32_t>;  // lower robot first
-  void add_odometry(uint32_t robot, uint32_t from, uint32_t to, const Eigen::Isometry3d& T, const graph::Matrix6d& info);
+  void add_odometry(uint32_t robot, uint32_t from, uint32_t to, const Eigen::Isometry3d& T,
+                    const graph::Matrix6d& info);
   std::vector<LoopOut> add_intra(const LoopOut& loop);
   std::vector<LoopOut> add_inter(const LoopOut& loop);
   // The pair's loops PCM keeps as a set large and broad enough to publish (factor ids).
@@ -50,12 +51,12 @@ class PairwiseConsistency {
   std::vector<LoopOut> publish(const RobotPair& pair, const std::set<size_t>& accepted);
 
   LoopParams p_;
-  std::set<uint32_t> data_robots_;                                          // robots with odometry from keyframes
+  std::set<uint32_t> data_robots_;                                        // robots with odometry from keyframes
   std::map<uint32_t, std::pair<uint32_t, Eigen::Isometry3d>> last_hint_;  // robot -> (id, pose hint)
-  graph::PoseGraph graph_;                                                  // every robot's odometry + loops
-  std::map<RobotPair, std::vector<size_t>> inter_;                          // robot pair -> factor ids
-  std::map<size_t, LoopOut> proposed_;                                      // factor id -> loop
-  std::set<size_t> published_;                                              // factor ids accepted and published
+  graph::PoseGraph graph_;                                                // every robot's odometry + loops
+  std::map<RobotPair, std::vector<size_t>> inter_;                        // robot pair -> factor ids
+  std::map<size_t, LoopOut> proposed_;                                    // factor id -> loop
+  std::set<size_t> published_;                                            // factor ids accepted and published
   PcmStats stats_;
 };
 

@@ -22,17 +22,17 @@
 namespace cdc::loops {
 
 struct PeerReachParams {
-  Nanos silence = std::chrono::seconds(3);          // a peer unheard this long is out of reach
-  Nanos margin = std::chrono::seconds(2);           // loops written this long before a silence began may be lost too
-  Nanos delay = std::chrono::milliseconds(1000);    // after hearing a peer again, wait this long (discovery matches
-                                                    // its readers to the writer after its first samples arrive)
-  size_t keep = 20000;                              // loops kept to be written again (~0.45 KB each with the message)
+  Nanos silence = std::chrono::seconds(3);        // a peer unheard this long is out of reach
+  Nanos margin = std::chrono::seconds(2);         // loops written this long before a silence began may be lost too
+  Nanos delay = std::chrono::milliseconds(1000);  // after hearing a peer again, wait this long (discovery matches
+                                                  // its readers to the writer after its first samples arrive)
+  size_t keep = 20000;                            // loops kept to be written again (~0.45 KB each with the message)
 };
 
 struct PeerReachStats {
-  uint64_t silences = 0;     // a peer heard again after a silence
-  uint64_t loops_due = 0;    // loops handed out to be written again (a loop due for two peers counts once)
-  uint64_t forgotten = 0;    // loops dropped beyond `keep`, never to be written again
+  uint64_t silences = 0;   // a peer heard again after a silence
+  uint64_t loops_due = 0;  // loops handed out to be written again (a loop due for two peers counts once)
+  uint64_t forgotten = 0;  // loops dropped beyond `keep`, never to be written again
 };
 
 class PeerReach {

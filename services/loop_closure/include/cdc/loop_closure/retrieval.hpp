@@ -23,9 +23,9 @@ namespace cdc::loops {
 struct RetrievalStats {
   uint64_t queries = 0, candidates = 0;
   uint64_t duplicate_descriptors = 0, deferred_dropped = 0;
-  uint64_t reverse_queries = 0;       // peers' descriptors searched among this robot's own keyframes
-  uint64_t intra_gated = 0;           // same-robot candidates too far by the robot's odometry (not verified)
-  uint64_t left_to_lower_robot = 0;   // candidates with a lower-numbered robot, verified by that robot
+  uint64_t reverse_queries = 0;      // peers' descriptors searched among this robot's own keyframes
+  uint64_t intra_gated = 0;          // same-robot candidates too far by the robot's odometry (not verified)
+  uint64_t left_to_lower_robot = 0;  // candidates with a lower-numbered robot, verified by that robot
 };
 
 // Each robot's odometry chained from its first keyframe held here, to judge whether a same-robot
@@ -89,8 +89,8 @@ class Retrieval {
   std::optional<uint32_t> query_robot_;
   IntraGate gate_;
   lidar::ScanContextDatabase db_;
-  std::vector<KeyframeId> owner_;               // db id -> keyframe
-  std::set<KeyframeId> described_;              // keyframes with a descriptor
+  std::vector<KeyframeId> owner_;                // db id -> keyframe
+  std::set<KeyframeId> described_;               // keyframes with a descriptor
   std::map<KeyframeId, DescriptorIn> deferred_;  // query descriptors waiting for their keyframe
   RetrievalStats stats_;
 };

@@ -20,11 +20,11 @@ class OcTree;
 namespace cdc::map {
 
 struct MapParams {
-  double voxel_m = 0.2;                // global cloud voxel filter
+  double voxel_m = 0.2;  // global cloud voxel filter
   double octree_resolution_m = 0.4;
-  double max_range_m = 40.0;           // rays longer than this are not inserted into the OctoMap
-  double ray_spacing_m = 15.0;         // free space is ray-cast only from keyframes this far apart (per robot,
-                                       // in order); every other keyframe adds its points as occupied only
+  double max_range_m = 40.0;                 // rays longer than this are not inserted into the OctoMap
+  double ray_spacing_m = 15.0;               // free space is ray-cast only from keyframes this far apart (per robot,
+                                             // in order); every other keyframe adds its points as occupied only
   double moved_m = 0.02, moved_rad = 0.002;  // a keyframe is placed again when its pose moved more
 };
 

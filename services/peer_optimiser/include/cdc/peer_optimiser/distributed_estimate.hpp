@@ -27,7 +27,8 @@ class DistributedEstimate {
   void extend(const OwnKeyframe& kf);
   // Gives every own keyframe without an estimate one: the central's pose when `central` has it,
   // else its predecessor's estimate times its odometry, else T_world_robot times its odometry pose.
-  void seed(const LocalGraph& known, const KeyframePoses& central, const std::optional<Eigen::Isometry3d>& T_world_robot);
+  void seed(const LocalGraph& known, const KeyframePoses& central,
+            const std::optional<Eigen::Isometry3d>& T_world_robot);
   // One round: seeds, places the robot in its group's frame through a peer if it has no other
   // anchor yet, solves and relaxes. Returns T_world_robot of the new estimate; none without
   // keyframes or factors, or for a degenerate fit. `central`: the central's last poses (may be empty).

@@ -23,8 +23,8 @@ const char* to_string(Mode mode) noexcept;
 const char* to_string(SwitchReason reason) noexcept;
 
 struct RtdosParams {
-  double range_m = 100.0;       // CR_0, the central node's communication range [m]
-  double hysteresis_m = 10.0;   // return only below CR_0 - hysteresis [m]
+  double range_m = 100.0;                // CR_0, the central node's communication range [m]
+  double hysteresis_m = 10.0;            // return only below CR_0 - hysteresis [m]
   Nanos dwell{std::chrono::seconds(3)};  // in range (and central alive) this long before returning
   Nanos mask{std::chrono::seconds(2)};   // after any switch, range triggers are ignored this long
 };

@@ -45,7 +45,7 @@ class SeparatorExchange {
   std::map<uint32_t, Eigen::Vector3d> peer_positions_;
   std::map<uint32_t, Mode> peer_modes_;
   std::map<uint32_t, std::map<uint32_t, Eigen::Isometry3d>> sent_;  // peer -> own keyframe -> pose sent
-  std::map<uint32_t, Nanos> refreshed_;                            // peer -> last full send
+  std::map<uint32_t, Nanos> refreshed_;                             // peer -> last full send
 };
 
 }  // namespace cdc::peer

@@ -24,16 +24,16 @@ namespace cdc::velodyne_driver {
 
 struct VelodyneDriverConfig {
   std::optional<io::VelodyneModel> model = io::VelodyneModel::kVLP16;  // nullopt: from each packet's product id
-  std::filesystem::path calibration;                // calibration YAML (ROS driver format); empty: built-in table
+  std::filesystem::path calibration;                  // calibration YAML (ROS driver format); empty: built-in table
   std::optional<io::VelodyneReturnMode> return_mode;  // nullopt: from each packet's return-mode byte
-  double rpm = 600.0;                               // nominal speed (only for packets whose azimuths give no rate)
-  double scan_phase_deg = 0.0;                      // [deg] azimuth where sweeps are cut, [0, 360]
+  double rpm = 600.0;                                 // nominal speed (only for packets whose azimuths give no rate)
+  double scan_phase_deg = 0.0;                        // [deg] azimuth where sweeps are cut, [0, 360]
   std::chrono::nanoseconds max_gap{std::chrono::milliseconds(50)};  // a longer silence ends a sweep (dropped)
-  double min_range_m = 0.4, max_range_m = 200.0;    // [m] a point is kept when min < distance < max
+  double min_range_m = 0.4, max_range_m = 200.0;                    // [m] a point is kept when min < distance < max
   double sector_min_deg = 0.0, sector_max_deg = 360.0;  // [deg] kept azimuths (wrapping through 0 when min > max)
-  uint16_t port = 2368;                             // UDP destination port of the data packets
-  int receive_buffer_bytes = 8 << 20;               // SO_RCVBUF asked for (Linux grants twice that, capped at
-                                                    // 2 x net.core.rmem_max)
+  uint16_t port = 2368;                                 // UDP destination port of the data packets
+  int receive_buffer_bytes = 8 << 20;                   // SO_RCVBUF asked for (Linux grants twice that, capped at
+                                                        // 2 x net.core.rmem_max)
   std::string log_level = "info";
 };
 
@@ -58,8 +58,8 @@ enum class DatagramStatus {
 std::string_view to_string(DatagramStatus status);
 
 struct DriverStats {
-  uint64_t datagrams = 0;     // offered
-  uint64_t ok = 0;            // by status (DatagramStatus)
+  uint64_t datagrams = 0;  // offered
+  uint64_t ok = 0;         // by status (DatagramStatus)
   uint64_t other_port = 0;
   uint64_t truncated = 0;
   uint64_t malformed = 0;
@@ -74,12 +74,12 @@ struct DriverStats {
 
 // A sweep ready to publish as a cdc/sensor/lidar LidarScan.
 struct DriverSweep {
-  uint64_t seq = 0;          // 0, 1, 2, ... in the order sweeps are yielded
-  int64_t stamp_ns = 0;      // time of the earliest point [ns]
-  int64_t duration_ns = 0;   // latest point's time - earliest's [ns]: every time_offset lies in [0, duration]
-  uint32_t packets = 0;      // packets that contributed
-  io::Sweep sweep;           // sensor frame (x forward, y left, z up), time offsets [s] from stamp_ns, rings,
-                             // intensity 0..1
+  uint64_t seq = 0;         // 0, 1, 2, ... in the order sweeps are yielded
+  int64_t stamp_ns = 0;     // time of the earliest point [ns]
+  int64_t duration_ns = 0;  // latest point's time - earliest's [ns]: every time_offset lies in [0, duration]
+  uint32_t packets = 0;     // packets that contributed
+  io::Sweep sweep;          // sensor frame (x forward, y left, z up), time offsets [s] from stamp_ns, rings,
+                            // intensity 0..1
 };
 
 class VelodyneDriverCore {

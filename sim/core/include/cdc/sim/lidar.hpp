@@ -22,8 +22,8 @@ struct LidarModel {
   double rate_hz = 10.0;
   double min_range_m = 0.5;
   double max_range_m = 100.0;
-  double range_sigma_m = 0.02;         // Gaussian range noise
-  double dropout = 0.0;                // probability that a return is lost
+  double range_sigma_m = 0.02;  // Gaussian range noise
+  double dropout = 0.0;         // probability that a return is lost
   // Intrinsic calibration error: beam b really fires at elevations_deg[b] + elevation_error_deg[b],
   // while its points are reported along the nominal elevation (what a driver with a slightly wrong
   // calibration table does). Empty: a perfectly calibrated sensor.
@@ -35,16 +35,16 @@ struct LidarModel {
   // correction in the table; the VLP-16 is specified to +-3 cm). Empty: none.
   std::vector<double> range_offset_m;
 
-  static LidarModel vlp16();   // 16 beams, -15..+15 deg, 0.2 deg at 10 Hz, 100 m
-  static LidarModel hdl64();   // 64 beams, -24.9..+2 deg, ~0.17 deg at 10 Hz, 120 m
+  static LidarModel vlp16();  // 16 beams, -15..+15 deg, 0.2 deg at 10 Hz, 100 m
+  static LidarModel hdl64();  // 64 beams, -24.9..+2 deg, ~0.17 deg at 10 Hz, 120 m
   double period_s() const { return 1.0 / rate_hz; }
   size_t rays() const { return elevations_deg.size() * static_cast<size_t>(columns); }
 };
 
 struct LidarReturn {
-  float x, y, z;            // sensor frame at the firing instant [m]
-  float intensity;          // reflectance x |cos(incidence)|, 0..1
-  float time_offset;        // [s] since the start of the sweep
+  float x, y, z;      // sensor frame at the firing instant [m]
+  float intensity;    // reflectance x |cos(incidence)|, 0..1
+  float time_offset;  // [s] since the start of the sweep
   uint16_t ring;
 };
 

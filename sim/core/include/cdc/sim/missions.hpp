@@ -11,9 +11,9 @@
 namespace cdc::sim {
 
 enum class MissionPattern {
-  kRays,      // each robot laps a stadium along its own ray: out to `size_m` and back, every lap
-  kLoops,     // concentric circles of growing radius around the start
-  kCrossing   // figure-eights rotated per robot, crossing each other at the start
+  kRays,     // each robot laps a stadium along its own ray: out to `size_m` and back, every lap
+  kLoops,    // concentric circles of growing radius around the start
+  kCrossing  // figure-eights rotated per robot, crossing each other at the start
 };
 std::optional<MissionPattern> parse_pattern(const std::string& name);
 

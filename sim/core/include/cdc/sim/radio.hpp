@@ -13,8 +13,8 @@ namespace cdc::sim {
 
 struct RadioNode {
   uint32_t id = 0;
-  double range_m = 100;                                   // communication range of this node
-  std::function<Eigen::Vector3d(double)> position;        // true position at time t [s]
+  double range_m = 100;                             // communication range of this node
+  std::function<Eigen::Vector3d(double)> position;  // true position at time t [s]
 };
 
 struct RadioOptions {
@@ -25,10 +25,10 @@ struct RadioOptions {
 
 struct LinkSample {
   double t = 0;
-  uint32_t a = 0, b = 0;   // a < b
+  uint32_t a = 0, b = 0;  // a < b
   bool in_range = false;
-  double distance = 0;     // [m]
-  double loss = 0;         // probability a datagram is lost
+  double distance = 0;  // [m]
+  double loss = 0;      // probability a datagram is lost
 };
 
 // Link states of every pair at every period over [t0, t1]. A link is in range when the distance is

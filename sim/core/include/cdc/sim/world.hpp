@@ -14,17 +14,17 @@ namespace cdc::sim {
 
 struct Box {
   Eigen::Vector3d center;
-  Eigen::Vector3d half;     // half extents along the box's own axes [m]
-  double yaw = 0;           // rotation about z [rad]
+  Eigen::Vector3d half;  // half extents along the box's own axes [m]
+  double yaw = 0;        // rotation about z [rad]
   float reflectance = 0.5f;
 };
 
-struct Cylinder {            // vertical
+struct Cylinder {  // vertical
   double x = 0, y = 0, radius = 0.1, z0 = 0, z1 = 5;
   float reflectance = 0.5f;
 };
 
-struct Ground {              // z = z0 + gx x + gy y
+struct Ground {  // z = z0 + gx x + gy y
   double z0 = 0, gx = 0, gy = 0;
   float reflectance = 0.3f;
   double height(double x, double y) const { return z0 + gx * x + gy * y; }
@@ -39,24 +39,26 @@ struct Terrain {
   int nx = 0, ny = 0;
   std::vector<double> z;
   bool empty() const noexcept { return nx == 0 || ny == 0; }
-  double vertex(int i, int j) const { return z[static_cast<size_t>(j) * static_cast<size_t>(nx + 1) + static_cast<size_t>(i)]; }
+  double vertex(int i, int j) const {
+    return z[static_cast<size_t>(j) * static_cast<size_t>(nx + 1) + static_cast<size_t>(i)];
+  }
   // Height at (x, y), clamped to the grid's edge outside it.
   double height(double x, double y) const;
 };
 
 struct Hit {
-  double range = 0;          // distance along the unit ray [m]
-  Eigen::Vector3d normal;    // unit surface normal facing the ray
+  double range = 0;        // distance along the unit ray [m]
+  Eigen::Vector3d normal;  // unit surface normal facing the ray
   float reflectance = 0;
 };
 
 struct WorldOptions {
   uint64_t seed = 1;
-  double clearance_m = 3.0;      // no surface closer than this to a trajectory (horizontally)
-  double spacing_m = 15.0;       // one placement attempt per side every this far along a path
-  double cell_m = 10.0;          // ray-casting grid cell, also the terrain's cell
-  double sensor_height_m = 1.73; // the trajectories are sensor poses this high above the ground
-  double terrain_margin_m = 150; // terrain extends this far beyond every path point
+  double clearance_m = 3.0;       // no surface closer than this to a trajectory (horizontally)
+  double spacing_m = 15.0;        // one placement attempt per side every this far along a path
+  double cell_m = 10.0;           // ray-casting grid cell, also the terrain's cell
+  double sensor_height_m = 1.73;  // the trajectories are sensor poses this high above the ground
+  double terrain_margin_m = 150;  // terrain extends this far beyond every path point
 };
 
 class World {
@@ -82,7 +84,8 @@ class World {
  private:
   void build_grid();
   void index_objects();
-  bool hit_terrain_cell(int i, int j, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double& t, Eigen::Vector3d& n) const;
+  bool hit_terrain_cell(int i, int j, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double& t,
+                        Eigen::Vector3d& n) const;
   Ground ground_;
   Terrain terrain_;
   std::vector<Box> boxes_;
