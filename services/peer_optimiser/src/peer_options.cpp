@@ -18,7 +18,12 @@ PeerNodeOptions load_options(const std::string& path) {
   r.get<double>("range_m", o.core.rtdos.range_m, positive_d, "> 0");
   r.get<double>(
       "hysteresis_m", o.core.rtdos.hysteresis_m, [](const double& v) { return v >= 0; }, ">= 0");
-  int dwell = 3000, mask = 2000, round = 200, grace = 1500, resend = 500, refresh = 2000;
+  // Keys left out keep the core's defaults (PeerConfig, RtdosConfig): one place for each.
+  const auto ms = [](Nanos d) {
+    return static_cast<int>(std::chrono::duration_cast<std::chrono::milliseconds>(d).count());
+  };
+  int dwell = ms(o.core.rtdos.dwell), mask = ms(o.core.rtdos.mask), round = ms(o.core.round_period);
+  int grace = ms(o.core.resend_grace), resend = ms(o.core.resend_period), refresh = ms(o.core.separator_refresh);
   r.get<int>(
       "dwell_ms", dwell, [](const int& v) { return v >= 0; }, ">= 0");
   r.get<int>(

@@ -30,6 +30,18 @@ std::string error_of(const std::string& yaml) {
   return "";
 }
 
+TEST(PeerOptions, KeysLeftOutKeepTheCoresDefaults) {
+  const PeerNodeOptions o = load_options(write_yaml("robots: 3\n"));
+  const PeerConfig core;
+  EXPECT_EQ(o.core.separator_refresh, core.separator_refresh);
+  EXPECT_EQ(o.core.separator_refresh, 30000ms);
+  EXPECT_EQ(o.core.rtdos.dwell, core.rtdos.dwell);
+  EXPECT_EQ(o.core.rtdos.mask, core.rtdos.mask);
+  EXPECT_EQ(o.core.round_period, core.round_period);
+  EXPECT_EQ(o.core.resend_grace, core.resend_grace);
+  EXPECT_EQ(o.core.resend_period, core.resend_period);
+}
+
 TEST(PeerOptions, ShippedFileLoads) {
   const PeerNodeOptions o = load_options(CDC_PEER_YAML);
   EXPECT_EQ(o.core.robot_count, 3u);
