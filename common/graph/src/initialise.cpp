@@ -75,6 +75,11 @@ Indexing index_unknowns(const PoseGraph& g, Key anchor) {
   return ix;
 }
 
+// The factor joins two poses of the anchor's component (a graph that is not connected has others).
+bool in_component(const Indexing& ix, const Factor& f) {
+  return f.kind != FactorKind::kPrior && ix.index.count(f.a) != 0 && ix.index.count(f.b) != 0;
+}
+
 using Triplets = std::vector<Eigen::Triplet<double>>;
 
 // Solves the symmetric system given by the triplets of its n x n matrix for the columns of b;
@@ -136,7 +141,7 @@ bool chordal_rotations(PoseGraph& graph, const Indexing& ix, const Eigen::Isomet
   const int n = static_cast<int>(ix.keys.size());
   RotationSystem system(n);
   for (const Factor& f : graph.factors) {
-    if (f.kind == FactorKind::kPrior) {
+    if (!in_component(ix, f)) {
       continue;
     }
     system.add_edge(ix.index.at(f.a), ix.index.at(f.b), f.measurement.rotation(),
@@ -165,7 +170,7 @@ bool chordal_translations(PoseGraph& graph, const Indexing& ix, const Eigen::Iso
   Triplets L;
   Eigen::MatrixXd b = Eigen::MatrixXd::Zero(n, 3);
   for (const Factor& f : graph.factors) {
-    if (f.kind == FactorKind::kPrior) {
+    if (!in_component(ix, f)) {
       continue;
     }
     const double tau = isotropic_weights(f, graph.dimension).tau;

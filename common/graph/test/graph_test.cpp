@@ -231,6 +231,23 @@ TEST(Initialise, ChordalRecoversConsistentGraphExactly) {
   }
 }
 
+TEST(Initialise, ChordalOnAGraphThatIsNotConnectedPlacesTheAnchorsPartAndSaysSo) {
+  std::vector<Eigen::Isometry3d> gt;
+  PoseGraph g = helix(40, nullptr, &gt);
+  // A second robot joined to nothing of the first.
+  g.add_between(make_key(1, 0), make_key(1, 1), pose(1, 0, 0, 0), Matrix6d::Identity());
+  g.poses[make_key(1, 0)] = pose(50, 0, 0, 0);
+  g.poses[make_key(1, 1)] = pose(70, 0, 0, 0);
+  for (int i = 1; i < 40; ++i) g.poses[make_key(0, static_cast<uint64_t>(i))] = Eigen::Isometry3d::Identity();
+  EXPECT_FALSE(chordal_initialise(g));
+  for (int i = 0; i < 40; ++i) {
+    EXPECT_LT((g.poses.at(make_key(0, static_cast<uint64_t>(i))).matrix() - gt[static_cast<size_t>(i)].matrix()).norm(),
+              1e-8)
+        << i;
+  }
+  EXPECT_EQ(g.poses.at(make_key(1, 1)).translation().x(), 70.0) << "the other part keeps its values";
+}
+
 TEST(Initialise, OdometryChainingFollowsTheMeasurements) {
   std::vector<Eigen::Isometry3d> gt;
   PoseGraph g = helix(30, nullptr, &gt);
