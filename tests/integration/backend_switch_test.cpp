@@ -15,7 +15,9 @@
 #include "cdc/graph/objective.hpp"
 #include "cdc/graph/solver.hpp"
 #include "child_process.hpp"
+#include "dds_helpers.hpp"
 #include "swarm_stream.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -55,13 +57,8 @@ class BackendSwarm : public ::testing::Test {
     for (const char* v : {"CDC_CENTRAL_BIN", "CDC_PEER_BIN", "CDC_FEEDER_BIN"}) {
       ASSERT_NE(std::getenv(v), nullptr) << v << " must name the binary";
     }
-    dir_ = fs::temp_directory_path() /
-           ("cdc_backend_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-            std::to_string(::getpid()));
-    fs::create_directories(dir_);
-    dds::ParticipantOptions po;
-    po.domain_id = dds::domain_from_env(0);
-    participant_ = std::make_unique<dds::Participant>(po);
+    dir_ = test::fresh_test_dir("backend");
+    participant_ = std::make_unique<dds::Participant>(test::test_domain());
     t_mode_ = std::make_unique<dds::Topic<cdc_msg_ModeState>>(*participant_, dds::topics::kMode);
     t_corr_ = std::make_unique<dds::Topic<cdc_msg_OptimizedPoses>>(*participant_, dds::topics::kCorrection);
     t_kf_ = std::make_unique<dds::Topic<cdc_msg_Keyframe>>(*participant_, dds::topics::kKeyframe);

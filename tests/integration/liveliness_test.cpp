@@ -9,6 +9,8 @@
 #include "cdc/dds/robot_domains.hpp"
 #include "cdc/dds/shutdown.hpp"
 #include "child_process.hpp"
+#include "dds_helpers.hpp"
+#include "helper_process_test.hpp"
 
 #include <gtest/gtest.h>
 
@@ -28,35 +30,26 @@ using namespace std::chrono_literals;
 constexpr auto kLease = 1000ms;
 constexpr auto kSlack = 200ms;
 
-class LivelinessAcrossProcesses : public ::testing::Test {
+class LivelinessAcrossProcesses : public test::HelperProcessTest {
  protected:
-  // Before any DDS thread exists, as a service's main() does: every later thread blocks the
-  // signals, so that the signal thread alone takes SIGUSR1/SIGUSR2.
-  static void SetUpTestSuite() { ShutdownSignal::install(); }
+  LivelinessAcrossProcesses() : HelperProcessTest("CDC_LIVELINESS_WRITER") {}
   void SetUp() override {
-    const char* exe = std::getenv("CDC_LIVELINESS_WRITER");
-    ASSERT_NE(exe, nullptr) << "CDC_LIVELINESS_WRITER must name the helper binary";
-    writer_exe_ = exe;
-    domain_ = domain_from_env(0);
+    HelperProcessTest::SetUp();
     topic_ = "cdc/test/liveliness_" + std::to_string(::getpid());
   }
 
   test::ChildProcess start_writer() { return start_writer_on(domain_); }
   test::ChildProcess start_writer_on(uint32_t domain, const std::string& topic = "", int data_every = 1) {
-    return test::ChildProcess::spawn({writer_exe_, "--topic", topic.empty() ? topic_ : topic, "--lease-ms",
+    return test::ChildProcess::spawn({exe_, "--topic", topic.empty() ? topic_ : topic, "--lease-ms",
                                       std::to_string(kLease.count()), "--period-ms", "100", "--domain",
                                       std::to_string(domain), "--data-every", std::to_string(data_every)});
   }
 
-  std::string writer_exe_;
   std::string topic_;
-  uint32_t domain_ = 0;
 };
 
 TEST_F(LivelinessAcrossProcesses, KillIsDetectedWithinTheLeaseAndRestartIsSeen) {
-  ParticipantOptions opts;
-  opts.domain_id = domain_;
-  Participant participant(opts);
+  Participant participant(test::on_domain(domain_));
   Topic<cdc_msg_RobotStatus> topic(participant, topic_);
   LivelinessMonitor monitor(participant, topic.handle(), "central");
   EXPECT_EQ(monitor.state(), Liveliness::kUnknown);
@@ -94,8 +87,7 @@ TEST_F(LivelinessAcrossProcesses, SigtermStopsTheWriterCleanly) {
 }
 
 TEST_F(LivelinessAcrossProcesses, RadioSignalsCutTheSlamDomainAndNotTheLocalOne) {
-  ParticipantOptions radio;
-  radio.domain_id = domain_;
+  const ParticipantOptions radio = test::on_domain(domain_);
   const uint32_t local_domain = domain_ + 150;  // test domains are 1..~30: 151..~180 is free
   const auto local = local_domain_options(static_cast<int>(local_domain), "", radio);
   ASSERT_TRUE(local.has_value());
@@ -142,8 +134,7 @@ TEST_F(LivelinessAcrossProcesses, RadioSignalsCutTheSlamDomainAndNotTheLocalOne)
 // 250 ms (as the central does) is alive again soon after the radio returns; the one that only
 // asserts stays lost (if Cyclone ever revives it, this test says so and the data can go).
 TEST_F(LivelinessAcrossProcesses, AfterAShortCutOnlyAWriterThatWritesIsSeenAliveAgain) {
-  ParticipantOptions radio;
-  radio.domain_id = domain_;
+  const ParticipantOptions radio = test::on_domain(domain_);
   const auto local = local_domain_options(static_cast<int>(domain_ + 150), "", radio);
   ASSERT_TRUE(local.has_value());
   RobotDomains domains(radio, local, [](bool) {});

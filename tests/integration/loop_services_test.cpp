@@ -58,6 +58,20 @@ void take_until(dds::Reader<T>& reader, OnSample on_sample, Done done) {
   }
 }
 
+// The keyframe ids of `robot`'s descriptors that `reader` takes (a set or a vector of them), until
+// there are at least `n` or 5 s have gone by.
+template <typename Ids>
+Ids descriptor_ids(dds::Reader<cdc_msg_Descriptor>& reader, uint32_t robot, size_t n) {
+  Ids ids;
+  take_until(
+      reader,
+      [&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
+        if (m.robot_id == robot) ids.insert(ids.end(), m.keyframe_id);
+      },
+      [&] { return ids.size() >= n; });
+  return ids;
+}
+
 // Both services under test: their binaries come from the environment (set by CMake).
 void require_service_binaries() {
   for (const char* v : {"CDC_DESCRIPTOR_BIN", "CDC_LOOP_CLOSURE_BIN"}) {
@@ -477,13 +491,7 @@ TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
     dds::borrow(m.cloud, storage);
     w_kf.write(m);
   }
-  std::set<uint32_t> live;
-  take_until(
-      r_live,
-      [&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
-        if (m.robot_id == 0) live.insert(m.keyframe_id);
-      },
-      [&] { return live.size() >= 5; });
+  const auto live = descriptor_ids<std::set<uint32_t>>(r_live, 0, 5);
   ASSERT_EQ(live.size(), 5u) << "robot 0's live descriptors";
   {
     cdc_msg_DescriptorSync q{};
@@ -493,13 +501,7 @@ TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
     q.last_keyframe_id = 3;
     w_sync.write(q);
   }
-  std::vector<uint32_t> resent2;
-  take_until(
-      r_to2,
-      [&](const cdc_msg_Descriptor& m, const dds_sample_info_t&) {
-        if (m.robot_id == 0) resent2.push_back(m.keyframe_id);
-      },
-      [&] { return resent2.size() >= 3; });
+  const auto resent2 = descriptor_ids<std::vector<uint32_t>>(r_to2, 0, 3);
   EXPECT_EQ(resent2, (std::vector<uint32_t>{1, 2, 3})) << "just the range asked for, in order";
   std::this_thread::sleep_for(300ms);
   size_t to1 = 0;

@@ -9,6 +9,9 @@
 #include "cdc/dds/robot_domains.hpp"
 #include "cdc/dds/shutdown.hpp"
 #include "child_process.hpp"
+#include "dds_helpers.hpp"
+#include "helper_process_test.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -44,31 +47,24 @@ std::set<int> range(int from, int to) {
   return s;
 }
 
-class RadioCut : public ::testing::Test {
+class RadioCut : public test::HelperProcessTest {
  protected:
-  static void SetUpTestSuite() { ShutdownSignal::install(); }
+  RadioCut() : HelperProcessTest("CDC_SAMPLE_READER") {}
   void SetUp() override {
-    const char* exe = std::getenv("CDC_SAMPLE_READER");
-    ASSERT_NE(exe, nullptr) << "CDC_SAMPLE_READER must name the helper binary";
-    reader_exe_ = exe;
-    domain_ = domain_from_env(0);
-    dir_ = std::filesystem::temp_directory_path() / ("cdc_radio_cut_" + std::to_string(::getpid()));
-    std::filesystem::create_directories(dir_);
+    HelperProcessTest::SetUp();
+    dir_ = test::fresh_temp_dir("radio_cut");
   }
   void TearDown() override { std::filesystem::remove_all(dir_); }
 
   test::ChildProcess start_reader(const std::string& topic, const std::string& log) {
-    return test::ChildProcess::spawn({reader_exe_, "--topic", topic, "--domain", std::to_string(domain_)}, log);
+    return test::ChildProcess::spawn({exe_, "--topic", topic, "--domain", std::to_string(domain_)}, log);
   }
 
-  std::string reader_exe_;
-  uint32_t domain_ = 0;
   std::filesystem::path dir_;
 };
 
 TEST_F(RadioCut, ADiscardingWriterSendsNothingItHeldWhenTheLinkReturns) {
-  ParticipantOptions radio;
-  radio.domain_id = domain_;
+  const ParticipantOptions radio = test::on_domain(domain_);
   const auto local = local_domain_options(static_cast<int>(domain_ + 150), "", radio);
   ASSERT_TRUE(local.has_value());
   RobotDomains domains(radio, local, [](bool) {});

@@ -6,7 +6,9 @@
 #include "cdc/dds/topics.hpp"
 #include "cdc/io/kitti.hpp"
 #include "child_process.hpp"
+#include "dds_helpers.hpp"
 #include "scenario.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -29,13 +31,8 @@ class SimPlay : public ::testing::Test {
  protected:
   void SetUp() override {
     ASSERT_NE(std::getenv("CDC_SIM_BIN"), nullptr);
-    dir_ = fs::temp_directory_path() /
-           ("cdc_sim_play_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-            std::to_string(::getpid()));
-    fs::create_directories(dir_);
-    dds::ParticipantOptions po;
-    po.domain_id = dds::domain_from_env(0);
-    participant_ = std::make_unique<dds::Participant>(po);
+    dir_ = test::fresh_test_dir("sim_play");
+    participant_ = std::make_unique<dds::Participant>(test::test_domain());
     t_lidar_ = std::make_unique<dds::Topic<cdc_msg_LidarScan>>(*participant_, dds::topics::kLidar);
     t_gt_ = std::make_unique<dds::Topic<cdc_msg_GroundTruth>>(*participant_, dds::topics::kGroundTruth);
     t_progress_ = std::make_unique<dds::Topic<cdc_msg_ConsumerProgress>>(*participant_, dds::topics::kProgress);
@@ -52,6 +49,16 @@ class SimPlay : public ::testing::Test {
   }
   void TearDown() override { fs::remove_all(dir_); }
 
+  // A two-robot procedural scenario's dataset in dir_/ds, max_scans sweeps per robot.
+  sim::GenerateSummary generate_small(size_t max_scans) {
+    const fs::path sc = dir_ / "small.yaml";
+    std::ofstream(sc) << "name: small\nseed: 5\ntrajectories:\n  source: procedural\n  pattern: loops\n  robots: 2\n"
+                         "  duration_s: 10\n  size_m: 40\nradio:\n  central_robot: 0\n";
+    sim::GenerateOptions g;
+    g.max_scans = max_scans;
+    return sim::generate_dataset(sim::load_scenario(sc.string()), sc.string(), (dir_ / "ds").string(), g);
+  }
+
   fs::path dir_;
   std::unique_ptr<dds::Participant> participant_;
   std::unique_ptr<dds::Topic<cdc_msg_LidarScan>> t_lidar_;
@@ -65,13 +72,7 @@ class SimPlay : public ::testing::Test {
 };
 
 TEST_F(SimPlay, LockStepDeliversEveryScanExactlyOnceInOrder) {
-  const fs::path sc = dir_ / "small.yaml";
-  std::ofstream(sc) << "name: small\nseed: 5\ntrajectories:\n  source: procedural\n  pattern: loops\n  robots: 2\n"
-                       "  duration_s: 10\n  size_m: 40\nradio:\n  central_robot: 0\n";
-  sim::GenerateOptions g;
-  g.max_scans = 25;
-  const auto summary = sim::generate_dataset(sim::load_scenario(sc.string()), sc.string(), (dir_ / "ds").string(), g);
-  ASSERT_EQ(summary.scans, 50u);
+  ASSERT_EQ(generate_small(25).scans, 50u);
 
   test::ChildProcess player = test::ChildProcess::spawn(
       {std::getenv("CDC_SIM_BIN"), "play", (dir_ / "ds").string(), "--lockstep", "--wait-readers", "1"},
@@ -115,12 +116,7 @@ TEST_F(SimPlay, LockStepDeliversEveryScanExactlyOnceInOrder) {
 }
 
 TEST_F(SimPlay, APlayerBesideARobotPlaysOnlyThatRobot) {
-  const fs::path sc = dir_ / "small.yaml";
-  std::ofstream(sc) << "name: small\nseed: 5\ntrajectories:\n  source: procedural\n  pattern: loops\n  robots: 2\n"
-                       "  duration_s: 10\n  size_m: 40\nradio:\n  central_robot: 0\n";
-  sim::GenerateOptions g;
-  g.max_scans = 10;
-  sim::generate_dataset(sim::load_scenario(sc.string()), sc.string(), (dir_ / "ds").string(), g);
+  generate_small(10);
   test::ChildProcess player = test::ChildProcess::spawn(
       {std::getenv("CDC_SIM_BIN"), "play", (dir_ / "ds").string(), "--robot", "1", "--lockstep", "--wait-readers", "1"},
       (dir_ / "player.log").string());

@@ -2,10 +2,8 @@
 // asserts it from its work loop, like the central optimiser's liveliness writer: by writing a
 // sample every period, or (--data-every N) by asserting and writing only every Nth period (0:
 // never, assertions alone). Exits 0 on SIGINT/SIGTERM through the shutdown guard condition.
-#include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
-#include "cdc/dds/shutdown.hpp"
-#include "cdc/dds/waitset.hpp"
+#include "dds_helpers.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -30,16 +28,11 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   try {
-    cdc::dds::ParticipantOptions opts;
-    opts.domain_id = domain;
-    cdc::dds::Participant participant(opts);
+    cdc::dds::Participant participant(cdc::test::on_domain(domain));
     cdc::dds::Topic<cdc_msg_RobotStatus> topic(participant, topic_name);
     cdc::dds::Writer<cdc_msg_RobotStatus> writer(participant, topic,
                                                  cdc::dds::qos::monitored_writer(std::chrono::milliseconds(lease_ms)));
-    cdc::dds::GuardCondition stop(participant);
-    cdc::dds::ShutdownSignal::add_guard(&stop);
-    cdc::dds::WaitSet ws(participant);
-    ws.attach(stop.handle(), 0);
+    cdc::test::SignalWaitSet ws(participant);
 
     cdc_msg_RobotStatus status{};
     status.robot_id = 0;
@@ -55,7 +48,6 @@ int main(int argc, char** argv) {
       }
       ws.wait(std::chrono::milliseconds(period_ms));
     }
-    cdc::dds::ShutdownSignal::remove_guard(&stop);
     std::printf("writer stopped by signal %d\n", cdc::dds::ShutdownSignal::signal_number());
     return 0;
   } catch (const std::exception& e) {

@@ -1,10 +1,8 @@
 // Test helper: a DDS process that reads RobotStatus samples on one topic (reliable, volatile, the
 // event-stream QoS the services use) and prints "sample <last_keyframe_id>" for each, flushed, so
 // that a test can see exactly which samples crossed. Exits 0 on SIGINT/SIGTERM.
-#include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
-#include "cdc/dds/shutdown.hpp"
-#include "cdc/dds/waitset.hpp"
+#include "dds_helpers.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -21,17 +19,12 @@ int main(int argc, char** argv) {
   CLI11_PARSE(app, argc, argv);
 
   try {
-    cdc::dds::ParticipantOptions opts;
-    opts.domain_id = domain;
-    cdc::dds::Participant participant(opts);
+    cdc::dds::Participant participant(cdc::test::on_domain(domain));
     cdc::dds::Topic<cdc_msg_RobotStatus> topic(participant, topic_name);
     cdc::dds::Reader<cdc_msg_RobotStatus> reader(participant, topic, cdc::dds::qos::event_stream());
-    cdc::dds::GuardCondition stop(participant);
-    cdc::dds::ShutdownSignal::add_guard(&stop);
-    cdc::dds::WaitSet ws(participant);
-    ws.attach(stop.handle(), 0);
+    cdc::test::SignalWaitSet ws(participant);
     cdc::dds::ReadCondition data(reader.handle());
-    ws.attach(data.handle(), 1);
+    ws.waitset().attach(data.handle(), 1);
     std::printf("reader ready\n");
     std::fflush(stdout);
     while (!cdc::dds::ShutdownSignal::requested()) {
@@ -41,7 +34,6 @@ int main(int argc, char** argv) {
       std::fflush(stdout);
       ws.wait(std::chrono::milliseconds(100));
     }
-    cdc::dds::ShutdownSignal::remove_guard(&stop);
     return 0;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sample_reader: %s\n", e.what());

@@ -48,8 +48,16 @@ Eigen::Isometry3d path_pose(double s, const SwarmStreamOptions& o, bool excursio
   return T;
 }
 
-Eigen::Isometry3d noise(std::mt19937& rng, double st, double sr) {
-  std::normal_distribution<double> t(0, st), r(0, sr);
+Matrix6d information(double st, double sr) {
+  Matrix6d I = Matrix6d::Zero();
+  I.diagonal() << 1 / (st * st), 1 / (st * st), 1 / (st * st), 1 / (sr * sr), 1 / (sr * sr), 1 / (sr * sr);
+  return I;
+}
+
+}  // namespace
+
+Eigen::Isometry3d pose_noise(std::mt19937& rng, double sigma_t, double sigma_r) {
+  std::normal_distribution<double> t(0, sigma_t), r(0, sigma_r);
   Eigen::Isometry3d N = Eigen::Isometry3d::Identity();
   N.linear() =
       (Eigen::AngleAxisd(r(rng), Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(r(rng), Eigen::Vector3d::UnitY()) *
@@ -58,14 +66,6 @@ Eigen::Isometry3d noise(std::mt19937& rng, double st, double sr) {
   N.translation() = Eigen::Vector3d(t(rng), t(rng), t(rng));
   return N;
 }
-
-Matrix6d information(double st, double sr) {
-  Matrix6d I = Matrix6d::Zero();
-  I.diagonal() << 1 / (st * st), 1 / (st * st), 1 / (st * st), 1 / (sr * sr), 1 / (sr * sr), 1 / (sr * sr);
-  return I;
-}
-
-}  // namespace
 
 SwarmStream make_swarm_stream(const SwarmStreamOptions& o) {
   std::mt19937 rng(o.seed);
@@ -103,7 +103,7 @@ SwarmStream make_swarm_stream(const SwarmStreamOptions& o) {
         kf.T_prev_keyframe = Eigen::Isometry3d::Identity();
         kf.T_odom_keyframe = Eigen::Isometry3d::Identity();
       } else {
-        kf.T_prev_keyframe = truth[r][k - 1].inverse() * truth[r][k] * noise(rng, o.odom_sigma_t, o.odom_sigma_r);
+        kf.T_prev_keyframe = truth[r][k - 1].inverse() * truth[r][k] * pose_noise(rng, o.odom_sigma_t, o.odom_sigma_r);
         kf.T_odom_keyframe = out.keyframes[r][k - 1].T_odom_keyframe * kf.T_prev_keyframe;
       }
       out.keyframes[r].push_back(kf);
@@ -135,7 +135,7 @@ SwarmStream make_swarm_stream(const SwarmStreamOptions& o) {
       l.keyframe_a = static_cast<uint32_t>(best_k);
       l.robot_b = r;
       l.keyframe_b = k;
-      l.T_a_b = truth[l.robot_a][l.keyframe_a].inverse() * truth[r][k] * noise(rng, 0.05, 0.005);
+      l.T_a_b = truth[l.robot_a][l.keyframe_a].inverse() * truth[r][k] * pose_noise(rng, 0.05, 0.005);
       l.information = loop_info;
       out.loops.push_back(l);
       last_loop[r] = k;

@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 
 #include <cstdint>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -55,6 +56,10 @@ struct SwarmStream {
 };
 
 SwarmStream make_swarm_stream(const SwarmStreamOptions& options);
+
+// A random rigid motion: translation drawn N(0, sigma_t) [m] per axis, rotation about x, y then z
+// drawn N(0, sigma_r) [rad] each.
+Eigen::Isometry3d pose_noise(std::mt19937& rng, double sigma_t, double sigma_r);
 
 // Writes the whole stream as one g2o graph (keys robot << 56 | id; a prior is implicit on robot
 // 0's first keyframe, which is the first vertex), with the odometry chain as initial values.

@@ -168,11 +168,8 @@ TEST(Validation, DescriptorShape) {
 }
 
 TEST(Validation, DescriptorSyncRange) {
-  cdc_msg_DescriptorSync q{};
-  q.requester_robot_id = 1;
-  q.owner_robot_id = 2;
-  q.first_keyframe_id = 4;
-  q.last_keyframe_id = 4;
+  cdc_msg_DescriptorSync q{
+      .requester_robot_id = 1, .owner_robot_id = 2, .first_keyframe_id = 4, .last_keyframe_id = 4, .stamp_ns = 0};
   EXPECT_TRUE(validate(q, ValidationLimits{}));
   q.last_keyframe_id = 3;
   EXPECT_THAT(validate(q, ValidationLimits{}).reason(), HasSubstr("last_keyframe_id: 3 is before first_keyframe_id 4"));

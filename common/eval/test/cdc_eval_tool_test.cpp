@@ -2,6 +2,7 @@
 #include "cdc/geometry/se3.hpp"
 #include "cdc/geometry/trajectory.hpp"
 #include "run_command.hpp"
+#include "temp_dir.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -25,14 +26,9 @@ ToolRun run(const std::string& args) {
   return test::run_command(std::string(std::getenv("CDC_EVAL_BIN")) + " " + args);
 }
 
-class CdcEvalTool : public ::testing::Test {
+class CdcEvalTool : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    ASSERT_NE(std::getenv("CDC_EVAL_BIN"), nullptr);
-    dir_ = fs::temp_directory_path() / ("cdc_eval_tool_" + std::to_string(::getpid()));
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
+  CdcEvalTool() : TempDirTest("eval_tool", "CDC_EVAL_BIN") {}
 
   // KITTI sequence 05 ground truth, or empty (and the test skips) when the data folder is absent.
   std::string kitti_gt() {
@@ -40,12 +36,10 @@ class CdcEvalTool : public ::testing::Test {
     const fs::path path = fs::path(env != nullptr ? env : "../shared/data") / "kitti/poses/05.txt";
     return fs::exists(path) ? path.string() : std::string();
   }
-  std::string path(const std::string& name) const { return (dir_ / name).string(); }
   nlohmann::json read_json(const std::string& name) const {
     std::ifstream in(path(name));
     return nlohmann::json::parse(in);
   }
-  fs::path dir_;
 };
 
 #define CDC_REQUIRE_KITTI(var)                                                          \

@@ -26,13 +26,19 @@ Poses straight_line(size_t n, double step) {
   return p;
 }
 
-TEST(Alignment, RecoversKnownSe3Exactly) {
-  std::mt19937 rng(11);
+// 40 points drawn uniformly from the cube [-50, 50]^3 with this seed.
+Eigen::Matrix3Xd random_points(unsigned seed) {
+  std::mt19937 rng(seed);
   std::uniform_real_distribution<double> u(-50, 50);
-  Eigen::Matrix3Xd src(3, 40);
+  Eigen::Matrix3Xd points(3, 40);
   for (int i = 0; i < 40; ++i) {
-    src.col(i) = Eigen::Vector3d(u(rng), u(rng), u(rng));
+    points.col(i) = Eigen::Vector3d(u(rng), u(rng), u(rng));
   }
+  return points;
+}
+
+TEST(Alignment, RecoversKnownSe3Exactly) {
+  const Eigen::Matrix3Xd src = random_points(11);
   const Eigen::Matrix3d R = from_rpy(0.3, -0.2, 2.0);
   const Eigen::Vector3d t(5, -7, 1.5);
   const Eigen::Matrix3Xd dst = (R * src).colwise() + t;
@@ -44,12 +50,7 @@ TEST(Alignment, RecoversKnownSe3Exactly) {
 }
 
 TEST(Alignment, RecoversKnownSim3Exactly) {
-  std::mt19937 rng(12);
-  std::uniform_real_distribution<double> u(-50, 50);
-  Eigen::Matrix3Xd src(3, 40);
-  for (int i = 0; i < 40; ++i) {
-    src.col(i) = Eigen::Vector3d(u(rng), u(rng), u(rng));
-  }
+  const Eigen::Matrix3Xd src = random_points(12);
   const Eigen::Matrix3d R = from_rpy(-1.0, 0.4, -2.5);
   const Eigen::Vector3d t(-3, 2, 10);
   const double s = 0.8;

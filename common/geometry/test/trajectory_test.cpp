@@ -1,5 +1,6 @@
 #include "cdc/geometry/trajectory.hpp"
 #include "cdc/geometry/se3.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -13,16 +14,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
-class TrajectoryFiles : public ::testing::Test {
+class TrajectoryFiles : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("cdc_traj_test_" + std::to_string(::getpid()));
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+  TrajectoryFiles() : TempDirTest("traj_test") {}
   void write(const std::string& name, const std::string& text) const { std::ofstream(path(name)) << text; }
-  fs::path dir_;
 };
 
 Trajectory sample_trajectory() {

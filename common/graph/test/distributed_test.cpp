@@ -2,6 +2,7 @@
 #include "cdc/graph/initialise.hpp"
 #include "cdc/graph/objective.hpp"
 #include "cdc/graph/solver.hpp"
+#include "swarm_stream.hpp"
 
 #include <gtest/gtest.h>
 
@@ -18,16 +19,7 @@ Eigen::Isometry3d pose(double x, double y, double z, double yaw) {
   return T;
 }
 
-Eigen::Isometry3d noise(std::mt19937& rng, double sigma_t, double sigma_r) {
-  std::normal_distribution<double> t(0, sigma_t), r(0, sigma_r);
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() =
-      (Eigen::AngleAxisd(r(rng), Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(r(rng), Eigen::Vector3d::UnitY()) *
-       Eigen::AngleAxisd(r(rng), Eigen::Vector3d::UnitZ()))
-          .toRotationMatrix();
-  T.translation() = Eigen::Vector3d(t(rng), t(rng), t(rng));
-  return T;
-}
+using test::pose_noise;
 
 // Three robots on parallel lanes with noisy odometry and noisy inter-robot loops every 5 poses.
 PoseGraph three_robots(std::vector<Eigen::Isometry3d>* truth_out = nullptr) {
@@ -44,13 +36,13 @@ PoseGraph three_robots(std::vector<Eigen::Isometry3d>* truth_out = nullptr) {
   for (uint32_t r = 0; r < 3; ++r) {
     for (uint64_t i = 0; i + 1 < 30; ++i) {
       const Key a = make_key(r, i), b = make_key(r, i + 1);
-      g.add_between(a, b, truth[a].inverse() * truth[b] * noise(rng, 0.02, 0.01), info);
+      g.add_between(a, b, truth[a].inverse() * truth[b] * pose_noise(rng, 0.02, 0.01), info);
     }
   }
   for (uint32_t r = 0; r + 1 < 3; ++r) {
     for (uint64_t i = 0; i < 30; i += 5) {
       const Key a = make_key(r, i), b = make_key(r + 1, i + 1);
-      g.add_between(a, b, truth[a].inverse() * truth[b] * noise(rng, 0.02, 0.01), info);
+      g.add_between(a, b, truth[a].inverse() * truth[b] * pose_noise(rng, 0.02, 0.01), info);
     }
   }
   (void)truth_out;

@@ -2,6 +2,7 @@
 #include "cdc/graph/initialise.hpp"
 #include "cdc/graph/objective.hpp"
 #include "cdc/graph/solver.hpp"
+#include "temp_dir.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -338,15 +339,9 @@ TEST(Solver, PriorAnchorsTheGraphAndFixedKeysStay) {
   EXPECT_LT((h.poses.at(0).translation() - Eigen::Vector3d(2, 0, 0)).norm(), 1e-6);
 }
 
-class G2oFiles : public ::testing::Test {
+class G2oFiles : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() / ("cdc_g2o_" + std::to_string(::getpid()));
-    std::filesystem::create_directories(dir_);
-  }
-  void TearDown() override { std::filesystem::remove_all(dir_); }
-  std::string path(const std::string& n) const { return (dir_ / n).string(); }
-  std::filesystem::path dir_;
+  G2oFiles() : TempDirTest("g2o") {}
 };
 
 TEST_F(G2oFiles, RoundTrip3D) {

@@ -2,6 +2,7 @@
 #include "cdc/io/cloud.hpp"
 #include "cdc/io/error.hpp"
 #include "cdc/io/kitti.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -15,12 +16,7 @@ namespace cdc::io {
 namespace {
 namespace fs = std::filesystem;
 
-fs::path temp_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("cdc_io_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
+fs::path temp_dir(const std::string& name) { return test::fresh_temp_dir("io_" + name); }
 
 Sweep make_sweep(int n, float base, bool times) {
   Sweep s;

@@ -17,6 +17,7 @@
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <string>
@@ -330,6 +331,19 @@ TEST_P(Ros1TruncationTest, EveryTruncationYieldsAnIntactPrefixThenThrows) {
 
 INSTANTIATE_TEST_SUITE_P(Compressions, Ros1TruncationTest, ::testing::Values("none", "lz4"));
 
+// The FormatError's message that opening the bag and reading its first message raise; none when
+// they succeed.
+std::optional<std::string> first_read_error(const fs::path& path) {
+  try {
+    const auto reader = open_ros1_bag(path);
+    BagMessage m;
+    reader->next(m);
+  } catch (const FormatError& e) {
+    return std::string(e.what());
+  }
+  return std::nullopt;
+}
+
 TEST_F(Ros1BagTest, CorruptBz2ChunkThrows) {
   std::vector<uint8_t> bytes = file_bytes(fixtures().path("mixed_bz2.bag"));
   const size_t stream = find_bytes(bytes, "BZh9", 4096);
@@ -338,16 +352,10 @@ TEST_F(Ros1BagTest, CorruptBz2ChunkThrows) {
   const fs::path path = fixtures().dir() / "corrupt_bz2.bag";
   write_bytes(path, bytes);
   // The first chunk holds the earliest message, so no message comes before the error.
-  try {
-    const auto reader = open_ros1_bag(path);
-    BagMessage m;
-    reader->next(m);
-    FAIL() << "a corrupt bz2 chunk was read";
-  } catch (const FormatError& e) {
-    const std::string what = e.what();
-    EXPECT_NE(what.find(path.string() + ": byte "), std::string::npos) << what;
-    EXPECT_NE(what.find("bz2"), std::string::npos) << what;
-  }
+  const std::optional<std::string> what = first_read_error(path);
+  ASSERT_TRUE(what) << "a corrupt bz2 chunk was read";
+  EXPECT_NE(what->find(path.string() + ": byte "), std::string::npos) << *what;
+  EXPECT_NE(what->find("bz2"), std::string::npos) << *what;
 }
 
 TEST_F(Ros1BagTest, RecordHeaderWithoutOpThrows) {
@@ -359,15 +367,9 @@ TEST_F(Ros1BagTest, RecordHeaderWithoutOpThrows) {
   const fs::path path = fixtures().dir() / "no_op.bag";
   write_bytes(path, bytes);
   const size_t record = op - 8;  // uint32 header length, uint32 field length
-  try {
-    const auto reader = open_ros1_bag(path);
-    BagMessage m;
-    reader->next(m);
-    FAIL() << "a record without 'op' was read";
-  } catch (const FormatError& e) {
-    EXPECT_EQ(std::string(e.what()),
-              path.string() + ": byte " + std::to_string(record) + ": record header has no 'op' field");
-  }
+  const std::optional<std::string> what = first_read_error(path);
+  ASSERT_TRUE(what) << "a record without 'op' was read";
+  EXPECT_EQ(*what, path.string() + ": byte " + std::to_string(record) + ": record header has no 'op' field");
 }
 
 // Damage anywhere (seeded random byte changes) ends in FormatError or, where the change hits message

@@ -28,6 +28,7 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace cdc::io {
@@ -129,22 +130,15 @@ std::vector<RefPoint> read_reference_pcd(const std::filesystem::path& path) {
 
 uint16_t u16(const uint8_t* p) { return static_cast<uint16_t>(p[0] | (p[1] << 8)); }
 
+// nebula's return type number of each of ours (0: none).
 uint8_t nebula_type(VelodyneReturnType t) {
-  switch (t) {
-    case VelodyneReturnType::kStrongest:
-      return 3;
-    case VelodyneReturnType::kLast:
-      return 1;
-    case VelodyneReturnType::kDualOnly:
-      return 6;
-    case VelodyneReturnType::kDualFirstStrongest:
-      return 9;
-    case VelodyneReturnType::kDualFirstWeak:
-      return 4;
-    case VelodyneReturnType::kDualLastStrongest:
-      return 10;
-    case VelodyneReturnType::kDualLastWeak:
-      return 5;
+  using R = VelodyneReturnType;
+  constexpr std::pair<R, uint8_t> kNumbers[] = {{R::kStrongest, 3},     {R::kLast, 1},
+                                                {R::kDualOnly, 6},      {R::kDualFirstStrongest, 9},
+                                                {R::kDualFirstWeak, 4}, {R::kDualLastStrongest, 10},
+                                                {R::kDualLastWeak, 5}};
+  for (const auto& [type, number] : kNumbers) {
+    if (type == t) return number;
   }
   return 0;
 }

@@ -11,6 +11,7 @@
 #include "cdc/sim/trajectory.hpp"
 #include "cdc/sim/world.hpp"
 #include "sim_scene.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -256,13 +257,9 @@ TEST(Registration, RealSweepPairAgreesWithTheGicpReferences) {
 namespace cdc::odometry {
 namespace {
 
-class CloudFiles : public ::testing::Test {
+class CloudFiles : public cdc::test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = std::filesystem::temp_directory_path() / ("cdc-cloud-files-" + std::to_string(::getpid()));
-    std::filesystem::create_directories(dir_);
-  }
-  void TearDown() override { std::filesystem::remove_all(dir_); }
+  CloudFiles() : TempDirTest("cloud_files") {}
   std::string write(const std::string& name, const std::string& header, const std::vector<float>& values) {
     const std::string path = (dir_ / name).string();
     std::ofstream out(path, std::ios::binary);
@@ -279,7 +276,6 @@ class CloudFiles : public ::testing::Test {
     }
     return "";
   }
-  std::filesystem::path dir_;
 };
 
 TEST_F(CloudFiles, ReadsKittiPcdAndPlyAndNamesWhatIsWrong) {

@@ -42,10 +42,21 @@ struct ImuFeed {
   }
 };
 
-double run_error(Drive& d, bool deskew, int scans) {
+// The default parameters but for one.
+template <typename Field, typename Value>
+FrontendParams params_with(Field FrontendParams::*field, Value value) {
   FrontendParams p;
-  p.deskew = deskew;
-  FrontendCore core(p);
+  p.*field = value;
+  return p;
+}
+
+// Noiseless 200 Hz IMU samples of a drive from 0 to `until` [s], the IMU frame at the body frame.
+std::vector<sim::ImuSample> noiseless_imu(const Drive& d, double until, uint64_t seed) {
+  return sim::simulate_imu(d.traj, Eigen::Isometry3d::Identity(), 0.0, until, 200.0, sim::ImuNoise{}, seed);
+}
+
+double run_error(Drive& d, bool deskew, int scans) {
+  FrontendCore core(params_with(&FrontendParams::deskew, deskew));
   const Eigen::Isometry3d T0 = d.traj.pose(0.2);
   double worst = 0;
   for (int k = 0; k < scans; ++k) {
@@ -128,10 +139,8 @@ TEST(Frontend, ALevelledOdometryTakesACorrectionsTurnAboutTheVerticalOnly) {
   };
   auto run = [](bool hold) {
     Drive d(8.0, 0.3, 20.0);
-    auto imu = sim::simulate_imu(d.traj, Eigen::Isometry3d::Identity(), 0.0, 19.5, 200.0, sim::ImuNoise{}, 5);
-    FrontendParams p;
-    p.correction_holds_tilt = hold;
-    FrontendCore core(p);
+    auto imu = noiseless_imu(d, 19.5, 5);
+    FrontendCore core(params_with(&FrontendParams::correction_holds_tilt, hold));
     ImuFeed feed{d, imu, core};
     Eigen::Isometry3d offset = Eigen::Isometry3d::Identity();  // the back-end: keyframe at offset * raw
     offset.translation() = Eigen::Vector3d(0.5, -0.3, 0.4);
@@ -175,7 +184,7 @@ TEST(Frontend, ALevelledOdometryTakesACorrectionsTurnAboutTheVerticalOnly) {
 TEST(Frontend, TheImuWindowPredictsTheSweepsAndFindsTheGyroBias) {
   Drive d(10.0, 0.5, 14.0);
   const Eigen::Vector3d bg(0.004, -0.003, 0.006), ba(0.05, -0.03, 0.04);
-  auto imu = sim::simulate_imu(d.traj, Eigen::Isometry3d::Identity(), 0.0, 13.0, 200.0, sim::ImuNoise{}, 9);
+  auto imu = noiseless_imu(d, 13.0, 9);
   for (auto& m : imu) {
     m.gyro += bg;
     m.accel += ba;
@@ -229,10 +238,8 @@ TEST(Frontend, LevellingWithGravityHoldsTheTiltOfAMiscalibratedLidar) {
     std::mt19937_64 cal(17);
     std::normal_distribution<double> err(0.0, 0.3);
     for (size_t b = 0; b < d.lidar.elevations_deg.size(); ++b) d.lidar.elevation_error_deg.push_back(err(cal));
-    auto imu = sim::simulate_imu(d.traj, Eigen::Isometry3d::Identity(), 0.0, 39.5, 200.0, sim::ImuNoise{}, 9);
-    FrontendParams p;
-    p.level_with_gravity = level;
-    FrontendCore core(p);
+    auto imu = noiseless_imu(d, 39.5, 9);
+    FrontendCore core(params_with(&FrontendParams::level_with_gravity, level));
     ImuFeed feed{d, imu, core};
     const int from = 80, sweeps = 380;
     Eigen::Isometry3d odom_from = Eigen::Isometry3d::Identity();
@@ -260,10 +267,8 @@ TEST(Frontend, LevellingWithGravityHoldsTheTiltOfAMiscalibratedLidar) {
 
 TEST(Frontend, DeskewingWithTheImusWholeMotionFollowsTheDrive) {
   Drive d(10.0, 0.5, 9.0);
-  auto imu = sim::simulate_imu(d.traj, Eigen::Isometry3d::Identity(), 0.0, 8.5, 200.0, sim::ImuNoise{}, 9);
-  FrontendParams p;
-  p.imu_deskew = true;
-  FrontendCore core(p);
+  auto imu = noiseless_imu(d, 8.5, 9);
+  FrontendCore core(params_with(&FrontendParams::imu_deskew, true));
   ImuFeed feed{d, imu, core};
   for (int k = 0; k < 75; ++k) feed.scan(k);
   std::printf("IMU-deskewed: %llu sweeps predicted, worst position error over 80 m %.3f m\n",

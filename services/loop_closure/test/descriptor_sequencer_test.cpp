@@ -1,4 +1,5 @@
 #include "cdc/loop_closure/descriptor_sequencer.hpp"
+#include "synthetic.hpp"
 
 #include <gtest/gtest.h>
 
@@ -9,12 +10,7 @@ namespace {
 
 using std::chrono::seconds;
 
-DescriptorIn desc(uint32_t robot, uint32_t id) {
-  DescriptorIn d;
-  d.robot = robot;
-  d.id = id;
-  return d;
-}
+using test::desc;
 
 std::vector<uint32_t> ids(const std::vector<DescriptorIn>& v) {
   std::vector<uint32_t> out;

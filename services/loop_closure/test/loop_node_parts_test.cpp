@@ -15,6 +15,7 @@
 #include <fstream>
 #include <iterator>
 #include <string>
+#include <tuple>
 #include <vector>
 
 namespace cdc::loops {
@@ -145,20 +146,12 @@ TEST(LoopNodeStats, NamesTheCountersAsTheStatsFileDoes) {
 }
 
 TEST(LoopMessages, ALoopGoesOutWithItsSenderNumberAndStatus) {
-  LoopOut l;
-  l.robot_a = 0;
-  l.keyframe_a = 12;
-  l.robot_b = 2;
-  l.keyframe_b = 40;
+  LoopOut l{.robot_a = 0, .keyframe_a = 12, .robot_b = 2, .keyframe_b = 40, .fitness = 0.25};
   l.T_a_b.translation() = Eigen::Vector3d(1, 2, 3);
-  l.fitness = 0.25;
   cdc_msg_LoopClosure m = loop_message(l, 0, 3, 17);
-  EXPECT_EQ(m.keyframe_a, 12u);
-  EXPECT_EQ(m.robot_b, 2u);
-  EXPECT_EQ(m.keyframe_b, 40u);
-  EXPECT_EQ(m.sender_robot_id, 0u);
-  EXPECT_EQ(m.sender_incarnation, 3u);
-  EXPECT_EQ(m.loop_seq, 17u);
+  EXPECT_EQ(std::tie(m.keyframe_a, m.robot_b, m.keyframe_b), std::make_tuple(12u, 2u, 40u)) << "the loop's ends";
+  EXPECT_EQ(std::tie(m.sender_robot_id, m.sender_incarnation, m.loop_seq), std::make_tuple(0u, 3u, 17u))
+      << "its sender and number";
   EXPECT_EQ(m.status, cdc_msg_LOOP_ACCEPTED);
   EXPECT_DOUBLE_EQ(m.T_a_b.position.y, 2.0);
   EXPECT_FLOAT_EQ(m.fitness, 0.25f);
@@ -182,11 +175,8 @@ TEST(LoopMessages, ADescriptorOfAnotherShapeIsRefusedNamingBothShapes) {
 }
 
 TEST(LoopMessages, ACloudReplyCarriesThePackedCloudOrWordThatThereIsNone) {
-  cdc_msg_CloudRequest q{};
-  q.requester_robot_id = 1;
-  q.request_id = 9;
-  q.owner_robot_id = 0;
-  q.keyframe_id = 5;
+  // Robot 1's request 9 (incarnation 0) for robot 0's keyframe 5, stamped 0.
+  const cdc_msg_CloudRequest q{1, 9, 0, 0, 5, 0};
   const std::vector<Eigen::Vector3f> cloud{{1.0f, 2.0f, 3.0f}, {-1.0f, 0.5f, 0.0f}};
   dds::compact::PackedCloud packed = dds::compact::pack_points(cloud, 0.02f);
   const cdc_msg_CloudReply rep = cloud_reply(q, 0, 4, true, packed);

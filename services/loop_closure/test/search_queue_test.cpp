@@ -1,4 +1,5 @@
 #include "cdc/loop_closure/search_queue.hpp"
+#include "synthetic.hpp"
 
 #include <gtest/gtest.h>
 
@@ -10,12 +11,7 @@ namespace {
 
 using std::chrono::seconds;
 
-DescriptorIn desc(uint32_t robot, uint32_t id) {
-  DescriptorIn d;
-  d.robot = robot;
-  d.id = id;
-  return d;
-}
+using test::desc;
 
 // "robot/id" of every descriptor popped until the queue is empty.
 std::vector<std::string> drain(SearchQueue& q) {

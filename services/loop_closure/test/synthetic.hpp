@@ -3,6 +3,7 @@
 #pragma once
 
 #include "cdc/lidar/scan_context.hpp"
+#include "cdc/loop_closure/loop_types.hpp"
 
 #include <Eigen/Geometry>
 
@@ -12,6 +13,14 @@
 #include <vector>
 
 namespace cdc::loops::test {
+
+// A descriptor that carries only its robot and keyframe id (for ordering and queueing tests).
+inline DescriptorIn desc(uint32_t robot, uint32_t id) {
+  DescriptorIn d;
+  d.robot = robot;
+  d.id = id;
+  return d;
+}
 
 // Place `place` seen turned by `shift` sectors: every fifth cell or so occupied, at a height drawn
 // from the place number, so that two places are far apart in Scan Context distance.

@@ -19,15 +19,13 @@ OwnKeyframe keyframe_at(uint32_t id, double x) {
 
 LoopRecord loop(uint32_t robot_a, uint32_t keyframe_a, uint32_t robot_b, uint32_t keyframe_b, bool withdrawn = false) {
   static uint32_t seq = 0;
-  LoopRecord l;
-  l.sender = robot_a;
-  l.seq = seq++;
-  l.robot_a = robot_a;
-  l.keyframe_a = keyframe_a;
-  l.robot_b = robot_b;
-  l.keyframe_b = keyframe_b;
-  l.withdrawn = withdrawn;
-  return l;
+  return LoopRecord{.sender = robot_a,
+                    .seq = seq++,
+                    .robot_a = robot_a,
+                    .keyframe_a = keyframe_a,
+                    .robot_b = robot_b,
+                    .keyframe_b = keyframe_b,
+                    .withdrawn = withdrawn};
 }
 
 TEST(LocalGraph, KeepsEachKeyframeAndLoopOnce) {

@@ -2,6 +2,7 @@
 // reads; and Period, the node's clock for what it does periodically.
 #include "../src/mode_files.hpp"
 #include "../src/period.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -22,14 +23,9 @@ std::string read(const fs::path& p) {
   return s.str();
 }
 
-class ModeFilesTest : public ::testing::Test {
+class ModeFilesTest : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    dir_ = fs::temp_directory_path() / ("cdc_mode_files_" + std::to_string(::getpid()));
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
-  fs::path dir_;
+  ModeFilesTest() : TempDirTest("mode_files") {}
 };
 
 TEST_F(ModeFilesTest, TimelineHasOneLinePerTransition) {

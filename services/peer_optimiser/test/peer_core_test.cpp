@@ -260,12 +260,7 @@ TEST(PeerCore, ResendsWhatTheCentralHasNotAcknowledged) {
   for (uint32_t id = 0; id < 10; ++id) {
     core.add_keyframe(kf_from(s.keyframes[2][id]), 0s);
   }
-  LoopRecord own;
-  own.sender = 2;
-  own.sender_incarnation = 3;
-  own.robot_a = 0;
-  own.robot_b = 2;
-  own.keyframe_b = 3;
+  LoopRecord own{.sender = 2, .sender_incarnation = 3, .robot_a = 0, .robot_b = 2, .keyframe_b = 3};
   for (uint32_t seq = 0; seq < 4; ++seq) {
     own.seq = seq;
     own.keyframe_a = seq;

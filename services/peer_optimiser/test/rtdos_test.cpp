@@ -32,6 +32,17 @@ Rtdos centralized_at_3s() {
   return m;
 }
 
+// Leaves CENTRALIZED on `leave`; then none of `quiet` switches, and `back` switches back in range.
+void expect_return(Rtdos& m, const RtdosInput& leave, const std::vector<RtdosInput>& quiet, const RtdosInput& back) {
+  ASSERT_TRUE(m.update(leave));
+  for (const RtdosInput& in : quiet) {
+    EXPECT_FALSE(m.update(in)) << "switched at " << in.now.count() << " ns";
+  }
+  const auto t = m.update(back);
+  ASSERT_TRUE(t);
+  EXPECT_EQ(t->reason, SwitchReason::kBackInRange);
+}
+
 TEST(Rtdos, StartsDistributedAndJoinsAfterTheDwell) {
   Rtdos m(params());
   EXPECT_EQ(m.mode(), Mode::kDistributed);
@@ -75,33 +86,23 @@ TEST(Rtdos, MaskBlocksRangeTriggersRightAfterASwitch) {
 }
 
 TEST(Rtdos, ReturnNeedsHysteresisAndAContinuousDwell) {
+  // Out at 10 s. At 95 m it is below CR_0 but not below CR_0 - hysteresis; at 89 m (31 s) the dwell
+  // starts; leaving the inner zone (91 m at 33.5 s) restarts it from 34 s, and it completes at 37 s.
   Rtdos m = centralized_at_3s();
-  ASSERT_TRUE(m.update(at(10s, true, 120.0)));  // out at 10 s
-  EXPECT_FALSE(m.update(at(20s, true, 95.0)));  // below CR_0 but not below CR_0 - hysteresis
-  EXPECT_FALSE(m.update(at(30s, true, 95.0)));
-  EXPECT_FALSE(m.update(at(31s, true, 89.0)));  // dwell starts
-  EXPECT_FALSE(m.update(at(33s, true, 89.0)));
-  EXPECT_FALSE(m.update(at(33500ms, true, 91.0)));  // left the inner zone: dwell restarts
-  EXPECT_FALSE(m.update(at(34s, true, 80.0)));
-  EXPECT_FALSE(m.update(at(36900ms, true, 80.0)));
-  const auto t = m.update(at(37s, true, 80.0));
-  ASSERT_TRUE(t);
-  EXPECT_EQ(t->reason, SwitchReason::kBackInRange);
+  expect_return(m, at(10s, true, 120.0),
+                {at(20s, true, 95.0), at(30s, true, 95.0), at(31s, true, 89.0), at(33s, true, 89.0),
+                 at(33500ms, true, 91.0), at(34s, true, 80.0), at(36900ms, true, 80.0)},
+                at(37s, true, 80.0));
 }
 
 TEST(Rtdos, ReturnNeedsALiveCentral) {
+  // Lost at 4 s. In range but with no central until 21 s, when the dwell starts; losing the central
+  // during the dwell (23.5 s) restarts it, and it completes 3 s after the central is back.
   Rtdos m = centralized_at_3s();
-  ASSERT_TRUE(m.update(at(4s, false, 50.0)));  // lost
-  EXPECT_FALSE(m.update(at(10s, false, 50.0)));
-  EXPECT_FALSE(m.update(at(20s, false, 50.0)));  // in range but no central
-  EXPECT_FALSE(m.update(at(21s, true, 50.0)));   // alive again: dwell starts
-  EXPECT_FALSE(m.update(at(23s, true, 50.0)));
-  EXPECT_FALSE(m.update(at(23500ms, false, 50.0)));  // lost during the dwell: restart
-  EXPECT_FALSE(m.update(at(24s, true, 50.0)));
-  EXPECT_FALSE(m.update(at(26s, true, 50.0)));
-  const auto t = m.update(at(27s, true, 50.0));
-  ASSERT_TRUE(t);
-  EXPECT_EQ(t->reason, SwitchReason::kBackInRange);
+  expect_return(m, at(4s, false, 50.0),
+                {at(10s, false, 50.0), at(20s, false, 50.0), at(21s, true, 50.0), at(23s, true, 50.0),
+                 at(23500ms, false, 50.0), at(24s, true, 50.0), at(26s, true, 50.0)},
+                at(27s, true, 50.0));
 }
 
 TEST(Rtdos, NoFlappingOnADistanceOscillatingAroundCr0) {

@@ -33,10 +33,21 @@ LidarModel exact(LidarModel m) {
   return m;
 }
 
-TEST(World, RayAgainstTheGroundPlaneGivesTheAnalyticRange) {
+// A world of flat ground at height z0 [m] and nothing else.
+World flat_ground(double z0) {
   Ground g;
-  g.z0 = -2.0;
-  const World w(g, {}, {});
+  g.z0 = z0;
+  return World(g, {}, {});
+}
+
+// A sweep of a sensor standing still at the origin.
+std::vector<LidarReturn> sweep_at_origin(const World& w, const LidarModel& m, std::mt19937_64& rng) {
+  return sweep(
+      w, m, [](double) { return at(0, 0, 0); }, rng);
+}
+
+TEST(World, RayAgainstTheGroundPlaneGivesTheAnalyticRange) {
+  const World w = flat_ground(-2.0);
   const Eigen::Vector3d d = Eigen::Vector3d(std::cos(0.3), 0, -std::sin(0.3));
   const auto hit = w.cast(Eigen::Vector3d::Zero(), d, 100);
   ASSERT_TRUE(hit);
@@ -116,15 +127,12 @@ TEST(Lidar, RangeNoiseAndDropoutsHaveTheConfiguredSize) {
 TEST(Lidar, ElevationCalibrationErrorPutsPointsAlongTheNominalBeam) {
   // Flat ground 2 m below the sensor. Beam 0 of the VLP-16 (nominal -15 deg) really fires at
   // -15.5 deg: it meets the ground at 2 / sin(15.5 deg), and that range is reported along -15 deg.
-  Ground g;
-  g.z0 = -2.0;
-  const World w(g, {}, {});
+  const World w = flat_ground(-2.0);
   LidarModel m = exact(LidarModel::vlp16());
   m.elevation_error_deg.assign(m.elevations_deg.size(), 0.0);
   m.elevation_error_deg[0] = -0.5;
   std::mt19937_64 rng(1);
-  const auto pts = sweep(
-      w, m, [](double) { return at(0, 0, 0); }, rng);
+  const auto pts = sweep_at_origin(w, m, rng);
   const double range = 2.0 / std::sin(15.5 * M_PI / 180), z = -range * std::sin(15.0 * M_PI / 180);
   int n0 = 0, n1 = 0;
   for (const auto& p : pts) {
@@ -140,9 +148,7 @@ TEST(Lidar, ElevationCalibrationErrorPutsPointsAlongTheNominalBeam) {
   EXPECT_EQ(n0, m.columns);
   EXPECT_EQ(n1, m.columns);
   m.elevation_error_deg.resize(3);
-  EXPECT_THROW(sweep(
-                   w, m, [](double) { return at(0, 0, 0); }, rng),
-               std::invalid_argument);
+  EXPECT_THROW(sweep_at_origin(w, m, rng), std::invalid_argument);
 }
 
 TEST(Lidar, AzimuthCalibrationErrorTurnsTheBeamButNotItsReportedDirection) {
@@ -156,8 +162,7 @@ TEST(Lidar, AzimuthCalibrationErrorTurnsTheBeamButNotItsReportedDirection) {
   m.azimuth_error_deg.assign(m.elevations_deg.size(), 0.0);
   m.azimuth_error_deg[8] = 0.5;
   std::mt19937_64 rng(1);
-  const auto pts = sweep(
-      w, m, [](double) { return at(0, 0, 0); }, rng);
+  const auto pts = sweep_at_origin(w, m, rng);
   const double d = 0.5 * M_PI / 180;
   int n8 = 0, n9 = 0;
   double max_bend = 0;
@@ -178,22 +183,17 @@ TEST(Lidar, AzimuthCalibrationErrorTurnsTheBeamButNotItsReportedDirection) {
   EXPECT_GT(n9, 500);
   EXPECT_GT(max_bend, 0.1);  // near az = 0.3 rad the point sits about 0.14 m off the wall
   m.azimuth_error_deg.resize(3);
-  EXPECT_THROW(sweep(
-                   w, m, [](double) { return at(0, 0, 0); }, rng),
-               std::invalid_argument);
+  EXPECT_THROW(sweep_at_origin(w, m, rng), std::invalid_argument);
 }
 
 TEST(Lidar, RangeOffsetLengthensEveryReturnOfItsBeam) {
   // Flat ground 2 m below: ring 0 (-15 deg) reports 5 cm too far, ring 1 is exact.
-  Ground g;
-  g.z0 = -2.0;
-  const World w(g, {}, {});
+  const World w = flat_ground(-2.0);
   LidarModel m = exact(LidarModel::vlp16());
   m.range_offset_m.assign(m.elevations_deg.size(), 0.0);
   m.range_offset_m[0] = 0.05;
   std::mt19937_64 rng(1);
-  const auto pts = sweep(
-      w, m, [](double) { return at(0, 0, 0); }, rng);
+  const auto pts = sweep_at_origin(w, m, rng);
   const double r0 = 2.0 / std::sin(15.0 * M_PI / 180) + 0.05, r1 = 2.0 / std::sin(13.0 * M_PI / 180);
   int n0 = 0, n1 = 0;
   for (const auto& p : pts) {
@@ -209,9 +209,7 @@ TEST(Lidar, RangeOffsetLengthensEveryReturnOfItsBeam) {
   EXPECT_EQ(n0, m.columns);
   EXPECT_EQ(n1, m.columns);
   m.range_offset_m.resize(17);
-  EXPECT_THROW(sweep(
-                   w, m, [](double) { return at(0, 0, 0); }, rng),
-               std::invalid_argument);
+  EXPECT_THROW(sweep_at_origin(w, m, rng), std::invalid_argument);
 }
 
 TEST(Lidar, AMovingSensorsSweepIsDistortedByExactlyTheMotion) {

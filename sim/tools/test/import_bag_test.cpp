@@ -6,6 +6,7 @@
 #include "cdc/io/bag.hpp"
 #include "cdc/io/cloud.hpp"
 #include "cdc/io/dataset.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -20,18 +21,12 @@ namespace cdc::sim {
 namespace {
 namespace fs = std::filesystem;
 
-std::string bytes_of(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+using test::read_file;
 
 class ImportBag : public ::testing::Test {
  protected:
   void SetUp() override {
-    root_ = fs::temp_directory_path() / ("cdc_import_bag_" + std::to_string(::getpid()) + "_" +
-                                         ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(root_);
-    fs::create_directories(root_);
+    root_ = test::fresh_test_dir("import_bag");
     // A robot with 4 sweeps (per-point times and rings) and 200 Hz IMU, starting at 12.3 s.
     io::DatasetWriter w(root_ / "source");
     std::mt19937 rng(5);
@@ -85,8 +80,8 @@ class ImportBag : public ::testing::Test {
       EXPECT_EQ(tb[k] + shift, ta[k]) << "sweep " << k;
       char name[32];
       std::snprintf(name, sizeof name, "%06zu.bin", k);
-      EXPECT_EQ(bytes_of(b / "velodyne" / name), bytes_of(a / "velodyne" / name)) << "sweep " << k;
-      EXPECT_EQ(bytes_of(b / "velodyne_meta" / name), bytes_of(a / "velodyne_meta" / name)) << "sweep " << k;
+      EXPECT_EQ(read_file(b / "velodyne" / name), read_file(a / "velodyne" / name)) << "sweep " << k;
+      EXPECT_EQ(read_file(b / "velodyne_meta" / name), read_file(a / "velodyne_meta" / name)) << "sweep " << k;
     }
     const auto ia = io::read_dataset_imu(a / "imu.csv");
     const auto ib = io::read_dataset_imu(b / "imu.csv");
@@ -108,7 +103,7 @@ TEST_F(ImportBag, McapRoundTripsSweepsTimesAndImu) { expect_round_trip(write_bag
 
 TEST_F(ImportBag, ATruncatedBagIsRefusedNamingTheFileAndNothingIsWritten) {
   const fs::path bag = write_bag("ros1");
-  const std::string bytes = bytes_of(bag);
+  const std::string bytes = read_file(bag);
   const fs::path cut = root_ / "cut.bag";
   std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() * 2 / 3);
   try {
@@ -141,8 +136,8 @@ TEST_F(ImportBag, ACloudWithAWrongFieldLayoutIsSkippedCountedAndNamed) {
   const std::vector<int64_t> tb = geometry::read_times((o.out / "robot_0" / "times.txt").string());
   ASSERT_EQ(tb.size(), 3u);
   EXPECT_EQ(tb[2] - tb[1], ta[3] - ta[1]);
-  EXPECT_EQ(bytes_of(o.out / "robot_0" / "velodyne" / "000002.bin"),
-            bytes_of(root_ / "source" / "robot_0" / "velodyne" / "000003.bin"));
+  EXPECT_EQ(read_file(o.out / "robot_0" / "velodyne" / "000002.bin"),
+            read_file(root_ / "source" / "robot_0" / "velodyne" / "000003.bin"));
 }
 
 TEST_F(ImportBag, ATopicOfAnotherTypeIsRefusedByName) {

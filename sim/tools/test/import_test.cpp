@@ -2,6 +2,7 @@
 
 #include "cdc/io/cloud.hpp"
 #include "cdc/io/dataset.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -15,17 +16,9 @@ namespace cdc::sim {
 namespace {
 namespace fs = std::filesystem;
 
-fs::path temp_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("cdc_import_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
-}
+using test::read_file;
 
-std::string bytes_of(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+fs::path temp_dir(const std::string& name) { return test::fresh_temp_dir("import_" + name); }
 
 // A KITTI-style sequence: n sweeps of random points, times 0.5 s apart from 100 s, LiDAR poses on a
 // straight line out to 2 m per sweep.
@@ -84,7 +77,8 @@ TEST(Import, KittiSplitIntoRobotsKeepsEverySweepItsPoseAndMakesTheRadioFromThePo
       std::snprintf(name, sizeof name, "%06zu.bin", i - range.first);
       char src[32];
       std::snprintf(src, sizeof src, "%06zu.bin", i);
-      EXPECT_EQ(bytes_of(o.out / ("robot_" + std::to_string(r)) / "velodyne" / name), bytes_of(seq / "velodyne" / src));
+      EXPECT_EQ(read_file(o.out / ("robot_" + std::to_string(r)) / "velodyne" / name),
+                read_file(seq / "velodyne" / src));
       const auto& sp = gt[r][i - range.first];
       EXPECT_EQ(sp.stamp_ns,
                 static_cast<int64_t>(r) * 1'000'000'000 + static_cast<int64_t>(i - range.first) * 500'000'000);

@@ -1,5 +1,6 @@
 #include "scenario.hpp"
 #include "cdc/config/reader.hpp"
+#include "temp_dir.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -25,24 +26,15 @@ std::string data_dir() {
 
 std::string scenarios() { return std::getenv("CDC_SCENARIOS_DIR"); }
 
-std::string read_all(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+using test::read_file;
 
-class ScenarioFiles : public ::testing::Test {
+class ScenarioFiles : public test::TempDirTest {
  protected:
-  void SetUp() override {
-    ASSERT_NE(std::getenv("CDC_SCENARIOS_DIR"), nullptr);
-    dir_ = fs::temp_directory_path() / ("cdc_scenario_" + std::to_string(::getpid()));
-    fs::create_directories(dir_);
-  }
-  void TearDown() override { fs::remove_all(dir_); }
+  ScenarioFiles() : TempDirTest("scenario", "CDC_SCENARIOS_DIR") {}
   std::string write(const std::string& name, const std::string& text) {
     std::ofstream(dir_ / name) << text;
     return (dir_ / name).string();
   }
-  fs::path dir_;
 };
 
 TEST_F(ScenarioFiles, SameScenarioAndSeedGiveByteIdenticalDatasets) {
@@ -62,7 +54,7 @@ TEST_F(ScenarioFiles, SameScenarioAndSeedGiveByteIdenticalDatasets) {
     if (!e.is_regular_file()) continue;
     const fs::path rel = fs::relative(e.path(), dir_ / "a");
     ASSERT_TRUE(fs::exists(dir_ / "b" / rel)) << rel;
-    ASSERT_EQ(read_all(e.path()), read_all(dir_ / "b" / rel)) << rel << " differs";
+    ASSERT_EQ(read_file(e.path()), read_file(dir_ / "b" / rel)) << rel << " differs";
     ++files;
   }
   EXPECT_EQ(files, 2u * (3 + 3 + 4) +
@@ -90,9 +82,9 @@ TEST_F(ScenarioFiles, SameScenarioAndSeedGiveByteIdenticalDatasets) {
     EXPECT_GT(n, 50);
   }
   // A different seed gives a different world and different scans.
-  const std::string sc2 = write("small2.yaml", read_all(sc).replace(read_all(sc).find("seed: 3"), 7, "seed: 4"));
+  const std::string sc2 = write("small2.yaml", read_file(sc).replace(read_file(sc).find("seed: 3"), 7, "seed: 4"));
   generate_dataset(load_scenario(sc2), sc2, (dir_ / "c").string(), g);
-  EXPECT_NE(read_all(dir_ / "a/robot_0/velodyne/000000.bin"), read_all(dir_ / "c/robot_0/velodyne/000000.bin"));
+  EXPECT_NE(read_file(dir_ / "a/robot_0/velodyne/000000.bin"), read_file(dir_ / "c/robot_0/velodyne/000000.bin"));
 }
 
 TEST_F(ScenarioFiles, TheLidarsCalibrationErrorIsAPerBeamSpreadPlusACommonBias) {
