@@ -4,6 +4,8 @@
 // behind.
 #include "cdc/dds/topics.hpp"
 #include "child_process.hpp"
+#include "launch_support.hpp"
+#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -29,59 +31,13 @@ using nlohmann::json;
 
 namespace {
 
-std::string env(const char* name) {
-  const char* v = std::getenv(name);
-  return v ? v : "";
-}
-
-std::string read_file(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-std::set<std::string> netns_list() {
-  std::set<std::string> out;
-  FILE* f = popen("ip netns list 2>/dev/null", "r");
-  if (!f) return out;
-  char line[512];
-  while (fgets(line, sizeof line, f)) {
-    std::string s(line);
-    s = s.substr(0, s.find_first_of(" \n"));
-    if (!s.empty()) out.insert(s);
-  }
-  pclose(f);
-  return out;
-}
-
-bool can_use_netns() {
-  if (geteuid() != 0) return false;
-  const std::string probe = "cdc-e2e-probe-" + std::to_string(getpid());
-  if (std::system(("ip netns add " + probe + " 2>/dev/null").c_str()) != 0) return false;
-  return std::system(("ip netns delete " + probe).c_str()) == 0;
-}
+std::string env(const char* name) { return cdc::test::env_or_empty(name); }
+using cdc::test::can_use_netns;
+using cdc::test::read_file;
 
 // Every process the launcher recorded has ended, and every namespace it made is gone.
 void expect_nothing_left(const fs::path& run) {
-  std::istringstream procs(read_file(run / "processes.txt"));
-  std::string name;
-  pid_t pid = 0;
-  size_t n = 0;
-  while (procs >> name >> pid) {
-    ++n;
-    EXPECT_NE(kill(pid, 0), 0) << name << " (pid " << pid << ") still runs";
-  }
-  const std::set<std::string> now = netns_list();
-  std::istringstream nss(read_file(run / "namespaces.txt"));
-  std::string ns;
-  size_t m = 0;
-  while (nss >> ns) {
-    ++m;
-    EXPECT_EQ(now.count(ns), 0u) << "namespace " << ns << " left behind";
-  }
-  EXPECT_GT(m, 0u) << "the launcher recorded no namespaces";
-  (void)n;
+  for (const std::string& left : cdc::test::launch_leftovers(run)) ADD_FAILURE() << left;
 }
 
 // Every robot's real-time odometry and final keyframes within the target for the switching

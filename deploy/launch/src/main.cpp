@@ -135,6 +135,7 @@ class Launcher {
   double wall_s() const { return std::chrono::duration<double>(Clock::now() - t0_).count(); }
   void apply_radio(double t_s);
   void apply_loopback_radio(double t_s);
+  void apply_faults(const std::vector<uint32_t>& nodes, double t_s);
   void sample_traffic(double t_s);
   std::map<uint32_t, std::string> charge_keyframes();  // robot -> the mode its bytes are charged to
   void charge_bytes(const std::map<std::pair<uint32_t, uint32_t>, LinkBytes>& counters,
@@ -170,6 +171,7 @@ class Launcher {
   bool rendezvous_ = false;   // the mission is over: every link is up
   bool radio_armed_ = false;  // loopback: services are up (their signal handlers installed)
   std::optional<Rendezvous> rendezvous_watch_;
+  std::optional<FaultSchedule> faults_;
   std::optional<Clock::time_point> settle_until_;  // the run ends then
 };
 
@@ -290,6 +292,25 @@ void Launcher::apply_radio(double t_s) {
         net_->set_link(a, b, up);
         info_.links.push_back({std::chrono::duration<double>(Clock::now() - t0_).count(), t_s, a, b, up});
       }
+    }
+  }
+  apply_faults(nodes, t_s);
+}
+
+// The swarm file's radio faults at sim time t_s (none once the mission is over: the rendezvous).
+void Launcher::apply_faults(const std::vector<uint32_t>& nodes, double t_s) {
+  if (c_.radio_faults.empty()) return;
+  if (!faults_) faults_.emplace(c_.radio_faults, nodes);
+  const std::map<DirectedPair, double> drops =
+      rendezvous_ ? std::map<DirectedPair, double>{} : faults_->drops(t_s, wall_s());
+  for (uint32_t src : nodes) {
+    for (uint32_t dst : nodes) {
+      if (src == dst) continue;
+      const auto it = drops.find({src, dst});
+      const double p = it == drops.end() ? 0.0 : it->second;
+      const double before = net_->drop(src, dst);
+      net_->set_drop(src, dst, p);
+      if (net_->drop(src, dst) != before) info_.faults.push_back({wall_s(), t_s, src, dst, net_->drop(src, dst)});
     }
   }
 }
@@ -445,7 +466,7 @@ void Launcher::read_dataset() {
   }
   if (robots_.empty()) throw std::runtime_error(c_.dataset + ": no robot_K folders");
   const fs::path periods_path = dataset / "radio_periods.csv";
-  if (fs::exists(periods_path)) periods_ = read_radio_periods(periods_path.string());
+  if (c_.range_periods && fs::exists(periods_path)) periods_ = read_radio_periods(periods_path.string());
   for (uint32_t r : robots_) {
     std::ifstream in(dataset / ("robot_" + std::to_string(r)) / "times.txt");
     double t = 0, last = 0;
@@ -480,6 +501,10 @@ void Launcher::choose_network() {
   if (!netns_ && c_.variant != Variant::kSwitching) {
     throw std::runtime_error("variant " + std::string(to_string(c_.variant)) +
                              " needs the netns network mode (loopback cannot cut links between robots)");
+  }
+  if (!netns_ && !c_.radio_faults.empty()) {
+    throw std::runtime_error("radio_faults need the netns network mode (loopback cannot drop single datagrams)" +
+                             (netns_unavailable_.empty() ? std::string() : ": " + netns_unavailable_));
   }
   info_.network = netns_ ? "netns" : "loopback";
   info_.traffic_measured = netns_;
@@ -681,6 +706,7 @@ int Launcher::finish(const std::string& failure) {
     std::cout << "cdc-launch: stopping the swarm" << std::endl;
   stop_all();
   if (net_) {
+    if (!c_.radio_faults.empty()) info_.fault_dropped_datagrams = net_->fault_dropped();
     net_->teardown();
     net_.reset();
   }

@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -115,12 +116,15 @@ void NetnsNetwork::write_dds_config(uint32_t node, const std::string& config_dir
   configs_[node] = path;
 }
 
-// A robot's chains: the radio's (drops, filled by set_link) before the accounting's (what really
-// passed), with one counting rule per peer, direction and kind of traffic.
+// A robot's chains: the faults' (set_drop) and the radio's (drops, filled by set_link) before the accounting's (what
+// really passed), with one counting rule per peer, direction and kind of traffic.
 void NetnsNetwork::add_robot_rules(uint32_t node) {
-  for (const char* chain : {"CDC_RADIO_IN", "CDC_RADIO_OUT", "CDC_ACCT_IN", "CDC_ACCT_OUT"}) {
+  for (const char* chain :
+       {"CDC_FAULT_IN", "CDC_FAULT_OUT", "CDC_RADIO_IN", "CDC_RADIO_OUT", "CDC_ACCT_IN", "CDC_ACCT_OUT"}) {
     ns_cmd(node, {"iptables", "-w", "-N", chain});
   }
+  ns_cmd(node, {"iptables", "-w", "-A", "INPUT", "-j", "CDC_FAULT_IN"});
+  ns_cmd(node, {"iptables", "-w", "-A", "OUTPUT", "-j", "CDC_FAULT_OUT"});
   ns_cmd(node, {"iptables", "-w", "-A", "INPUT", "-j", "CDC_RADIO_IN"});
   ns_cmd(node, {"iptables", "-w", "-A", "INPUT", "-j", "CDC_ACCT_IN"});
   ns_cmd(node, {"iptables", "-w", "-A", "OUTPUT", "-j", "CDC_RADIO_OUT"});
@@ -173,6 +177,80 @@ void NetnsNetwork::set_link(uint32_t a, uint32_t b, bool up) {
                 "DROP"});
   }
   down_[{std::min(a, b), std::max(a, b)}] = !up;
+}
+
+// One rule per directed pair, in the receiver's input chain when it is a robot, else in the
+// sender's output chain (the central's namespace holds no rules).
+void NetnsNetwork::drop_rule(uint32_t src, uint32_t dst, const std::string& probability, const char* op) const {
+  const bool in = is_robot(dst);
+  std::vector<std::string> argv{"iptables",
+                                "-w",
+                                op,
+                                in ? "CDC_FAULT_IN" : "CDC_FAULT_OUT",
+                                in ? "-s" : "-d",
+                                address(in ? src : dst),
+                                "-p",
+                                "udp",
+                                "--dport",
+                                port_range_};
+  if (probability != "1") {
+    for (const char* a : {"-m", "statistic", "--mode", "random", "--probability"}) argv.emplace_back(a);
+    argv.push_back(probability);
+  }
+  for (const char* a : {"-j", "DROP"}) argv.emplace_back(a);
+  ns_cmd(in ? dst : src, argv);
+}
+
+void NetnsNetwork::set_drop(uint32_t src, uint32_t dst, double p) {
+  if (!netns_.count(src) || !netns_.count(dst) || (!is_robot(src) && !is_robot(dst))) return;
+  char text[32];
+  std::snprintf(text, sizeof text, "%.4f", std::clamp(p, 0.0, 1.0));
+  std::string probability = p >= 1.0 ? "1" : p <= 0.0 ? "" : text;
+  auto it = drops_.find({src, dst});
+  const std::string current = it == drops_.end() ? "" : it->second;
+  if (current == probability) return;
+  if (!current.empty()) {
+    const uint32_t holder = is_robot(dst) ? dst : src;
+    const uint64_t before = fault_chain_drops(holder);
+    drop_rule(src, dst, current, "-D");
+    removed_rule_drops_ += before - std::min(before, fault_chain_drops(holder));
+  }
+  if (!probability.empty()) drop_rule(src, dst, probability, "-A");
+  if (probability.empty()) {
+    drops_.erase({src, dst});
+  } else {
+    drops_[{src, dst}] = probability;
+  }
+}
+
+// Packets dropped by the fault rules now in the node's two fault chains.
+uint64_t NetnsNetwork::fault_chain_drops(uint32_t node) const {
+  uint64_t sum = 0;
+  for (const char* chain : {"CDC_FAULT_IN", "CDC_FAULT_OUT"}) {
+    const CommandResult r =
+        run_command({"ip", "netns", "exec", netns_.at(node), "iptables", "-w", "-n", "-v", "-x", "-L", chain});
+    std::istringstream in(r.status == 0 ? r.output : "");
+    std::string line;
+    while (std::getline(in, line)) {
+      std::istringstream f(line);
+      std::string pkts, bytes, target;
+      if (f >> pkts >> bytes >> target && target == "DROP") sum += std::stoull(pkts);
+    }
+  }
+  return sum;
+}
+
+uint64_t NetnsNetwork::fault_dropped() const {
+  uint64_t sum = removed_rule_drops_;
+  for (uint32_t node : nodes_) {
+    if (is_robot(node)) sum += fault_chain_drops(node);
+  }
+  return sum;
+}
+
+double NetnsNetwork::drop(uint32_t src, uint32_t dst) const {
+  auto it = drops_.find({src, dst});
+  return it == drops_.end() ? 0.0 : std::stod(it->second);
 }
 
 std::map<std::pair<uint32_t, uint32_t>, LinkBytes> NetnsNetwork::counters() const {

@@ -4,7 +4,8 @@
 // joined by veth pairs to a bridge in a hub namespace, addresses in 198.18.0.0/24. A link between
 // two nodes goes out of range by iptables DROP rules in the robot's namespace on the SLAM domain's
 // UDP ports (Cyclone maps domain d to ports 7400 + 250 d ... + 249), so DDS traffic, discovery and
-// liveliness really stop while the simulator's domain (sensors, lock-step) stays up. Accounting
+// liveliness really stop while the simulator's domain (sensors, lock-step) stays up. Radio faults
+// (random loss, one-way cuts) are rules of the same kind in a chain of their own. Accounting
 // rules count the SLAM bytes each robot sends to and receives from every other node.
 // Every namespace (and with it every link and rule) is deleted by teardown() or the destructor.
 #pragma once
@@ -47,6 +48,12 @@ class NetnsNetwork {
   // Cuts (up = false) or restores the SLAM traffic between two nodes (at least one a robot).
   void set_link(uint32_t a, uint32_t b, bool up);
   bool link_up(uint32_t a, uint32_t b) const;
+  // Drops SLAM datagrams from src to dst with probability p (0: the fault rule is removed, 1: all),
+  // in a fault chain of their own, applied before the range cuts and the accounting.
+  void set_drop(uint32_t src, uint32_t dst, double p);
+  double drop(uint32_t src, uint32_t dst) const;
+  // SLAM datagrams the fault rules have dropped so far (rules removed since included).
+  uint64_t fault_dropped() const;
   // Per robot and peer node: bytes counted so far.
   std::map<std::pair<uint32_t, uint32_t>, LinkBytes> counters() const;
   void teardown();
@@ -57,6 +64,8 @@ class NetnsNetwork {
   void create_namespaces();
   void write_dds_config(uint32_t node, const std::string& config_dir);
   void add_robot_rules(uint32_t node);
+  void drop_rule(uint32_t src, uint32_t dst, const std::string& probability, const char* op) const;
+  uint64_t fault_chain_drops(uint32_t node) const;
   std::string tag_;
   std::vector<uint32_t> nodes_;
   std::string hub_;
@@ -64,6 +73,8 @@ class NetnsNetwork {
   std::map<uint32_t, std::string> configs_;
   std::string port_range_;
   std::map<std::pair<uint32_t, uint32_t>, bool> down_;
+  std::map<std::pair<uint32_t, uint32_t>, std::string> drops_;  // (src, dst) -> probability in its rule
+  uint64_t removed_rule_drops_ = 0;                             // what rules deleted by set_drop had dropped
   bool torn_down_ = false;
 };
 

@@ -39,6 +39,9 @@ json run_json(const RunInfo& info) {
                        {"loop_closure_busy", info.loop_closure_busy}};
     if (info.caught_up_s) j["rendezvous"]["loop_closure_caught_up_s"] = *info.caught_up_s;
   }
+  if (!info.faults.empty()) {
+    j["radio_faults"] = {{"changes", info.faults.size()}, {"dropped_datagrams", info.fault_dropped_datagrams}};
+  }
   return j;
 }
 
@@ -72,6 +75,17 @@ void write_link_log(const fs::path& path, const std::vector<LinkEvent>& links) {
   out << "wall_s,sim_s,a,b,state\n";
   for (const LinkEvent& e : links) {
     out << fixed(e.wall_s, 3) << ',' << fixed(e.sim_s, 3) << ',' << e.a << ',' << e.b << ',' << (e.up ? "up" : "down")
+        << '\n';
+  }
+}
+
+// faults.csv: every change of a radio fault's drop probability on a directed pair (when any).
+void write_fault_log(const fs::path& path, const std::vector<FaultEvent>& faults) {
+  if (faults.empty()) return;
+  std::ofstream out(path);
+  out << "wall_s,sim_s,src,dst,drop\n";
+  for (const FaultEvent& e : faults) {
+    out << fixed(e.wall_s, 3) << ',' << fixed(e.sim_s, 3) << ',' << e.src << ',' << e.dst << ',' << fixed(e.drop, 4)
         << '\n';
   }
 }
@@ -139,6 +153,7 @@ json write_report(const RunInfo& info) {
   const json topics = topic_traffic(run, info.robots);
   write_mode_log(run / "modes.csv", robots);
   write_link_log(run / "links.csv", info.links);
+  write_fault_log(run / "faults.csv", info.faults);
   write_plots(info, robots);
   const json j = report_json(info, robots, traffic, topics, options);
   std::ofstream(run / "report.md") << render_markdown(info, robots, traffic, topics);

@@ -21,6 +21,13 @@ struct LinkEvent {
   bool up = true;
 };
 
+// A change of the drop probability of SLAM datagrams from src to dst (radio faults).
+struct FaultEvent {
+  double wall_s = 0, sim_s = 0;
+  uint32_t src = 0, dst = 0;
+  double drop = 0;
+};
+
 // Bytes and keyframes attributed to the mode the robot was in when they were counted.
 struct ModeTraffic {
   std::map<std::string, std::map<uint32_t, LinkBytes>> bytes;  // mode -> peer node -> bytes
@@ -39,6 +46,8 @@ struct RunInfo {
   bool interrupted = false;
   bool traffic_measured = false;  // per-link counters exist only in netns mode
   std::vector<LinkEvent> links;
+  std::vector<FaultEvent> faults;           // radio faults applied (netns)
+  uint64_t fault_dropped_datagrams = 0;     // SLAM datagrams the faults dropped
   std::map<uint32_t, ModeTraffic> traffic;  // per robot
   std::vector<std::string> notes;           // shown in the report (e.g. limits of the network mode)
   std::optional<double> rendezvous_s;       // how long the final rendezvous waited for the rejoins

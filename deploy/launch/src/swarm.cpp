@@ -74,6 +74,18 @@ void read_behaviour(config::Reader& r, SwarmConfig& c) {
       "rendezvous_s", c.rendezvous_s, [](const double& v) { return v >= 0; }, ">= 0");
 }
 
+// The emulated radio: the dataset's range periods (or none) and the faults laid over them.
+void read_radio(config::Reader& r, SwarmConfig& c) {
+  r.get<bool>("range_periods", c.range_periods);
+  YAML::Node faults;
+  r.get<YAML::Node>("radio_faults", faults);
+  std::vector<std::string> errors;
+  c.radio_faults = parse_radio_faults(faults, errors);
+  for (const std::string& e : errors) r.error(e);
+  if (!c.radio_faults.empty() && c.network == NetworkMode::kLoopback)
+    r.error("radio_faults need the netns network mode (loopback cannot drop single datagrams)");
+}
+
 void read_domains(config::Reader& r, SwarmConfig& c) {
   int slam = static_cast<int>(c.slam_domain), sim = static_cast<int>(c.sim_domain);
   int local_base = static_cast<int>(c.local_domain_base);
@@ -112,6 +124,7 @@ SwarmConfig load_swarm(const std::string& path, const std::string& root) {
   read_run(r, c);
   read_domains(r, c);
   read_behaviour(r, c);
+  read_radio(r, c);
   r.get<std::string>("configs.frontend", c.frontend_config);
   r.get<std::string>("configs.descriptor", c.descriptor_config);
   r.get<std::string>("configs.loop_closure", c.loop_closure_config);

@@ -2,8 +2,11 @@
 // configurations) and which variant of the system it runs.
 #pragma once
 
+#include "radio_faults.hpp"
+
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace cdc::launch {
 
@@ -43,6 +46,8 @@ struct SwarmConfig {
   std::string central_config = "services/central_optimiser/config/central_optimiser.yaml";
   std::string map_config = "services/map/config/map.yaml";
   bool map = true;
+  bool range_periods = true;             // false: every pair stays in range; only radio_faults cut links
+  std::vector<RadioFault> radio_faults;  // netns only: loss, one-way cuts, flapping, partitions
 };
 
 // Reads a swarm file; relative paths inside it are resolved against `root` (the project root).

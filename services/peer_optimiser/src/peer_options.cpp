@@ -23,11 +23,16 @@ PeerNodeOptions load_options(const std::string& path) {
     return static_cast<int>(std::chrono::duration_cast<std::chrono::milliseconds>(d).count());
   };
   int dwell = ms(o.core.rtdos.dwell), mask = ms(o.core.rtdos.mask), round = ms(o.core.round_period);
+  int flap_window = ms(o.core.rtdos.flap_window), max_dwell_factor = static_cast<int>(o.core.rtdos.max_dwell_factor);
   int grace = ms(o.core.resend_grace), resend = ms(o.core.resend_period), refresh = ms(o.core.separator_refresh);
   r.get<int>(
       "dwell_ms", dwell, [](const int& v) { return v >= 0; }, ">= 0");
   r.get<int>(
       "mask_ms", mask, [](const int& v) { return v >= 0; }, ">= 0");
+  r.get<int>(
+      "flap_window_ms", flap_window, [](const int& v) { return v >= 0; }, ">= 0");
+  r.get<int>(
+      "max_dwell_factor", max_dwell_factor, [](const int& v) { return v >= 1 && v <= 64; }, "1..64");
   r.get<int>("round_period_ms", round, positive_i, "> 0");
   r.get<int>(
       "resend_grace_ms", grace, [](const int& v) { return v >= 0; }, ">= 0");
@@ -35,6 +40,8 @@ PeerNodeOptions load_options(const std::string& path) {
   r.get<int>("separator_refresh_ms", refresh, positive_i, "> 0");
   o.core.rtdos.dwell = std::chrono::milliseconds(dwell);
   o.core.rtdos.mask = std::chrono::milliseconds(mask);
+  o.core.rtdos.flap_window = std::chrono::milliseconds(flap_window);
+  o.core.rtdos.max_dwell_factor = static_cast<uint32_t>(max_dwell_factor);
   o.core.round_period = std::chrono::milliseconds(round);
   o.core.resend_grace = std::chrono::milliseconds(grace);
   o.core.resend_period = std::chrono::milliseconds(resend);

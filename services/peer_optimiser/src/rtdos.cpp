@@ -1,5 +1,7 @@
 #include "cdc/peer_optimiser/rtdos.hpp"
 
+#include <algorithm>
+
 namespace cdc::peer {
 
 const char* to_string(Mode mode) noexcept { return mode == Mode::kCentralized ? "CENTRALIZED" : "DISTRIBUTED"; }
@@ -22,6 +24,12 @@ Rtdos::Rtdos(const RtdosParams& params, Nanos start) : params_(params), last_swi
 
 Transition Rtdos::switch_to(Mode to, SwitchReason why, const RtdosInput& in) {
   Transition t{mode_, to, why, in.now, in.distance_m};
+  if (to == Mode::kDistributed) {
+    // The first join (transition 1) follows start-up, not a stint away: no flap.
+    const bool flap =
+        last_reason_ == SwitchReason::kBackInRange && transitions_ >= 2 && in.now - last_switch_ < params_.flap_window;
+    dwell_factor_ = flap ? std::min(2 * dwell_factor_, std::max<uint32_t>(params_.max_dwell_factor, 1)) : 1;
+  }
   mode_ = to;
   last_reason_ = why;
   last_switch_ = in.now;
@@ -50,7 +58,7 @@ std::optional<Transition> Rtdos::update(const RtdosInput& in) {
   if (!in_range_since_) {
     in_range_since_ = in.now;
   }
-  if (!masked && in.now - *in_range_since_ >= params_.dwell) {
+  if (!masked && in.now - *in_range_since_ >= dwell()) {
     return switch_to(Mode::kCentralized, SwitchReason::kBackInRange, in);
   }
   return std::nullopt;

@@ -136,5 +136,52 @@ TEST(Rtdos, LeavingAndReturningRepeatedlyCountsEveryTransition) {
   EXPECT_EQ(m.mode(), Mode::kCentralized);
 }
 
+// The central alive from `from` on (each update 100 ms apart) until the machine returns; the time it did.
+std::optional<Nanos> return_time(Rtdos& m, Nanos from, Nanos until) {
+  for (Nanos t = from; t < until; t += 100ms) {
+    if (m.update(at(t, true, 50.0))) return t;
+  }
+  return std::nullopt;
+}
+
+TEST(Rtdos, AReturnLostAgainAtOnceDoublesTheNextDwellUpToItsLimit) {
+  RtdosParams p = params();
+  p.flap_window = 10s;
+  p.max_dwell_factor = 4;
+  Rtdos m(p);
+  ASSERT_EQ(return_time(m, 0s, 10s), Nanos(3s));   // the first join waits the plain dwell
+  ASSERT_TRUE(m.update(at(3500ms, false, 50.0)));  // lost at once after the first join: no flap
+  EXPECT_EQ(m.dwell(), Nanos(3s));
+  Nanos t = *return_time(m, 4s, 10s);
+  EXPECT_EQ(t, Nanos(7s));
+  for (const Nanos expected_dwell : {Nanos(6s), Nanos(12s), Nanos(12s)}) {
+    ASSERT_TRUE(m.update(at(t + 500ms, false, 50.0)));  // lost half a second after the return: a flap
+    EXPECT_EQ(m.dwell(), expected_dwell);
+    const auto back = return_time(m, t + 1s, t + 60s);
+    ASSERT_TRUE(back);
+    EXPECT_EQ(*back - (t + 1s), expected_dwell);
+    t = *back;
+  }
+  // A CENTRALIZED stint longer than the flap window: the next loss is no flap, the dwell is plain.
+  EXPECT_FALSE(m.update(at(t + 10s, true, 50.0)));
+  ASSERT_TRUE(m.update(at(t + 11s, false, 50.0)));
+  EXPECT_EQ(m.dwell(), Nanos(3s));
+}
+
+// A link cut one second in two at the range edge: the lease sometimes outlives a cut, so the central
+// looks alive through a short dwell and is lost again after the return. Damped, the robot returns
+// ever more rarely instead of every few seconds.
+TEST(Rtdos, ALinkFlappingFasterThanTheLeaseIsDamped) {
+  Rtdos m = centralized_at_3s();
+  int returns = 0;
+  for (int i = 0; i < 600; ++i) {  // 60 s at 10 Hz from 10 s on
+    const Nanos t = 10s + Nanos(i * 100ms);
+    // Lost for 0.2 s at the start of every fourth second (the lease lapsed in one cut of four).
+    const bool alive = (i % 40) >= 2;
+    if (auto tr = m.update(at(t, alive, 50.0)); tr && tr->to == Mode::kCentralized) ++returns;
+  }
+  EXPECT_LE(returns, 2);  // undamped: a return every four seconds, 14 of them
+}
+
 }  // namespace
 }  // namespace cdc::peer

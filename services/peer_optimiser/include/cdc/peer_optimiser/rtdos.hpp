@@ -7,6 +7,11 @@
 //  DISTRIBUTED -> CENTRALIZED  when the central is alive and the distance has stayed below
 //                              CR_0 - hysteresis for the dwell time (also a range trigger).
 // An unknown distance (no world pose yet) counts as in range: a live central is reachable.
+// Flap damping: a link at the range edge can come and go faster than the lease lapses, so that the
+// central stays alive through a dwell and is lost again just after the return. A return followed
+// within flap_window by a switch away doubles the dwell for the next return (up to
+// max_dwell_factor times); a CENTRALIZED stint longer than flap_window restores it. The first join
+// after start-up is no return: losing the central right after it is no flap.
 #pragma once
 
 #include <chrono>
@@ -23,10 +28,12 @@ const char* to_string(Mode mode) noexcept;
 const char* to_string(SwitchReason reason) noexcept;
 
 struct RtdosParams {
-  double range_m = 100.0;                // CR_0, the central node's communication range [m]
-  double hysteresis_m = 10.0;            // return only below CR_0 - hysteresis [m]
-  Nanos dwell{std::chrono::seconds(3)};  // in range (and central alive) this long before returning
-  Nanos mask{std::chrono::seconds(2)};   // after any switch, range triggers are ignored this long
+  double range_m = 100.0;                       // CR_0, the central node's communication range [m]
+  double hysteresis_m = 10.0;                   // return only below CR_0 - hysteresis [m]
+  Nanos dwell{std::chrono::seconds(3)};         // in range (and central alive) this long before returning
+  Nanos mask{std::chrono::seconds(2)};          // after any switch, range triggers are ignored this long
+  Nanos flap_window{std::chrono::seconds(10)};  // a return lost again within this is a flap
+  uint32_t max_dwell_factor = 8;                // the dwell grows by flaps to at most this many times
 };
 
 struct RtdosInput {
@@ -54,6 +61,8 @@ class Rtdos {
   SwitchReason last_reason() const noexcept { return last_reason_; }
   uint32_t transitions() const noexcept { return transitions_; }
   const RtdosParams& params() const noexcept { return params_; }
+  // The dwell the next return to CENTRALIZED waits for (the configured one times the flap factor).
+  Nanos dwell() const noexcept { return params_.dwell * dwell_factor_; }
 
  private:
   Transition switch_to(Mode to, SwitchReason why, const RtdosInput& in);
@@ -64,6 +73,7 @@ class Rtdos {
   Nanos last_switch_{0};
   std::optional<Nanos> in_range_since_;
   uint32_t transitions_ = 0;
+  uint32_t dwell_factor_ = 1;
 };
 
 }  // namespace cdc::peer
