@@ -423,5 +423,29 @@ TEST(WaitSet, GuardConditionWakesTheWaiter) {
   EXPECT_FALSE(guard.triggered());
 }
 
+// A TopicWriter is a writer of the topic it names; its topic() serves further readers and writers.
+TEST(PubSub, TopicWriterWritesTheTopicItHandsOut) {
+  Participant p(test_options());
+  TopicWriter<cdc_msg_ModeState> writer(p, unique_topic("mode_writer"), qos::keyed_state());
+  EXPECT_EQ(writer.topic().name(), unique_topic("mode_writer"));
+  EXPECT_EQ(writer.topic_name(), writer.topic().name());
+  Reader<cdc_msg_ModeState> reader(p, writer.topic(), qos::keyed_state());
+  ASSERT_TRUE(writer.wait_for_readers(1, 5000ms));
+  cdc_msg_ModeState m{};
+  m.robot_id = 2;
+  m.transition_count = 7;
+  writer.write(m);
+  std::vector<uint32_t> seen;
+  ASSERT_TRUE(wait_until(
+      [&] {
+        reader.take().for_each_valid(
+            [&](const cdc_msg_ModeState& s, const dds_sample_info_t&) { seen.push_back(s.transition_count); });
+        return !seen.empty();
+      },
+      5000ms));
+  EXPECT_EQ(seen, std::vector<uint32_t>{7});
+  EXPECT_EQ(writer.samples_written(), 1u);
+}
+
 }  // namespace
 }  // namespace cdc::dds
