@@ -5,28 +5,30 @@
 namespace cdc::loops {
 
 CoreCounters core_counters(const LoopStats& s) {
-  return {.queries = s.queries,
-          .reverse_queries = s.reverse_queries,
-          .intra_gated = s.intra_gated,
-          .skipped_near_requested = s.skipped_near_requested,
-          .left_to_lower_robot = s.left_to_lower_robot,
-          .verified_with_neighbour = s.verified_with_neighbour,
-          .reaim_too_far = s.reaim_too_far,
-          .clouds_prepared = s.prepared,
-          .prepared_clouds_reused = s.prepared_reused,
-          .verified = s.verified,
-          .verification_failed = s.verification_failed,
-          .verification_failed_by = {s.failed_not_converged, s.failed_fitness, s.failed_overlap},
-          .intra_accepted = s.intra_accepted,
-          .inter_accepted = s.inter_accepted,
-          .withdrawn = s.withdrawn,
-          .cloud_requests = s.requests,
-          .cloud_replies = s.replies,
-          .cloud_missing = s.missing,
-          .cloud_timed_out = s.timed_out,
-          .cloud_requests_retried = s.requests_retried,
-          .cloud_requests_abandoned = s.requests_abandoned,
-          .cloud_unreachable = s.unreachable};
+  CoreCounters c;
+  c.queries = s.queries;
+  c.reverse_queries = s.reverse_queries;
+  c.intra_gated = s.intra_gated;
+  c.skipped_near_requested = s.skipped_near_requested;
+  c.left_to_lower_robot = s.left_to_lower_robot;
+  c.verified_with_neighbour = s.verified_with_neighbour;
+  c.reaim_too_far = s.reaim_too_far;
+  c.clouds_prepared = s.prepared;
+  c.prepared_clouds_reused = s.prepared_reused;
+  c.verified = s.verified;
+  c.verification_failed = s.verification_failed;
+  c.verification_failed_by = {s.failed_not_converged, s.failed_fitness, s.failed_overlap};
+  c.intra_accepted = s.intra_accepted;
+  c.inter_accepted = s.inter_accepted;
+  c.withdrawn = s.withdrawn;
+  c.cloud_requests = s.requests;
+  c.cloud_replies = s.replies;
+  c.cloud_missing = s.missing;
+  c.cloud_timed_out = s.timed_out;
+  c.cloud_requests_retried = s.requests_retried;
+  c.cloud_requests_abandoned = s.requests_abandoned;
+  c.cloud_unreachable = s.unreachable;
+  return c;
 }
 
 SequencerCounters sequencer_counters(const SequencerStats& s) {
