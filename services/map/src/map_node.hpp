@@ -24,8 +24,6 @@ class MapNode {
   // SIGUSR1 has the map written (dds::ShutdownSignal's user signal handler, while the node lives).
   MapNode(const runtime::ServiceOptions& common, const MapNodeOptions& options);
   ~MapNode();
-  MapNode(const MapNode&) = delete;
-  MapNode& operator=(const MapNode&) = delete;
   // Works until shutdown is asked for.
   void spin();
   nlohmann::json stats() const;
