@@ -36,16 +36,12 @@ class Publisher {
   explicit Publisher(const PlayOptions& o)
       : o_(o),
         participant_(make_options(o)),
-        t_lidar_(participant_, dds::topics::kLidar),
-        t_imu_(participant_, dds::topics::kImu),
-        t_gt_(participant_, dds::topics::kGroundTruth),
+        w_lidar_(participant_, dds::topics::kLidar, dds::qos::sensor_stream(16, true)),
+        w_imu_(participant_, dds::topics::kImu, dds::qos::sensor_stream(64, true)),
+        w_gt_(participant_, dds::topics::kGroundTruth, ground_truth_qos()),
         t_progress_(participant_, dds::topics::kProgress),
-        w_lidar_(participant_, t_lidar_, dds::qos::sensor_stream(16, true)),
-        w_imu_(participant_, t_imu_, dds::qos::sensor_stream(64, true)),
-        w_gt_(participant_, t_gt_, ground_truth_qos()),
         r_progress_(participant_, t_progress_, dds::qos::keyed_state()),
-        t_radio_(participant_, dds::topics::kRadio),
-        w_radio_(participant_, t_radio_, dds::qos::keyed_state()) {
+        w_radio_(participant_, dds::topics::kRadio, dds::qos::keyed_state()) {
     if (o.wait_readers > 0 && !w_lidar_.wait_for_readers(o.wait_readers, std::chrono::seconds(30))) {
       throw std::runtime_error("only " + std::to_string(w_lidar_.matched_readers()) + " of " +
                                std::to_string(o.wait_readers) + " LiDAR readers appeared");
@@ -148,13 +144,10 @@ class Publisher {
  private:
   PlayOptions o_;
   dds::Participant participant_;
-  dds::Topic<cdc_msg_LidarScan> t_lidar_;
-  dds::Topic<cdc_msg_ImuBatch> t_imu_;
-  dds::Topic<cdc_msg_GroundTruth> t_gt_;
+  dds::TopicWriter<cdc_msg_LidarScan> w_lidar_;
+  dds::TopicWriter<cdc_msg_ImuBatch> w_imu_;
+  dds::TopicWriter<cdc_msg_GroundTruth> w_gt_;
   dds::Topic<cdc_msg_ConsumerProgress> t_progress_;
-  dds::Writer<cdc_msg_LidarScan> w_lidar_;
-  dds::Writer<cdc_msg_ImuBatch> w_imu_;
-  dds::Writer<cdc_msg_GroundTruth> w_gt_;
   dds::Reader<cdc_msg_ConsumerProgress> r_progress_;
 
  public:
@@ -168,8 +161,7 @@ class Publisher {
   }
 
  private:
-  dds::Topic<cdc_msg_RadioState> t_radio_;
-  dds::Writer<cdc_msg_RadioState> w_radio_;
+  dds::TopicWriter<cdc_msg_RadioState> w_radio_;
   std::map<uint32_t, uint64_t> imu_seq_;
   std::map<uint32_t, int64_t> consumed_;
   std::optional<std::chrono::steady_clock::time_point> start_;

@@ -195,6 +195,19 @@ TEST(PubSub, MalformedSampleIsRejectedAtTheReaderBoundary) {
   EXPECT_THAT(rejected.last_reason(), ::testing::HasSubstr("length mismatch"));
 }
 
+// The transition counts of the first mode samples the reader takes within 5 s (none: empty).
+std::vector<uint32_t> first_transition_counts(Reader<cdc_msg_ModeState>& reader) {
+  std::vector<uint32_t> seen;
+  wait_until(
+      [&] {
+        reader.take().for_each_valid(
+            [&](const cdc_msg_ModeState& s, const dds_sample_info_t&) { seen.push_back(s.transition_count); });
+        return !seen.empty();
+      },
+      5000ms);
+  return seen;
+}
+
 TEST(PubSub, TransientLocalStateReachesALateJoiner) {
   Participant p(test_options());
   Topic<cdc_msg_ModeState> topic(p, unique_topic("mode"));
@@ -209,15 +222,7 @@ TEST(PubSub, TransientLocalStateReachesALateJoiner) {
   writer.write(m);  // keep-last 1 per instance: only this one survives
 
   Reader<cdc_msg_ModeState> late(p, topic, qos::keyed_state());
-  std::vector<uint32_t> seen;
-  ASSERT_TRUE(wait_until(
-      [&] {
-        late.take().for_each_valid(
-            [&](const cdc_msg_ModeState& s, const dds_sample_info_t&) { seen.push_back(s.transition_count); });
-        return !seen.empty();
-      },
-      5000ms));
-  EXPECT_EQ(seen, std::vector<uint32_t>{4});
+  EXPECT_EQ(first_transition_counts(late), std::vector<uint32_t>{4});
 }
 
 // A reader reuses one set of sample buffers, grown by its largest take so far: a small take after
@@ -421,6 +426,22 @@ TEST(WaitSet, GuardConditionWakesTheWaiter) {
   EXPECT_TRUE(guard.triggered());
   guard.reset();
   EXPECT_FALSE(guard.triggered());
+}
+
+// A TopicWriter is a writer of the topic it names; its topic() serves further readers and writers.
+TEST(PubSub, TopicWriterWritesTheTopicItHandsOut) {
+  Participant p(test_options());
+  TopicWriter<cdc_msg_ModeState> writer(p, unique_topic("mode_writer"), qos::keyed_state());
+  EXPECT_EQ(writer.topic().name(), unique_topic("mode_writer"));
+  EXPECT_EQ(writer.topic_name(), writer.topic().name());
+  Reader<cdc_msg_ModeState> reader(p, writer.topic(), qos::keyed_state());
+  ASSERT_TRUE(writer.wait_for_readers(1, 5000ms));
+  cdc_msg_ModeState m{};
+  m.robot_id = 2;
+  m.transition_count = 7;
+  writer.write(m);
+  EXPECT_EQ(first_transition_counts(reader), std::vector<uint32_t>{7});
+  EXPECT_EQ(writer.samples_written(), 1u);
 }
 
 }  // namespace

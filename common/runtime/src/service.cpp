@@ -5,12 +5,21 @@
 
 #include <spdlog/spdlog.h>
 
+#include <utility>
+
 namespace cdc::runtime {
 
 bool Boundary::refuse(std::string_view topic, const dds::Validation& v) {
   if (!rejected_.record(topic, v)) return false;
   spdlog::warn("rejected {}: {}", topic, v.reason());
   return true;
+}
+
+dds::ValidationLimits swarm_limits(uint32_t robots, std::vector<uint32_t> extra_node_ids) {
+  dds::ValidationLimits l;
+  l.robot_count = robots;
+  l.extra_node_ids = std::move(extra_node_ids);
+  return l;
 }
 
 Service::Service(Domains kind, const dds::ParticipantOptions& primary,
@@ -26,6 +35,12 @@ Service::Service(Domains kind, const dds::ParticipantOptions& primary,
   }
   waitset_.attach(stop_.handle(), 0);
   dds::ShutdownSignal::add_guard(&stop_);
+}
+
+Service::Service(Domains kind, const ServiceOptions& options, dds::ValidationLimits limits,
+                 const std::optional<dds::ParticipantOptions>& sensors)
+    : Service(kind, options.radio(), kind == Domains::kRobot ? options.local() : sensors, std::move(limits)) {
+  options_ = options;
 }
 
 Service::~Service() { dds::ShutdownSignal::remove_guard(&stop_); }

@@ -155,5 +155,63 @@ TEST(Options, ServiceMainMapsErrorsToExitCodes) {
   EXPECT_EQ(service_main(1, argv, spec, o, {}, []() -> int { throw std::runtime_error("broken"); }), 1);
 }
 
+TEST(Service, KeepsTheSharedOptionsItWasBuiltFrom) {
+  ServiceOptions o;
+  o.robot = 1;
+  o.stats_out = "stats.json";
+  Service service(Domains::kSingle, o, swarm_limits(3, {200}));
+  EXPECT_EQ(service.options().robot, 1u);
+  EXPECT_EQ(service.options().stats_out, "stats.json");
+  EXPECT_EQ(service.radio().domain_id(), o.domain_id());
+  EXPECT_FALSE(service.split());
+  EXPECT_EQ(service.boundary().limits().robot_count, 3u);
+  EXPECT_EQ(service.boundary().limits().extra_node_ids, std::vector<uint32_t>{200});
+  EXPECT_EQ(service.boundary().limits().max_scan_points, dds::ValidationLimits{}.max_scan_points);
+}
+
+// node_main's part of a service: what it built the node from.
+struct NodeMainOptions {
+  uint32_t robots = 2;
+  std::string log_level = "warn";
+  std::string label;
+};
+NodeMainOptions load_node_main_options(const std::string& path) {
+  if (!path.empty()) throw config::ConfigError("no configuration files here");
+  return NodeMainOptions{};
+}
+struct NodeMainFlags {
+  std::string label;
+  void declare(CLI::App& app) { app.add_option("--label", label); }
+  void apply(NodeMainOptions& o, const ServiceOptions& common) const {
+    o.label = label + "@" + std::to_string(common.robot);
+  }
+};
+struct BuiltNode {
+  static inline std::vector<std::string> built;
+  BuiltNode(const ServiceOptions& common, const NodeMainOptions& o) {
+    built.push_back(o.label + " stats " + common.stats_out);
+  }
+  void spin() {}
+  void finish() {}
+};
+
+TEST(Options, NodeMainChecksTheRobotAppliesFlagsAndRunsTheNode) {
+  const ServiceSpec spec{"cdc-node-main-test", "a test service", "x", kRobotOption | kStatsOption};
+  const auto robots = [](const NodeMainOptions& o) { return o.robots; };
+  std::vector<std::string> good{"cdc-node-main-test", "--robot", "1", "--label", "lidar", "--stats-out", "s.json"};
+  std::vector<char*> argv;
+  for (std::string& a : good) argv.push_back(a.data());
+  EXPECT_EQ(node_main<BuiltNode>(static_cast<int>(argv.size()), argv.data(), spec, load_node_main_options, robots,
+                                 NodeMainFlags{}),
+            0);
+  EXPECT_EQ(BuiltNode::built, std::vector<std::string>{"lidar@1 stats s.json"});
+
+  std::vector<std::string> bad{"cdc-node-main-test", "--robot", "2"};  // the configuration names robots 0 and 1
+  argv.clear();
+  for (std::string& a : bad) argv.push_back(a.data());
+  EXPECT_EQ(node_main<BuiltNode>(static_cast<int>(argv.size()), argv.data(), spec, load_node_main_options, robots), 2);
+  EXPECT_EQ(BuiltNode::built.size(), 1u) << "no node for a robot the configuration does not have";
+}
+
 }  // namespace
 }  // namespace cdc::runtime

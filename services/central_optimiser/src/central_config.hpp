@@ -10,9 +10,8 @@
 
 namespace cdc::central {
 
+// The domain and the statistics file are the shared options' (runtime::ServiceOptions).
 struct CentralNodeOptions {
-  uint32_t domain = 0;
-  std::string dds_config;  // empty: CYCLONEDDS_URI
   CentralConfig core;
   uint32_t central_id = 200;  // node id of the central in status messages
   int central_on_robot = 0;   // the central rides on this robot; -1: fixed position
@@ -22,7 +21,6 @@ struct CentralNodeOptions {
   int max_result_age_ms = 2000;  // results of an unsettled graph are held back at most this long
   int status_period_ms = 250;
   std::string graph_out;  // write the final graph (g2o) here at shutdown
-  std::string stats_out;  // write counters (JSON) here at shutdown
   std::string log_level = "info";
 };
 

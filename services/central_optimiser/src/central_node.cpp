@@ -5,6 +5,7 @@
 #include "cdc/dds/shutdown.hpp"
 #include "cdc/dds/topics.hpp"
 #include "cdc/graph/g2o.hpp"
+#include "cdc/runtime/logging.hpp"
 #include "cdc/runtime/stats.hpp"
 
 #include <spdlog/spdlog.h>
@@ -27,19 +28,6 @@ uint32_t draw_incarnation() {
   uint32_t v = 0;
   while (v == 0) v = rd();
   return v;
-}
-
-dds::ParticipantOptions domain(const CentralNodeOptions& o) {
-  dds::ParticipantOptions p;
-  p.domain_id = o.domain;
-  p.config = o.dds_config;
-  return p;
-}
-
-dds::ValidationLimits limits(const CentralNodeOptions& o) {
-  dds::ValidationLimits l;
-  l.robot_count = o.core.robot_count;
-  return l;
 }
 
 KeyframeIn to_core(const cdc_msg_Keyframe& m) {
@@ -69,19 +57,11 @@ LoopIn to_core(const cdc_msg_LoopClosure& m) {
   return l;
 }
 
-// The result as the robot's front-end takes it: T_world_robot, the newest keyframe in W and in L.
+// The result as the robot's front-end takes it.
 void log_result(uint64_t version, const RobotEstimate& e) {
   if (!spdlog::should_log(spdlog::level::debug) || e.poses.empty()) return;
-  const Eigen::Isometry3d& T = e.T_world_robot;
-  const Eigen::AngleAxisd r(T.linear());
-  const Eigen::Vector3d rv = r.angle() * r.axis() * 1e3;
-  const auto& [id, P] = e.poses.back();
-  const Eigen::Vector3d w = P.translation(), l = (T.inverse() * P).translation();
-  spdlog::debug(
-      "graph version {}: robot {}{}: T_world_robot ({:.3f}, {:.3f}, {:.3f}) m ({:.3f}, {:.3f}, {:.3f}) mrad; "
-      "newest keyframe {} at ({:.3f}, {:.3f}, {:.3f}) in W, ({:.3f}, {:.3f}, {:.3f}) in L",
-      version, e.robot, e.from_hint ? " (hint)" : "", T.translation().x(), T.translation().y(), T.translation().z(),
-      rv.x(), rv.y(), rv.z(), id, w.x(), w.y(), w.z(), l.x(), l.y(), l.z());
+  spdlog::debug("graph version {}: robot {}{}: {}", version, e.robot, e.from_hint ? " (hint)" : "",
+                runtime::world_estimate_text(e.T_world_robot, e.poses.back().first, e.poses.back().second));
 }
 
 }  // namespace
@@ -92,22 +72,20 @@ void log_result(uint64_t version, const RobotEstimate& e) {
 // so without data a robot cut off for less than the participant lease (10 s) would never see the
 // central alive again when the link returned. Each robot's results go in the robot's own partition, so
 // that a robot receives only its own poses (the map reads all).
-CentralNode::CentralNode(const CentralNodeOptions& o)
+CentralNode::CentralNode(const runtime::ServiceOptions& common, const CentralNodeOptions& o)
     : o_(o),
       incarnation_(draw_incarnation()),
-      service_(runtime::Domains::kSingle, domain(o), std::nullopt, limits(o)),
+      service_(runtime::Domains::kSingle, common, runtime::swarm_limits(o.core.robot_count)),
       keyframes_(service_, service_.radio(), topics::kKeyframe,
                  dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader())),
       loops_(service_, service_.radio(), topics::kLoopClosure,
              dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader())),
       world_(service_, service_.radio(), topics::kWorldTransform, dds::qos::keyed_state()),
       t_opt_(service_.radio(), topics::kCentralOptimized),
-      t_ack_(service_.radio(), topics::kCentralAck),
-      t_status_(service_.radio(), topics::kRobotStatus),
-      t_alive_(service_.radio(), topics::kCentralAlive),
-      w_alive_(service_.radio(), t_alive_, dds::qos::monitored_writer(std::chrono::milliseconds(o.lease_ms))),
-      w_ack_(service_.radio(), t_ack_, dds::qos::keyed_state()),
-      w_status_(service_.radio(), t_status_, dds::qos::keyed_state()),
+      w_alive_(service_.radio(), topics::kCentralAlive,
+               dds::qos::monitored_writer(std::chrono::milliseconds(o.lease_ms))),
+      w_ack_(service_.radio(), topics::kCentralAck, dds::qos::keyed_state()),
+      w_status_(service_.radio(), topics::kRobotStatus, dds::qos::keyed_state()),
       core_(o.core),
       schedule_(std::chrono::milliseconds(o.update_period_ms), std::chrono::milliseconds(o.max_result_age_ms)),
       last_status_(Clock::now() - std::chrono::hours(1)),
@@ -119,7 +97,7 @@ CentralNode::CentralNode(const CentralNodeOptions& o)
   loops_.on([this](const cdc_msg_LoopClosure& m) { on_loop(m); });
   world_.on([this](const cdc_msg_WorldTransform& m) { on_world(m); });
   spdlog::info("central optimiser up: incarnation {}, {} robots, lease {} ms, domain {}", incarnation_,
-               o.core.robot_count, o.lease_ms, o.domain);
+               o.core.robot_count, o.lease_ms, common.domain_id());
 }
 
 void CentralNode::spin() {
@@ -244,7 +222,7 @@ void CentralNode::finish() {
   spdlog::info("shutting down (signal {}): final optimisation", dds::ShutdownSignal::signal_number());
   const UpdateStats final_stats = core_.optimise_fully();
   if (!o_.graph_out.empty()) graph::write_g2o(o_.graph_out, core_.graph());
-  runtime::write_stats(o_.stats_out, stats(final_stats.cost), service_.boundary());
+  runtime::write_stats(service_, stats(final_stats.cost));
 }
 
 }  // namespace cdc::central

@@ -10,6 +10,7 @@
 #include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/types.hpp"
 #include "cdc/runtime/input.hpp"
+#include "cdc/runtime/options.hpp"
 #include "cdc/runtime/service.hpp"
 
 #include <nlohmann/json.hpp>
@@ -21,7 +22,7 @@ namespace cdc::central {
 
 class CentralNode {
  public:
-  explicit CentralNode(const CentralNodeOptions& options);
+  CentralNode(const runtime::ServiceOptions& common, const CentralNodeOptions& options);
   // Works until shutdown is asked for.
   void spin();
   // The final optimisation over the whole graph, then --graph-out and --stats-out.
@@ -45,12 +46,10 @@ class CentralNode {
   runtime::Input<cdc_msg_LoopClosure> loops_;
   runtime::Input<cdc_msg_WorldTransform> world_;
   dds::Topic<cdc_msg_OptimizedPoses> t_opt_;
-  dds::Topic<cdc_msg_Acknowledgement> t_ack_;
-  dds::Topic<cdc_msg_RobotStatus> t_status_, t_alive_;
-  dds::Writer<cdc_msg_RobotStatus> w_alive_;
+  dds::TopicWriter<cdc_msg_RobotStatus> w_alive_;
   std::deque<dds::Writer<cdc_msg_OptimizedPoses>> w_results_;  // one per robot, in the robot's partition
-  dds::Writer<cdc_msg_Acknowledgement> w_ack_;
-  dds::Writer<cdc_msg_RobotStatus> w_status_;
+  dds::TopicWriter<cdc_msg_Acknowledgement> w_ack_;
+  dds::TopicWriter<cdc_msg_RobotStatus> w_status_;
 
   CentralCore core_;
   UpdateSchedule schedule_;

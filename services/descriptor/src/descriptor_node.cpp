@@ -17,30 +17,22 @@ namespace {
 
 namespace topics = dds::topics;
 
-dds::ValidationLimits limits(const DescriptorNodeOptions& o) {
-  dds::ValidationLimits l;
-  l.robot_count = o.robots;
-  return l;
-}
-
 }  // namespace
 
 DescriptorNode::DescriptorNode(const runtime::ServiceOptions& common, const DescriptorNodeOptions& o)
-    : common_(common),
-      o_(o),
-      service_(runtime::Domains::kRobot, common.radio(), common.local(), limits(o)),
+    : o_(o),
+      service_(runtime::Domains::kRobot, common, runtime::swarm_limits(o.robots)),
       keyframes_(service_, service_.secondary(), topics::kKeyframe,
                  dds::qos::event_stream(4096).partitions(dds::partitions::own_reader(common.robot))),
       syncs_(service_, service_.radio(), topics::kDescriptorSync, dds::qos::event_stream(256)),
-      t_desc_(service_.radio(), topics::kDescriptor),
-      w_desc_(service_.radio(), t_desc_, dds::qos::event_stream(256)),
-      w_resend_(service_.radio(), t_desc_, dds::qos::event_stream(static_cast<int32_t>(o.max_per_sync)), o.robots),
+      w_desc_(service_.radio(), topics::kDescriptor, dds::qos::event_stream(256)),
+      w_resend_(service_.radio(), w_desc_.topic(), dds::qos::event_stream(static_cast<int32_t>(o.max_per_sync)),
+                o.robots),
       core_(o.sc, o.max_per_sync) {
   // On a local domain of its own the robot's loop closure gets its descriptors there too, also while
   // the radio is cut.
   if (service_.split()) {
-    t_desc_local_.emplace(service_.secondary(), topics::kDescriptor);
-    w_desc_local_.emplace(service_.secondary(), *t_desc_local_, dds::qos::event_stream(256));
+    w_desc_local_.emplace(service_.secondary(), topics::kDescriptor, dds::qos::event_stream(256));
   }
   const uint32_t me = common.robot;
   keyframes_.filter([me](const cdc_msg_Keyframe& m) { return m.robot_id == me; }).on([this](const cdc_msg_Keyframe& m) {
@@ -112,7 +104,7 @@ const cdc_msg_Descriptor& DescriptorNode::to_msg(const DescriptorRecord& r) {
 nlohmann::json DescriptorNode::stats() const {
   nlohmann::json j = counters_;
   const auto& c = counters_;
-  j["robot"] = common_.robot;
+  j["robot"] = service_.options().robot;
   j["repeated_keyframes"] = core_.counters().repeated;
   j["bytes_per_descriptor"] =
       c.descriptors > 0 ? static_cast<double>(c.first_send_bytes) / static_cast<double>(c.descriptors) : 0.0;
@@ -121,7 +113,7 @@ nlohmann::json DescriptorNode::stats() const {
 }
 
 void DescriptorNode::finish() const {
-  runtime::write_stats(common_.stats_out, stats(), service_.boundary());
+  runtime::write_stats(service_, stats());
   spdlog::info("stopped after {} descriptors ({} bytes)", counters_.descriptors, counters_.first_send_bytes);
 }
 

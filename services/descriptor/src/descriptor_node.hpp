@@ -38,15 +38,12 @@ class DescriptorNode {
   void on_sync(const cdc_msg_DescriptorSync& m);
   const cdc_msg_Descriptor& to_msg(const DescriptorRecord& r);
 
-  runtime::ServiceOptions common_;
   DescriptorNodeOptions o_;
   runtime::Service service_;
   runtime::Input<cdc_msg_Keyframe> keyframes_;
   runtime::Input<cdc_msg_DescriptorSync> syncs_;
-  dds::Topic<cdc_msg_Descriptor> t_desc_;
-  std::optional<dds::Topic<cdc_msg_Descriptor>> t_desc_local_;
-  dds::Writer<cdc_msg_Descriptor> w_desc_;
-  std::optional<dds::Writer<cdc_msg_Descriptor>> w_desc_local_;
+  dds::TopicWriter<cdc_msg_Descriptor> w_desc_;
+  std::optional<dds::TopicWriter<cdc_msg_Descriptor>> w_desc_local_;
   dds::PerRobotWriters<cdc_msg_Descriptor> w_resend_;  // to the robot that asked, in its partition
 
   DescriptorCore core_;

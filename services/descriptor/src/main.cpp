@@ -9,15 +9,11 @@
 int main(int argc, char** argv) {
   namespace rt = cdc::runtime;
   const rt::ServiceSpec spec{
-      "cdc-descriptor",
-      "computes a Scan Context descriptor (quantised to one byte per cell) for every keyframe of\n"
-      "this robot and publishes it with the keyframe's pose hint. Stops cleanly on SIGINT/SIGTERM. SIGUSR1/SIGUSR2\n"
-      "cut and restore its SLAM domain (deaf and mute), the loopback launcher's emulated radio.",
+      "cdc-descriptor", R"(computes a Scan Context descriptor (quantised to one byte per cell) for every keyframe of
+this robot and publishes it with the keyframe's pose hint. Stops cleanly on SIGINT/SIGTERM. SIGUSR1/SIGUSR2
+cut and restore its SLAM domain (deaf and mute), the loopback launcher's emulated radio.)",
       "see services/descriptor/config", rt::kRobotService};
-  rt::ServiceOptions common;
-  return rt::service_main(argc, argv, spec, common, {}, [&] {
-    const cdc::descriptor::DescriptorNodeOptions o = cdc::descriptor::load_descriptor_options(common.config);
-    common.check_robot(o.robots);
-    return rt::run_node<cdc::descriptor::DescriptorNode>(spec, common, o.log_level, common, o);
-  });
+  return rt::node_main<cdc::descriptor::DescriptorNode>(
+      argc, argv, spec, cdc::descriptor::load_descriptor_options,
+      [](const cdc::descriptor::DescriptorNodeOptions& o) { return o.robots; });
 }

@@ -1,5 +1,6 @@
 // The front-end's configuration (services/frontend/config/frontend.yaml), shared by the
-// cdc-frontend node and the offline cdc-odometry tool; no DDS here.
+// cdc-frontend node and the offline cdc-odometry tool; no DDS here. The node's robot, domain and
+// statistics file are the shared options' (runtime::ServiceOptions).
 #pragma once
 
 #include "cdc/frontend/frontend_core.hpp"
@@ -10,10 +11,10 @@
 namespace cdc::frontend {
 
 struct FrontendNodeOptions {
-  uint32_t robot = 0, robots = 3, domain = 0;
+  uint32_t robots = 3;
   int sensor_domain = -1;  // >= 0: sweeps, IMU and progress on this domain (the simulator's)
-  std::string dds_config, stats_out, trajectory_out, log_level = "info";
-  std::string sensor_dds_config;  // configuration of the sensor domain; empty: as dds_config
+  std::string trajectory_out, log_level = "info";
+  std::string sensor_dds_config;  // configuration of the sensor domain; empty: as the SLAM domain's
   FrontendParams core;
   bool use_imu = true;
   bool take_corrections = true;  // false: the back-end's corrections are ignored (an ablation)

@@ -2,6 +2,7 @@
 
 #include "cdc/dds/convert.hpp"
 #include "cdc/dds/qos.hpp"
+#include "cdc/dds/robot_domains.hpp"
 #include "cdc/dds/topics.hpp"
 #include "cdc/runtime/stats.hpp"
 
@@ -25,47 +26,30 @@ namespace {
 namespace topics = dds::topics;
 
 dds::ValidationLimits limits(const FrontendNodeOptions& o) {
-  dds::ValidationLimits l;
-  l.robot_count = o.robots;
+  dds::ValidationLimits l = runtime::swarm_limits(o.robots);
   l.max_scan_points = o.max_scan_points;
   return l;
 }
 
-dds::ParticipantOptions slam_domain(const FrontendNodeOptions& o) {
-  dds::ParticipantOptions p;
-  p.domain_id = o.domain;
-  p.config = o.dds_config;
-  return p;
-}
+}  // namespace
 
 // Sweeps, IMU and lock-step progress may live on a domain of their own (the simulator's), so that
 // they never cross the emulated radio; by default they share the SLAM domain.
-std::optional<dds::ParticipantOptions> sensor_domain(const FrontendNodeOptions& o) {
-  if (o.sensor_domain < 0) return std::nullopt;
-  dds::ParticipantOptions p = slam_domain(o);
-  p.domain_id = static_cast<uint32_t>(o.sensor_domain);
-  if (!o.sensor_dds_config.empty()) p.config = o.sensor_dds_config;
-  return p;
-}
-
-}  // namespace
-
-FrontendNode::FrontendNode(const FrontendNodeOptions& o)
+FrontendNode::FrontendNode(const runtime::ServiceOptions& common, const FrontendNodeOptions& o)
     : o_(o),
-      service_(runtime::Domains::kWithSensors, slam_domain(o), sensor_domain(o), limits(o)),
+      service_(runtime::Domains::kWithSensors, common, limits(o),
+               dds::local_domain_options(o.sensor_domain, o.sensor_dds_config, common.radio())),
       scans_(service_, service_.secondary(), topics::kLidar, dds::qos::sensor_stream(16, true)),
       imu_(service_, service_.secondary(), topics::kImu, dds::qos::sensor_stream(64, true)),
       corrections_(service_, service_.radio(), topics::kCorrection,
-                   dds::qos::event_stream(64).partitions(dds::partitions::own_reader(o.robot))),
-      t_odom_(service_.radio(), topics::kOdometry),
-      t_kf_(service_.radio(), topics::kKeyframe),
-      t_progress_(service_.secondary(), topics::kProgress),
-      w_odom_(service_.radio(), t_odom_,
-              dds::qos::sensor_stream(16, true).partitions({dds::partitions::robot(o.robot)})),
-      w_kf_(service_.radio(), t_kf_, dds::qos::event_stream(4096).partitions({dds::partitions::robot(o.robot)})),
-      w_progress_(service_.secondary(), t_progress_, dds::qos::keyed_state()),
+                   dds::qos::event_stream(64).partitions(dds::partitions::own_reader(common.robot))),
+      w_odom_(service_.radio(), topics::kOdometry,
+              dds::qos::sensor_stream(16, true).partitions({dds::partitions::robot(common.robot)})),
+      w_kf_(service_.radio(), topics::kKeyframe,
+            dds::qos::event_stream(4096).partitions({dds::partitions::robot(common.robot)})),
+      w_progress_(service_.secondary(), topics::kProgress, dds::qos::keyed_state()),
       core_(o.core) {
-  const uint32_t me = o.robot;
+  const uint32_t me = common.robot;
   imu_.filter([this, me](const cdc_msg_ImuBatch& m) { return m.robot_id == me && o_.use_imu; })
       .on([this](const cdc_msg_ImuBatch& m) { on_imu(m); });
   corrections_.filter([this, me](const cdc_msg_OptimizedPoses& m) { return m.robot_id == me && o_.take_corrections; })
@@ -75,7 +59,7 @@ FrontendNode::FrontendNode(const FrontendNodeOptions& o)
       .on([this](const cdc_msg_LidarScan& m) { on_scan(m); });
   spdlog::info("front-end of robot {} up: {}deskewing, IMU {}, keyframes every {} m / {} deg, domain {}", me,
                o.core.deskew ? "" : "no ", o.use_imu ? "on" : "off", o.core.keyframe_distance_m,
-               o.core.keyframe_angle_rad * 180 / M_PI, o.domain);
+               o.core.keyframe_angle_rad * 180 / M_PI, common.domain_id());
   if (service_.split()) spdlog::info("sensors and lock-step progress on domain {}", o.sensor_domain);
 }
 
@@ -179,7 +163,7 @@ void FrontendNode::log_registration_failure(const PendingScan& scan, const Front
 
 void FrontendNode::publish(const PendingScan& scan, const ScanOut& out) {
   cdc_msg_Odometry od{};
-  od.robot_id = o_.robot;
+  od.robot_id = service_.options().robot;
   od.incarnation = incarnation_;
   od.scan_seq = scan.seq;
   od.stamp_ns = scan.stamp_ns;
@@ -192,14 +176,14 @@ void FrontendNode::publish(const PendingScan& scan, const ScanOut& out) {
   ++counters_.odometry;
   if (!o_.trajectory_out.empty()) trajectory_.push_back({scan.stamp_ns, out.T_odom_base});
   if (out.keyframe) publish_keyframe(*out.keyframe);
-  w_progress_.write(cdc_msg_ConsumerProgress{o_.robot, incarnation_, scan.seq});
+  w_progress_.write(cdc_msg_ConsumerProgress{service_.options().robot, incarnation_, scan.seq});
 }
 
 void FrontendNode::publish_keyframe(const KeyframeOut& k) {
   cloud_.clear();
   for (const auto& p : k.cloud) cloud_.push_back(cdc_msg_PointXYZI{p.x(), p.y(), p.z(), 0.0f});
   cdc_msg_Keyframe kf{};
-  kf.robot_id = o_.robot;
+  kf.robot_id = service_.options().robot;
   kf.keyframe_id = k.id;
   kf.incarnation = incarnation_;
   kf.stamp_ns = k.stamp_ns;
@@ -215,13 +199,13 @@ void FrontendNode::publish_keyframe(const KeyframeOut& k) {
 nlohmann::json FrontendNode::stats() const {
   nlohmann::json j = core_.stats();
   j.update(nlohmann::json(counters_));
-  j["robot"] = o_.robot;
+  j["robot"] = service_.options().robot;
   return j;
 }
 
 void FrontendNode::finish() const {
   if (!o_.trajectory_out.empty()) geometry::write_tum(o_.trajectory_out, trajectory_);
-  runtime::write_stats(o_.stats_out, stats(), service_.boundary());
+  runtime::write_stats(service_, stats());
   spdlog::info("stopped after {} sweeps, {} keyframes, {} rejected samples", counters_.odometry, counters_.keyframes,
                service_.boundary().rejected().total());
 }

@@ -8,6 +8,7 @@
 #include "cdc/dds/types.hpp"
 #include "cdc/geometry/trajectory.hpp"
 #include "cdc/runtime/input.hpp"
+#include "cdc/runtime/options.hpp"
 #include "cdc/runtime/service.hpp"
 
 #include <nlohmann/json.hpp>
@@ -28,7 +29,7 @@ struct FrontendNodeCounters {
 
 class FrontendNode {
  public:
-  explicit FrontendNode(const FrontendNodeOptions& options);
+  FrontendNode(const runtime::ServiceOptions& common, const FrontendNodeOptions& options);
   // Works until shutdown is asked for.
   void spin();
   // Core and node counters, as --stats-out writes them.
@@ -60,12 +61,9 @@ class FrontendNode {
   runtime::Input<cdc_msg_LidarScan> scans_;
   runtime::Input<cdc_msg_ImuBatch> imu_;
   runtime::Input<cdc_msg_OptimizedPoses> corrections_;
-  dds::Topic<cdc_msg_Odometry> t_odom_;
-  dds::Topic<cdc_msg_Keyframe> t_kf_;
-  dds::Topic<cdc_msg_ConsumerProgress> t_progress_;
-  dds::Writer<cdc_msg_Odometry> w_odom_;
-  dds::Writer<cdc_msg_Keyframe> w_kf_;
-  dds::Writer<cdc_msg_ConsumerProgress> w_progress_;
+  dds::TopicWriter<cdc_msg_Odometry> w_odom_;
+  dds::TopicWriter<cdc_msg_Keyframe> w_kf_;
+  dds::TopicWriter<cdc_msg_ConsumerProgress> w_progress_;
 
   FrontendCore core_;
   FrontendNodeCounters counters_;

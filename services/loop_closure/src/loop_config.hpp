@@ -11,9 +11,8 @@
 namespace cdc::loops {
 
 struct LoopNodeOptions {
-  uint32_t robot = 0, robots = 3, domain = 0;
-  int local_domain = -1;  // the robot's own domain (see cdc/dds/robot_domains.hpp); -1: none
-  std::string dds_config, local_dds_config, stats_out, log_level = "info";
+  uint32_t robots = 3;  // the robot's id, domains and statistics file are the shared options' (runtime)
+  std::string log_level = "info";
   // Rewritten (atomically) as the work left changes: "<descriptors waiting to be searched> <cloud
   // requests pending> <cloud requests parked> <loops published>", for a launcher that ends a mission
   // once every loop-closure service has caught up. Empty: not written.

@@ -23,49 +23,34 @@ namespace topics = dds::topics;
 namespace qos = dds::qos;
 namespace partitions = dds::partitions;
 
-dds::ValidationLimits limits(const LoopNodeOptions& o) {
-  dds::ValidationLimits l;
-  l.robot_count = o.robots;
-  return l;
-}
-
-dds::ParticipantOptions radio_domain(const LoopNodeOptions& o) {
-  return {.domain_id = o.domain, .config = o.dds_config};
-}
-
-// The robot's own domain: its keyframes, its own descriptors and a copy of its loop closures.
-std::optional<dds::ParticipantOptions> local_domain(const LoopNodeOptions& o) {
-  return dds::local_domain_options(o.local_domain, o.local_dds_config, radio_domain(o));
-}
-
 }  // namespace
 
-LoopNode::LoopNode(const LoopNodeOptions& o)
+// The robot's own domain carries its keyframes, its own descriptors and a copy of its loop closures.
+LoopNode::LoopNode(const runtime::ServiceOptions& common, const LoopNodeOptions& o)
     : o_(o),
       t0_(std::chrono::steady_clock::now()),
-      service_(runtime::Domains::kRobot, radio_domain(o), local_domain(o), limits(o)),
+      service_(runtime::Domains::kRobot, common, runtime::swarm_limits(o.robots)),
       // Peers' status is taken on every pass: no reason to wake up for it.
       status_(service_, service_.radio(), topics::kRobotStatus, qos::keyed_state(), false),
       requests_(service_, service_.radio(), topics::kCloudRequest, qos::event_stream(256)),
       keyframes_(service_, service_.secondary(), topics::kKeyframe,
-                 qos::event_stream(4096).partitions(partitions::own_reader(o.robot))),
+                 qos::event_stream(4096).partitions(partitions::own_reader(common.robot))),
       descriptors_(service_, service_.radio(), topics::kDescriptor, qos::event_stream(1024)),
       descriptors_resent_(service_, service_.radio(), topics::kDescriptor,
-                          qos::event_stream(1024).partitions({partitions::robot(o.robot)})),
+                          qos::event_stream(1024).partitions({partitions::robot(common.robot)})),
       replies_(service_, service_.radio(), topics::kCloudReply,
-               qos::event_stream(256).partitions(partitions::own_reader(o.robot))),
-      t_loop_(service_.radio(), topics::kLoopClosure),
-      t_req_(service_.radio(), topics::kCloudRequest),
+               qos::event_stream(256).partitions(partitions::own_reader(common.robot))),
       t_rep_(service_.radio(), topics::kCloudReply),
-      t_sync_(service_.radio(), topics::kDescriptorSync),
-      w_loop_(service_.radio(), t_loop_, qos::event_stream(4096).partitions({partitions::robot(o.robot)})),
-      w_loop_with_(service_.radio(), t_loop_, qos::event_stream(4096), o.robots, o.robot, {partitions::robot(o.robot)}),
-      w_req_(service_.radio(), t_req_, qos::event_stream(256)),
-      w_rep_to_(service_.radio(), t_rep_, qos::event_stream(256), o.robots, o.robot),
-      w_sync_(service_.radio(), t_sync_, qos::event_stream(256)),
-      core_(o.core, o.robot),
+      w_loop_(service_.radio(), topics::kLoopClosure,
+              qos::event_stream(4096).partitions({partitions::robot(common.robot)})),
+      w_loop_with_(service_.radio(), w_loop_.topic(), qos::event_stream(4096), o.robots, common.robot,
+                   {partitions::robot(common.robot)}),
+      w_req_(service_.radio(), topics::kCloudRequest, qos::event_stream(256)),
+      w_rep_to_(service_.radio(), t_rep_, qos::event_stream(256), o.robots, common.robot),
+      w_sync_(service_.radio(), topics::kDescriptorSync, qos::event_stream(256)),
+      core_(o.core, common.robot),
       sequencer_(o.sequencer),
-      reach_(o.robot, o.reach),
+      reach_(common.robot, o.reach),
       written_(reach_),
       numbering_(o.state_file),
       backlog_file_(o.backlog_out) {
@@ -74,8 +59,7 @@ LoopNode::LoopNode(const LoopNodeOptions& o)
   // only the peers' descriptors.
   if (service_.split()) {
     descriptors_local_.emplace(service_, service_.secondary(), topics::kDescriptor, qos::event_stream(1024));
-    t_loop_local_.emplace(service_.secondary(), topics::kLoopClosure);
-    w_loop_local_.emplace(service_.secondary(), *t_loop_local_, qos::event_stream(4096));
+    w_loop_local_.emplace(service_.secondary(), topics::kLoopClosure, qos::event_stream(4096));
   }
   wire_inputs();
   core_.set_reachable([this](uint32_t robot) { return in_reach(robot); });
@@ -85,7 +69,7 @@ LoopNode::LoopNode(const LoopNodeOptions& o)
 // Each input: which samples are this robot's to take, the check of its own after dds::validate, and
 // its handler.
 void LoopNode::wire_inputs() {
-  const uint32_t me = o_.robot;
+  const uint32_t me = service_.options().robot;
   status_.filter([me](const cdc_msg_RobotStatus& m) { return m.robot_id != me && !m.is_central; })
       .on([this](const cdc_msg_RobotStatus& m) { on_status(m); });
   requests_.filter([me](const cdc_msg_CloudRequest& m) { return m.owner_robot_id == me; })
@@ -116,11 +100,11 @@ void LoopNode::log_start() const {
   } else if (const auto st = numbering_.stored()) {
     spdlog::info("loop numbering state {}: incarnation {}, next loop {}", o_.state_file, st->first, st->second);
   }
-  spdlog::info("loop-closure service of robot {} up: {} robots, PCM chi2 {}, domain {}{}", o_.robot, o_.robots,
-               o_.core.pcm.chi2_threshold, o_.domain,
-               service_.split()
-                   ? ", own keyframes, descriptors and loops on local domain " + std::to_string(o_.local_domain)
-                   : std::string());
+  spdlog::info("loop-closure service of robot {} up: {} robots, PCM chi2 {}, domain {}{}", service_.options().robot,
+               o_.robots, o_.core.pcm.chi2_threshold, service_.options().domain_id(),
+               service_.split() ? ", own keyframes, descriptors and loops on local domain " +
+                                      std::to_string(service_.options().local_domain)
+                                : std::string());
 }
 
 void LoopNode::spin() {
@@ -156,7 +140,7 @@ void LoopNode::on_status(const cdc_msg_RobotStatus& m) {
 void LoopNode::on_cloud_request(const cdc_msg_CloudRequest& m) {
   traffic_.received(m.requester_robot_id, dds::serialized_size(m));
   reach_.heard(m.requester_robot_id, clock());
-  const std::vector<Eigen::Vector3f>* cloud = core_.cloud(o_.robot, m.keyframe_id);
+  const std::vector<Eigen::Vector3f>* cloud = core_.cloud(service_.options().robot, m.keyframe_id);
   dds::compact::PackedCloud packed;
   packed.resolution_m = o_.reply_resolution_m;
   if (cloud != nullptr) {
@@ -169,11 +153,12 @@ void LoopNode::on_cloud_request(const cdc_msg_CloudRequest& m) {
   // Cloud replies go only to the robot that asked.
   dds::Writer<cdc_msg_CloudReply>* to = w_rep_to_.to(m.requester_robot_id);
   if (to == nullptr) return;  // not a peer (the requester id is validated)
-  const cdc_msg_CloudReply reply = cloud_reply(m, o_.robot, incarnation_, cloud != nullptr, packed);
+  const cdc_msg_CloudReply reply = cloud_reply(m, service_.options().robot, incarnation_, cloud != nullptr, packed);
   to->write(reply);
   traffic_.sent(m.requester_robot_id, dds::serialized_size(reply));
-  spdlog::debug("served cloud {}/{} to robot {}: {} points in {} B, request {} ms old", o_.robot, m.keyframe_id,
-                m.requester_robot_id, packed.count, packed.bytes.size(), (dds::now_ns() - m.stamp_ns) / 1'000'000);
+  spdlog::debug("served cloud {}/{} to robot {}: {} points in {} B, request {} ms old", service_.options().robot,
+                m.keyframe_id, m.requester_robot_id, packed.count, packed.bytes.size(),
+                (dds::now_ns() - m.stamp_ns) / 1'000'000);
 }
 
 void LoopNode::on_keyframe(const cdc_msg_Keyframe& m) {
@@ -184,7 +169,7 @@ void LoopNode::on_keyframe(const cdc_msg_Keyframe& m) {
 // The sequencer holds back what came after a gap until it is filled, so that every robot's
 // descriptors are searched in keyframe order.
 void LoopNode::on_descriptor(const cdc_msg_Descriptor& m) {
-  if (m.robot_id != o_.robot) {
+  if (m.robot_id != service_.options().robot) {
     traffic_.received(m.robot_id, dds::serialized_size(m));
     reach_.heard(m.robot_id, clock());
   }
@@ -225,7 +210,7 @@ void LoopNode::ask_for_missed_descriptors() {
   std::vector<DescriptorIn> released;  // held behind a gap given up
   for (const SyncWanted& w : sequencer_.wanted(
            now_, [this](uint32_t robot) { return in_reach(robot); }, released)) {
-    const cdc_msg_DescriptorSync q = descriptor_sync(w, o_.robot);
+    const cdc_msg_DescriptorSync q = descriptor_sync(w, service_.options().robot);
     w_sync_.write(q);
     traffic_.sent(w.robot, dds::serialized_size(q));
     spdlog::debug("asked robot {} for its descriptors {}..{}", w.robot, w.first, w.last);
@@ -255,7 +240,7 @@ void LoopNode::handle(LoopEvents events) {
 
 void LoopNode::request_clouds(const std::vector<CloudWanted>& wanted) {
   for (const CloudWanted& c : wanted) {
-    const cdc_msg_CloudRequest q = cloud_request(c, o_.robot, incarnation_, next_request_++);
+    const cdc_msg_CloudRequest q = cloud_request(c, service_.options().robot, incarnation_, next_request_++);
     w_req_.write(q);
     spdlog::debug("requested cloud {}/{} (request {})", c.robot, c.id, q.request_id);
     traffic_.sent(c.robot, dds::serialized_size(q));
@@ -263,7 +248,7 @@ void LoopNode::request_clouds(const std::vector<CloudWanted>& wanted) {
 }
 
 void LoopNode::publish(const LoopOut& l) {
-  const cdc_msg_LoopClosure m = loop_message(l, o_.robot, incarnation_, next_loop_seq());
+  const cdc_msg_LoopClosure m = loop_message(l, service_.options().robot, incarnation_, next_loop_seq());
   write_loop(m);
   if (w_loop_local_) w_loop_local_->write(m);
   ++counters_.loops_published;
@@ -278,7 +263,7 @@ void LoopNode::publish(const LoopOut& l) {
 // Loops go only where they are needed: an own-robot loop in this robot's partition (its peer
 // optimiser, the central), a loop with peer r in both robots' partitions; never to a third robot.
 void LoopNode::write_loop(const cdc_msg_LoopClosure& m) {
-  const uint32_t other = m.robot_a == o_.robot ? m.robot_b : m.robot_a;
+  const uint32_t other = m.robot_a == service_.options().robot ? m.robot_b : m.robot_a;
   dds::Writer<cdc_msg_LoopClosure>* to = w_loop_with_.to(other);
   (to != nullptr ? *to : w_loop_).write(m);
 }
@@ -323,7 +308,7 @@ nlohmann::json LoopNode::stats() const {
   j.update(nlohmann::json(counters_));
   j.update(nlohmann::json(sequencer_counters(sequencer_.stats())));
   j.update(nlohmann::json(reach_counters(reach_.stats())));
-  j["robot"] = o_.robot;
+  j["robot"] = service_.options().robot;
   j["keyframes"] = core_.keyframes();
   j["loop_numbering"] = numbering_counters(numbering_.stats(), o_.state_file);
   j["loop_latency_s"] = latency_summary(latencies_s_);
@@ -333,7 +318,7 @@ nlohmann::json LoopNode::stats() const {
 }
 
 void LoopNode::finish() const {
-  runtime::write_stats(o_.stats_out, stats(), service_.boundary());
+  runtime::write_stats(service_, stats());
   spdlog::info("stopped: {} loop messages, {} rejected samples", counters_.loops_published,
                service_.boundary().rejected().total());
 }

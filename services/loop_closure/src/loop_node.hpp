@@ -16,6 +16,7 @@
 #include "cdc/loop_closure/loop_numbering.hpp"
 #include "cdc/loop_closure/search_queue.hpp"
 #include "cdc/runtime/input.hpp"
+#include "cdc/runtime/options.hpp"
 #include "cdc/runtime/service.hpp"
 
 #include <nlohmann/json.hpp>
@@ -28,7 +29,7 @@ namespace cdc::loops {
 
 class LoopNode {
  public:
-  explicit LoopNode(const LoopNodeOptions& options);
+  LoopNode(const runtime::ServiceOptions& common, const LoopNodeOptions& options);
   // Works until shutdown is asked for.
   void spin();
   // Core and node counters, as --stats-out writes them.
@@ -72,17 +73,13 @@ class LoopNode {
   runtime::Input<cdc_msg_Descriptor> descriptors_resent_;
   std::optional<runtime::Input<cdc_msg_Descriptor>> descriptors_local_;
   runtime::Input<cdc_msg_CloudReply> replies_;
-  dds::Topic<cdc_msg_LoopClosure> t_loop_;
-  dds::Topic<cdc_msg_CloudRequest> t_req_;
   dds::Topic<cdc_msg_CloudReply> t_rep_;
-  dds::Topic<cdc_msg_DescriptorSync> t_sync_;
-  std::optional<dds::Topic<cdc_msg_LoopClosure>> t_loop_local_;
-  dds::Writer<cdc_msg_LoopClosure> w_loop_;
+  dds::TopicWriter<cdc_msg_LoopClosure> w_loop_;
   dds::PerRobotWriters<cdc_msg_LoopClosure> w_loop_with_;
-  std::optional<dds::Writer<cdc_msg_LoopClosure>> w_loop_local_;
-  dds::Writer<cdc_msg_CloudRequest> w_req_;
+  std::optional<dds::TopicWriter<cdc_msg_LoopClosure>> w_loop_local_;
+  dds::TopicWriter<cdc_msg_CloudRequest> w_req_;
   dds::PerRobotWriters<cdc_msg_CloudReply> w_rep_to_;
-  dds::Writer<cdc_msg_DescriptorSync> w_sync_;
+  dds::TopicWriter<cdc_msg_DescriptorSync> w_sync_;
 
   LoopCore core_;
   DescriptorSequencer sequencer_;

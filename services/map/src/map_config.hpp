@@ -13,6 +13,7 @@ struct MapNodeOptions {
   double write_period_s = 0;  // 0: write on SIGUSR1 and at shutdown only
   MapParams core;
   std::string log_level = "info";
+  std::string out_dir = ".";  // where map.pcd and map.bt go (--out)
 };
 
 // Reads a map.yaml (empty path: the defaults); every invalid key is named in the exception.

@@ -2,30 +2,20 @@
 
 #include "cdc/dds/convert.hpp"
 #include "cdc/dds/qos.hpp"
+#include "cdc/dds/shutdown.hpp"
 #include "cdc/dds/topics.hpp"
 #include "cdc/runtime/stats.hpp"
 
 #include <spdlog/spdlog.h>
 
+#include <csignal>
+
 namespace cdc::map {
-namespace {
 
-dds::ValidationLimits limits(const MapNodeOptions& o) {
-  dds::ValidationLimits l;
-  l.robot_count = o.robots;
-  l.extra_node_ids = {o.central_id};
-  return l;
-}
-
-}  // namespace
-
-MapNode::MapNode(const runtime::ServiceOptions& common, const MapNodeOptions& o, std::filesystem::path out_dir,
-                 std::atomic<bool>& write_requested)
-    : common_(common),
-      o_(o),
-      dir_(std::move(out_dir)),
-      write_requested_(&write_requested),
-      service_(runtime::Domains::kSingle, common.radio(), std::nullopt, limits(o)),
+MapNode::MapNode(const runtime::ServiceOptions& common, const MapNodeOptions& o)
+    : o_(o),
+      dir_(o.out_dir),
+      service_(runtime::Domains::kSingle, common, runtime::swarm_limits(o.robots, {o.central_id})),
       keyframes_(service_, service_.radio(), dds::topics::kKeyframe,
                  dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader())),
       poses_(service_, service_.radio(), dds::topics::kCentralOptimized,
@@ -33,11 +23,16 @@ MapNode::MapNode(const runtime::ServiceOptions& common, const MapNodeOptions& o,
       core_(o.core),
       last_write_(std::chrono::steady_clock::now()) {
   std::filesystem::create_directories(dir_);
+  dds::ShutdownSignal::on_user_signal([this](int signal) {
+    if (signal == SIGUSR1) write_requested_ = true;
+  });
   keyframes_.on([this](const cdc_msg_Keyframe& m) { on_keyframe(m); });
   poses_.on([this](const cdc_msg_OptimizedPoses& m) { on_poses(m); });
   spdlog::info("map service up: cloud voxel {} m, OctoMap resolution {} m, writing to {}", o.core.voxel_m,
                o.core.octree_resolution_m, dir_.string());
 }
+
+MapNode::~MapNode() { dds::ShutdownSignal::on_user_signal({}); }
 
 void MapNode::spin() {
   while (service_.wait(std::chrono::milliseconds(200))) {
@@ -45,7 +40,7 @@ void MapNode::spin() {
     poses_.poll(16);
     const bool periodic = o_.write_period_s > 0 && std::chrono::steady_clock::now() - last_write_ >=
                                                        std::chrono::duration<double>(o_.write_period_s);
-    if (write_requested_->exchange(false) || periodic) {
+    if (write_requested_.exchange(false) || periodic) {
       write();
       last_write_ = std::chrono::steady_clock::now();
     }
@@ -83,7 +78,7 @@ nlohmann::json MapNode::stats() const {
 
 void MapNode::finish() {
   write();
-  runtime::write_stats(common_.stats_out, stats(), service_.boundary());
+  runtime::write_stats(service_, stats());
 }
 
 }  // namespace cdc::map

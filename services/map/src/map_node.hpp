@@ -21,9 +21,9 @@ namespace cdc::map {
 
 class MapNode {
  public:
-  // write_requested: set (from a signal handler) to have the map written; the node clears it.
-  MapNode(const runtime::ServiceOptions& common, const MapNodeOptions& options, std::filesystem::path out_dir,
-          std::atomic<bool>& write_requested);
+  // SIGUSR1 has the map written (dds::ShutdownSignal's user signal handler, while the node lives).
+  MapNode(const runtime::ServiceOptions& common, const MapNodeOptions& options);
+  ~MapNode();
   // Works until shutdown is asked for.
   void spin();
   nlohmann::json stats() const;
@@ -35,10 +35,9 @@ class MapNode {
   void on_poses(const cdc_msg_OptimizedPoses& m);
   void write();
 
-  runtime::ServiceOptions common_;
   MapNodeOptions o_;
   std::filesystem::path dir_;
-  std::atomic<bool>* write_requested_;
+  std::atomic<bool> write_requested_{false};  // set on the signal thread, cleared by spin()
   runtime::Service service_;
   runtime::Input<cdc_msg_Keyframe> keyframes_;
   runtime::Input<cdc_msg_OptimizedPoses> poses_;

@@ -6,6 +6,7 @@
 #include "cdc/dds/shutdown.hpp"
 #include "cdc/dds/topics.hpp"
 #include "cdc/graph/g2o.hpp"
+#include "cdc/runtime/logging.hpp"
 #include "cdc/runtime/stats.hpp"
 
 #include <spdlog/spdlog.h>
@@ -25,24 +26,14 @@ namespace topics = dds::topics;
 namespace qos = dds::qos;
 namespace partitions = dds::partitions;
 
-dds::ParticipantOptions slam_domain(const PeerNodeOptions& o) { return {o.domain, o.dds_config}; }
-
-dds::ValidationLimits limits(const PeerNodeOptions& o) {
-  dds::ValidationLimits l;
-  l.robot_count = o.core.robot_count;
-  l.extra_node_ids = {o.central_id};
-  return l;
-}
-
 }  // namespace
 
 // The robot's own keyframes and loop closures, and its corrections, travel on its local domain when
 // it has one (see cdc/dds/robot_domains.hpp); the node then forwards keyframes to the central over
 // the radio, and takes loop closures from both domains (each counted once by the core).
-PeerNode::PeerNode(const PeerNodeOptions& o)
+PeerNode::PeerNode(const runtime::ServiceOptions& common, const PeerNodeOptions& o)
     : o_(o),
-      service_(runtime::Domains::kRobot, slam_domain(o),
-               dds::local_domain_options(o.local_domain, o.local_dds_config, slam_domain(o)), limits(o)),
+      service_(runtime::Domains::kRobot, common, runtime::swarm_limits(o.core.robot_count, {o.central_id})),
       keyframes_(service_, service_.secondary(), topics::kKeyframe,
                  qos::event_stream(4096).partitions(partitions::own_reader(o.core.robot))),
       loops_(service_, service_.radio(), topics::kLoopClosure,
@@ -54,23 +45,19 @@ PeerNode::PeerNode(const PeerNodeOptions& o)
       separators_(service_, service_.radio(), topics::kSeparator,
                   qos::event_stream(256).partitions(partitions::own_reader(o.core.robot))),
       statuses_(service_, service_.radio(), topics::kRobotStatus, qos::keyed_state(), false),
-      t_mode_(service_.radio(), topics::kMode),
-      t_corr_(service_.secondary(), topics::kCorrection),
       t_sep_(service_.radio(), topics::kSeparator),
-      t_world_(service_.radio(), topics::kWorldTransform),
-      t_kf_(service_.radio(), topics::kKeyframe),
-      t_loop_(service_.radio(), topics::kLoopClosure),
-      t_status_(service_.radio(), topics::kRobotStatus),
       t_alive_(service_.radio(), topics::kCentralAlive),
-      w_mode_(service_.radio(), t_mode_, qos::keyed_state(8)),
-      w_corr_(service_.secondary(), t_corr_, qos::event_stream(64).partitions({partitions::robot(o.core.robot)})),
+      w_mode_(service_.radio(), topics::kMode, qos::keyed_state(8)),
+      w_corr_(service_.secondary(), topics::kCorrection,
+              qos::event_stream(64).partitions({partitions::robot(o.core.robot)})),
       // Separators go only to the peer they are for (each crosses only the link to it).
       w_sep_(service_.radio(), t_sep_, qos::event_stream(256), o.core.robot_count, o.core.robot),
-      w_world_(service_.radio(), t_world_, qos::keyed_state()),
-      w_kf_(service_.radio(), t_kf_, qos::event_stream(4096).partitions({partitions::robot(o.core.robot)})),
+      w_world_(service_.radio(), topics::kWorldTransform, qos::keyed_state()),
+      w_kf_(service_.radio(), topics::kKeyframe, qos::event_stream(4096).partitions({partitions::robot(o.core.robot)})),
       // Own loops re-sent for the central: in the robot's partition, so that they do not cross to peers.
-      w_loop_(service_.radio(), t_loop_, qos::event_stream(4096).partitions({partitions::robot(o.core.robot)})),
-      w_status_(service_.radio(), t_status_, qos::keyed_state()),
+      w_loop_(service_.radio(), topics::kLoopClosure,
+              qos::event_stream(4096).partitions({partitions::robot(o.core.robot)})),
+      w_status_(service_.radio(), topics::kRobotStatus, qos::keyed_state()),
       central_(service_.radio(), t_alive_.handle(), "central optimiser"),
       core_(o.core, elapsed()),
       mode_files_(o.mode_out),
@@ -83,11 +70,12 @@ PeerNode::PeerNode(const PeerNodeOptions& o)
   wire_inputs();
   central_.set_notify(&liveliness_changed_);
   service_.watch(liveliness_changed_);
-  spdlog::info(
-      "peer optimiser of robot {} up: CR_0 {} m, dwell {} ms, mask {} ms, domain {}{}", o.core.robot,
-      o.core.rtdos.range_m, o.core.rtdos.dwell.count() / 1'000'000, o.core.rtdos.mask.count() / 1'000'000, o.domain,
-      service_.split() ? ", own keyframes, loops and corrections on local domain " + std::to_string(o.local_domain)
-                       : std::string());
+  spdlog::info("peer optimiser of robot {} up: CR_0 {} m, dwell {} ms, mask {} ms, domain {}{}", o.core.robot,
+               o.core.rtdos.range_m, o.core.rtdos.dwell.count() / 1'000'000, o.core.rtdos.mask.count() / 1'000'000,
+               common.domain_id(),
+               service_.split()
+                   ? ", own keyframes, loops and corrections on local domain " + std::to_string(common.local_domain)
+                   : std::string());
 }
 
 // Each input takes only what is for this robot, and hands it to its on_<topic>().
@@ -261,18 +249,11 @@ void PeerNode::publish_correction(const Correction& c) {
   if (spdlog::should_log(spdlog::level::debug) && !c.poses.empty()) log_correction(c);
 }
 
-// What the front-end takes: T_world_robot, and the newest keyframe in its odometry frame.
+// What the front-end takes.
 void PeerNode::log_correction(const Correction& c) const {
-  const Eigen::Isometry3d& T = c.T_world_robot;
-  const Eigen::AngleAxisd r(T.linear());
-  const Eigen::Vector3d rv = r.angle() * r.axis() * 1e3;
-  const auto& [id, P] = c.poses.back();
-  const Eigen::Vector3d w = P.translation(), l = (T.inverse() * P).translation();
-  spdlog::debug(
-      "correction {} ({}, lambda {:.3f}): T_world_robot ({:.3f}, {:.3f}, {:.3f}) m ({:.3f}, {:.3f}, {:.3f}) mrad; "
-      "keyframe {} at ({:.3f}, {:.3f}, {:.3f}) in W, ({:.3f}, {:.3f}, {:.3f}) in L",
-      counters_.corrections, c.from_central ? "central" : "distributed", c.lambda, T.translation().x(),
-      T.translation().y(), T.translation().z(), rv.x(), rv.y(), rv.z(), id, w.x(), w.y(), w.z(), l.x(), l.y(), l.z());
+  spdlog::debug("correction {} ({}, lambda {:.3f}): {}", counters_.corrections,
+                c.from_central ? "central" : "distributed", c.lambda,
+                runtime::world_estimate_text(c.T_world_robot, c.poses.back().first, c.poses.back().second));
 }
 
 // The robot's status on the radio every radio_status_period_ms, the launcher's file every status_period_ms.
@@ -310,7 +291,7 @@ nlohmann::json PeerNode::stats() const {
 void PeerNode::finish() const {
   if (!o_.trajectory_out.empty()) geometry::write_tum(o_.trajectory_out, records_.world_trajectory());
   if (!o_.graph_out.empty()) graph::write_g2o(o_.graph_out, core_.graph());
-  runtime::write_stats(o_.stats_out, stats(), service_.boundary());
+  runtime::write_stats(service_, stats());
   spdlog::info("stopped (signal {})", dds::ShutdownSignal::signal_number());
 }
 

@@ -15,6 +15,7 @@
 #include "cdc/dds/types.hpp"
 #include "cdc/dds/waitset.hpp"
 #include "cdc/runtime/input.hpp"
+#include "cdc/runtime/options.hpp"
 #include "cdc/runtime/service.hpp"
 
 #include <nlohmann/json.hpp>
@@ -45,7 +46,7 @@ struct PeerNodeState {
 
 class PeerNode {
  public:
-  explicit PeerNode(const PeerNodeOptions& options);
+  PeerNode(const runtime::ServiceOptions& common, const PeerNodeOptions& options);
   ~PeerNode();
   PeerNode(const PeerNode&) = delete;
   PeerNode& operator=(const PeerNode&) = delete;
@@ -91,21 +92,15 @@ class PeerNode {
   runtime::Input<cdc_msg_Acknowledgement> acks_;
   runtime::Input<cdc_msg_SeparatorPoses> separators_;
   runtime::Input<cdc_msg_RobotStatus> statuses_;
-  dds::Topic<cdc_msg_ModeState> t_mode_;
-  dds::Topic<cdc_msg_OptimizedPoses> t_corr_;
   dds::Topic<cdc_msg_SeparatorPoses> t_sep_;
-  dds::Topic<cdc_msg_WorldTransform> t_world_;
-  dds::Topic<cdc_msg_Keyframe> t_kf_;
-  dds::Topic<cdc_msg_LoopClosure> t_loop_;
-  dds::Topic<cdc_msg_RobotStatus> t_status_;
   dds::Topic<cdc_msg_RobotStatus> t_alive_;
-  dds::Writer<cdc_msg_ModeState> w_mode_;
-  dds::Writer<cdc_msg_OptimizedPoses> w_corr_;
+  dds::TopicWriter<cdc_msg_ModeState> w_mode_;
+  dds::TopicWriter<cdc_msg_OptimizedPoses> w_corr_;
   dds::PerRobotWriters<cdc_msg_SeparatorPoses> w_sep_;
-  dds::Writer<cdc_msg_WorldTransform> w_world_;
-  dds::Writer<cdc_msg_Keyframe> w_kf_;
-  dds::Writer<cdc_msg_LoopClosure> w_loop_;
-  dds::Writer<cdc_msg_RobotStatus> w_status_;
+  dds::TopicWriter<cdc_msg_WorldTransform> w_world_;
+  dds::TopicWriter<cdc_msg_Keyframe> w_kf_;
+  dds::TopicWriter<cdc_msg_LoopClosure> w_loop_;
+  dds::TopicWriter<cdc_msg_RobotStatus> w_status_;
   dds::GuardCondition liveliness_changed_;
   dds::LivelinessMonitor central_;
 

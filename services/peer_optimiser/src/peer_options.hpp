@@ -8,10 +8,9 @@
 
 namespace cdc::peer {
 
+// The domains and the statistics file are the shared options' (runtime::ServiceOptions); core.robot is
+// --robot's.
 struct PeerNodeOptions {
-  uint32_t domain = 0;
-  int local_domain = -1;  // the robot's own domain (see cdc/dds/robot_domains.hpp); -1: none
-  std::string dds_config, local_dds_config;
   PeerConfig core;
   uint32_t central_id = 200;  // the central's node id in status messages
   int tick_ms = 50;
@@ -19,8 +18,7 @@ struct PeerNodeOptions {
   // The robot's status on the radio (cdc/status/robot: its pose for peers' peer_range_m); each
   // sample costs every peer in reach ~0.2 KB with its headers and acknowledgement.
   int radio_status_period_ms = 1000;
-  int mode_period_ms = 1000;  // the mode is re-published this often besides every transition
-  std::string stats_out;
+  int mode_period_ms = 1000;   // the mode is re-published this often besides every transition
   std::string mode_out;        // CSV of every mode transition, written as it happens
   std::string trajectory_out;  // TUM: own keyframes in W as last corrected, written at shutdown
   std::string graph_out;       // g2o: PeerCore::graph(), written at shutdown

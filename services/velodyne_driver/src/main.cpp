@@ -39,8 +39,6 @@ void add_options(CLI::App& app, CommandLine& c) {
 
 int run(const cdc::runtime::ServiceSpec& spec, const cdc::runtime::ServiceOptions& common, CommandLine& c) {
   VelodyneNodeOptions& o = c.node;
-  o.robot = common.robot;
-  o.dds_config = common.dds_config;
   o.driver = load_driver_config(common.config);
   try {
     if (!c.model.empty()) o.driver.model = parse_model(c.model);
@@ -49,10 +47,9 @@ int run(const cdc::runtime::ServiceSpec& spec, const cdc::runtime::ServiceOption
   }
   if (!c.calibration.empty()) o.driver.calibration = c.calibration;
   if (c.port > 0) o.driver.port = static_cast<uint16_t>(c.port);
-  o.domain = common.domain_id();
   o.incarnation = std::random_device{}();
   cdc::runtime::start_logging(spec, common, o.driver.log_level);
-  VelodyneDriverNode node(o);
+  VelodyneDriverNode node(common, o);
   const int code = node.spin();
   const VelodyneNodeStats s = node.stats();
   if (!common.stats_out.empty()) std::ofstream(common.stats_out) << to_json(s).dump(2) << '\n';
@@ -66,11 +63,10 @@ int run(const cdc::runtime::ServiceSpec& spec, const cdc::runtime::ServiceOption
 int main(int argc, char** argv) {
   namespace rt = cdc::runtime;
   const rt::ServiceSpec spec{
-      "cdc-velodyne",
-      "the robot's Velodyne driver. Decodes the sensor's UDP data packets (VLP-16, VLP-32C, HDL-32E,\n"
-      "HDL-64E, VLS-128) into sweeps and publishes them on cdc/sensor/lidar (LidarScan: per-point time offsets and\n"
-      "rings; stamps from the packets' arrival time). With --pcap it replays a capture through the same decoder.\n"
-      "Stops cleanly on SIGINT/SIGTERM.",
+      "cdc-velodyne", R"(the robot's Velodyne driver. Decodes the sensor's UDP data packets (VLP-16, VLP-32C, HDL-32E,
+HDL-64E, VLS-128) into sweeps and publishes them on cdc/sensor/lidar (LidarScan: per-point time offsets and
+rings; stamps from the packets' arrival time). With --pcap it replays a capture through the same decoder.
+Stops cleanly on SIGINT/SIGTERM.)",
       "see services/velodyne_driver/config", rt::kRobotOption | rt::kStatsOption};
   rt::ServiceOptions common;
   CommandLine c;

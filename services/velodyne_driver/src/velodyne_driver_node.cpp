@@ -18,13 +18,6 @@ namespace {
 
 using namespace std::chrono_literals;
 
-dds::ParticipantOptions participant_options(const VelodyneNodeOptions& o) {
-  dds::ParticipantOptions p;
-  p.domain_id = o.domain;
-  p.config = o.dds_config;
-  return p;
-}
-
 // Sleeps until `due`, waking at least every 100 ms; false when shutdown was requested meanwhile.
 bool sleep_until(std::chrono::steady_clock::time_point due) {
   while (!dds::ShutdownSignal::requested()) {
@@ -63,13 +56,13 @@ nlohmann::json to_json(const VelodyneNodeStats& s) {
   return j;
 }
 
-VelodyneDriverNode::VelodyneDriverNode(const VelodyneNodeOptions& options)
-    : options_(options),
+VelodyneDriverNode::VelodyneDriverNode(const runtime::ServiceOptions& common, const VelodyneNodeOptions& options)
+    : robot_(common.robot),
+      options_(options),
       core_(options.driver),
-      participant_(participant_options(options)),
-      topic_(participant_, dds::topics::kLidar),
+      participant_(common.radio()),
       // Reliable, as the front-end's reader asks; keep-last 16 so that a slow reader never blocks the driver.
-      writer_(participant_, topic_, dds::qos::sensor_stream(16, true)) {
+      writer_(participant_, dds::topics::kLidar, dds::qos::sensor_stream(16, true)) {
   if (options_.wait_readers > 0 && !writer_.wait_for_readers(options_.wait_readers, 30s)) {
     throw std::runtime_error("only " + std::to_string(writer_.matched_readers()) + " of " +
                              std::to_string(options_.wait_readers) + " LiDAR readers appeared within 30 s");
@@ -91,7 +84,7 @@ void VelodyneDriverNode::publish(const DriverSweep& s) {
     points_[i] = cdc_msg_LidarPoint{in[i].x, in[i].y, in[i].z, in[i].intensity, in[i].time_offset, in[i].ring};
   }
   cdc_msg_LidarScan m{};
-  m.robot_id = options_.robot;
+  m.robot_id = robot_;
   m.incarnation = options_.incarnation;
   m.seq = s.seq;
   m.stamp_ns = s.stamp_ns;
@@ -110,8 +103,7 @@ int VelodyneDriverNode::spin_udp() {
   source_.port = socket.port();
   source_.receive_buffer_bytes = socket.receive_buffer_bytes();
   spdlog::info("listening on UDP {}:{} (receive buffer {} bytes), publishing sweeps of robot {} on {}",
-               options_.bind_address, socket.port(), socket.receive_buffer_bytes(), options_.robot,
-               dds::topics::kLidar);
+               options_.bind_address, socket.port(), socket.receive_buffer_bytes(), robot_, dds::topics::kLidar);
   if (socket.receive_buffer_bytes() < options_.driver.receive_buffer_bytes) {
     spdlog::warn(
         "the kernel capped the receive buffer at {} bytes ({} asked for): raise net.core.rmem_max to at least {}",
@@ -131,7 +123,7 @@ int VelodyneDriverNode::spin_pcap() {
   io::PcapReader reader(options_.pcap);
   ReplayPacer pacer(options_.rate);
   spdlog::info("replaying {} (datagrams to port {}, rate {}), publishing sweeps of robot {} on {}", options_.pcap,
-               options_.driver.port, options_.rate, options_.robot, dds::topics::kLidar);
+               options_.driver.port, options_.rate, robot_, dds::topics::kLidar);
   const auto start = std::chrono::steady_clock::now();
   io::UdpDatagram d;
   int code = 0;

@@ -6,6 +6,7 @@
 
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
+#include "cdc/runtime/options.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -17,11 +18,9 @@
 
 namespace cdc::velodyne_driver {
 
+// The robot and its domain are the shared options' (runtime::ServiceOptions).
 struct VelodyneNodeOptions {
-  uint32_t robot = 0;
   uint32_t incarnation = 0;  // drawn at start-up: tells receivers a restarted driver from the old one
-  uint32_t domain = 0;
-  std::string dds_config;  // empty: CYCLONEDDS_URI (the participant refuses to start without one)
   std::string bind_address = "0.0.0.0";
   std::string pcap;           // non-empty: replay this capture instead of listening
   double rate = 1.0;          // replay speed: 1 the capture's own, 2 twice as fast, 0 as fast as possible
@@ -43,7 +42,7 @@ nlohmann::json to_json(const VelodyneNodeStats& s);
 
 class VelodyneDriverNode {
  public:
-  explicit VelodyneDriverNode(const VelodyneNodeOptions& options);
+  VelodyneDriverNode(const runtime::ServiceOptions& common, const VelodyneNodeOptions& options);
 
   // One datagram: to the core, then every sweep it completes out on cdc/sensor/lidar.
   void on_datagram(std::span<const uint8_t> payload, int64_t stamp_ns, uint16_t dst_port);
@@ -59,11 +58,11 @@ class VelodyneDriverNode {
   int spin_pcap();
   void publish(const DriverSweep& s);
 
+  uint32_t robot_;
   VelodyneNodeOptions options_;
   VelodyneDriverCore core_;
   dds::Participant participant_;
-  dds::Topic<cdc_msg_LidarScan> topic_;
-  dds::Writer<cdc_msg_LidarScan> writer_;
+  dds::TopicWriter<cdc_msg_LidarScan> writer_;
   std::vector<cdc_msg_LidarPoint> points_;  // the message's point storage, reused
   VelodyneNodeStats source_;                // publishing and source counters (the core's are added by stats())
 };

@@ -167,6 +167,24 @@ class Writer {
   std::atomic<uint64_t> samples_written_{0};
 };
 
+namespace detail {
+template <class T>
+struct TopicMember {
+  Topic<T> topic_;
+};
+}  // namespace detail
+
+// A topic and its writer, for the usual case of a topic written by one writer: the writer, which also
+// hands out the topic (for more writers of it, or for a liveliness monitor).
+template <class T>
+class TopicWriter : private detail::TopicMember<T>, public Writer<T> {
+ public:
+  TopicWriter(const Participant& participant, const std::string& topic, const Qos& qos)
+      : detail::TopicMember<T>{Topic<T>(participant, topic)}, Writer<T>(participant, this->topic_, qos) {}
+
+  const Topic<T>& topic() const noexcept { return this->topic_; }
+};
+
 // One writer of a topic per robot, each in that robot's partition (plus `also`, e.g. the writer's
 // own), so that a sample meant for one robot crosses only the radio link to it (readers take it with
 // partitions::own_reader). Made up front: a writer's first sample can be lost before it has matched.

@@ -9,6 +9,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <utility>
 
 namespace CLI {
@@ -79,6 +80,31 @@ int run_node(const ServiceSpec& spec, const ServiceOptions& o, const std::string
   node.spin();
   node.finish();
   return 0;
+}
+
+// A service's own flags, as node_main takes them: declare(app) declares them on the command line,
+// apply(options, shared) folds their values (and any shared option the options keep) into the options.
+struct NoFlags {
+  void declare(CLI::App&) {}
+  template <class Options>
+  void apply(Options&, const ServiceOptions&) const {}
+};
+
+// The main of a service whose node is Node(shared options, options): service_main around loading
+// --config with load, checking --robot against robots(options) (services with --robot), applying the
+// service's flags, and run_node at the configuration's log_level.
+template <class Node, class Options, class Flags = NoFlags>
+int node_main(int argc, char** argv, const ServiceSpec& spec, Options (*load)(const std::string&),
+              uint32_t (*robots)(const std::type_identity_t<Options>&), Flags&& flags = Flags{}) {
+  ServiceOptions common;
+  return service_main(
+      argc, argv, spec, common, [&](CLI::App& app) { flags.declare(app); },
+      [&] {
+        Options o = load(common.config);
+        if ((spec.shared & kRobotOption) != 0u) common.check_robot(robots(o));
+        flags.apply(o, common);
+        return run_node<Node>(spec, common, o.log_level, common, o);
+      });
 }
 
 }  // namespace cdc::runtime

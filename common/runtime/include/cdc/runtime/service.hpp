@@ -6,6 +6,7 @@
 #include "cdc/dds/robot_domains.hpp"
 #include "cdc/dds/validate.hpp"
 #include "cdc/dds/waitset.hpp"
+#include "cdc/runtime/options.hpp"
 
 #include <chrono>
 #include <memory>
@@ -35,6 +36,10 @@ class Boundary {
   dds::RejectionCounter rejected_;
 };
 
+// The limits of a swarm of `robots` (ids 0 .. robots - 1) and the other node ids it accepts (a
+// central's, say); dds::ValidationLimits' defaults otherwise.
+dds::ValidationLimits swarm_limits(uint32_t robots, std::vector<uint32_t> extra_node_ids = {});
+
 // How a service's domains are laid out.
 enum class Domains {
   kSingle,       // one participant
@@ -47,9 +52,16 @@ class Service {
   // secondary: the robot's own domain (kRobot) or the sensors' (kWithSensors); nullopt for none.
   Service(Domains kind, const dds::ParticipantOptions& primary, const std::optional<dds::ParticipantOptions>& secondary,
           dds::ValidationLimits limits);
+  // The domains the shared options name: the SLAM domain and, for kRobot, the robot's own (--local-domain);
+  // for kWithSensors, sensors names the sensors' domain (nullopt: the SLAM domain). options() keeps them.
+  Service(Domains kind, const ServiceOptions& options, dds::ValidationLimits limits,
+          const std::optional<dds::ParticipantOptions>& sensors = std::nullopt);
   ~Service();
   Service(const Service&) = delete;
   Service& operator=(const Service&) = delete;
+
+  // The shared options the service started with (defaults when it was given domains instead).
+  const ServiceOptions& options() const noexcept { return options_; }
 
   // The SLAM domain (the radio for a robot's services).
   const dds::Participant& radio() const noexcept;
@@ -72,6 +84,7 @@ class Service {
   static bool running() noexcept;
 
  private:
+  ServiceOptions options_;
   std::optional<dds::RobotDomains> robot_;
   std::optional<dds::Participant> primary_, secondary_;
   Boundary boundary_;

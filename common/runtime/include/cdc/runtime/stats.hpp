@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include <string>
+#include <utility>
 
 namespace cdc::runtime {
 
@@ -21,6 +22,11 @@ void write_stats(const std::string& path, nlohmann::json own, const Boundary& bo
 template <class Stats>
 void write_stats(const std::string& path, const Stats& own, const Boundary& boundary) {
   write_stats(path, nlohmann::json(own), boundary);
+}
+
+// The same for a service: to its --stats-out, with its boundary's refusals.
+inline void write_stats(const Service& service, nlohmann::json own) {
+  write_stats(service.options().stats_out, std::move(own), service.boundary());
 }
 
 }  // namespace cdc::runtime
