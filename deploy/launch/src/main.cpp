@@ -753,9 +753,7 @@ int main(int argc, char** argv) {
   try {
     SwarmConfig c = load_swarm(o.swarm, o.root);
     if (!o.network.empty()) {
-      c.network = o.network == "netns"      ? NetworkMode::kNetns
-                  : o.network == "loopback" ? NetworkMode::kLoopback
-                                            : NetworkMode::kAuto;
+      c.network = parse_network_mode(o.network).value_or(NetworkMode::kAuto);
     }
     if (o.max_scans >= 0) c.max_scans = static_cast<size_t>(o.max_scans);
     if (!o.dataset.empty()) c.dataset = o.dataset;

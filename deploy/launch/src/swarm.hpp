@@ -3,7 +3,9 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <string_view>
 
 namespace cdc::launch {
 
@@ -50,6 +52,7 @@ struct SwarmConfig {
 SwarmConfig load_swarm(const std::string& path, const std::string& root);
 
 const char* to_string(NetworkMode m);
+std::optional<NetworkMode> parse_network_mode(std::string_view name);  // "auto", "netns", "loopback"
 const char* to_string(Variant v);
 
 }  // namespace cdc::launch
