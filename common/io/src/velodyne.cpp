@@ -3,6 +3,8 @@
 #include "cdc/base/names.hpp"
 #include "cdc/io/error.hpp"
 
+#include "yaml_file.hpp"
+
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
@@ -383,12 +385,7 @@ std::string_view to_string(VelodynePacketStatus status) { return base::name_of(k
 
 VelodyneCalibration read_velodyne_calibration(const std::filesystem::path& path, std::optional<VelodyneModel> model) {
   const std::string file = path.string();
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(file);
-  } catch (const YAML::Exception& e) {
-    throw FormatError(file + ": not a readable YAML file: " + e.what());
-  }
+  const YAML::Node root = detail::load_yaml_file(file);
   if (!root.IsMap()) throw FormatError(file + ": expected a map with num_lasers and lasers");
   const CalibrationFile f{file};
   VelodyneCalibration c;
