@@ -1,5 +1,6 @@
 // cdc-import: real recordings into the dataset layout that cdc-sim play, cdc-launch, cdc-odometry,
 // cdc-loops and cdc-experiment read (see cdc/io/dataset.hpp).
+#include "cdc/base/tool.hpp"
 #include "cdc/io/bag.hpp"
 #include "import.hpp"
 
@@ -132,7 +133,7 @@ int main(int argc, char** argv) {
   add_common(bag, o, central_position);
 
   CLI11_PARSE(app, argc, argv);
-  try {
+  return cdc::base::run_tool("cdc-import", [&] {
     if (!central_position.empty()) {
       o.radio.central_robot = -1;
       o.radio.central_position = Eigen::Vector3d(central_position[0], central_position[1], central_position[2]);
@@ -167,8 +168,5 @@ int main(int argc, char** argv) {
     if (sum.skipped > 0) std::cout << ", " << sum.skipped << " input items skipped";
     std::cout << '\n';
     return 0;
-  } catch (const std::exception& e) {
-    std::cerr << "cdc-import: " << e.what() << '\n';
-    return 1;
-  }
+  });
 }

@@ -1,4 +1,5 @@
 // cdc-sim: the swarm simulator's command-line tool.
+#include "cdc/base/tool.hpp"
 #include "cdc/config/reader.hpp"
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/shutdown.hpp"
@@ -128,40 +129,37 @@ int main(int argc, char** argv) {
   CLI::App* b = app.add_subcommand("bench", "sweeps per second for the VLP-16 and HDL-64E presets on one core");
   b->add_option("--sweeps", sweeps, "sweeps per preset")->check(CLI::PositiveNumber)->capture_default_str();
   CLI11_PARSE(app, argc, argv);
-  try {
-    if (b->parsed()) {
-      return bench(sweeps);
-    }
-    if (play->parsed()) {
-      po.domain = domain >= 0 ? static_cast<uint32_t>(domain) : cdc::dds::domain_from_env(0);
-      const auto sum = cdc::sim::play_dataset(dataset_dir, po);
-      std::printf("played %zu scans, %zu IMU samples, %zu radio states\n", sum.scans, sum.imu_samples,
-                  sum.radio_states);
-      return 0;
-    }
-    const cdc::sim::Scenario sc = cdc::sim::load_scenario(scenario_path);
-    cdc::sim::GenerateOptions go;
-    go.data_dir = data_dir;
-    go.max_scans = max_scans;
-    if (radio->parsed()) {
-      nlohmann::json j = nlohmann::json::array();
-      for (const auto& p : cdc::sim::scenario_radio_periods(sc, go)) {
-        j.push_back({{"a", p.a}, {"b", p.b}, {"start", p.start}, {"end", p.end}});
-      }
-      std::cout << j.dump() << '\n';
-      return 0;
-    }
-    const auto t0 = std::chrono::steady_clock::now();
-    const auto sum = cdc::sim::generate_dataset(sc, scenario_path, out_dir, go);
-    std::printf("%s: %zu robots, %zu scans, %zu points, %zu out-of-range periods, %.1f s\n", out_dir.c_str(),
-                sum.robots, sum.scans, sum.points, sum.out_of_range_periods,
-                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-    return 0;
-  } catch (const cdc::config::ConfigError& e) {
-    std::cerr << "cdc-sim: " << e.what() << '\n';
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "cdc-sim: " << e.what() << '\n';
-    return 1;
-  }
+  return cdc::base::run_tool(
+      "cdc-sim",
+      [&] {
+        if (b->parsed()) {
+          return bench(sweeps);
+        }
+        if (play->parsed()) {
+          po.domain = domain >= 0 ? static_cast<uint32_t>(domain) : cdc::dds::domain_from_env(0);
+          const auto sum = cdc::sim::play_dataset(dataset_dir, po);
+          std::printf("played %zu scans, %zu IMU samples, %zu radio states\n", sum.scans, sum.imu_samples,
+                      sum.radio_states);
+          return 0;
+        }
+        const cdc::sim::Scenario sc = cdc::sim::load_scenario(scenario_path);
+        cdc::sim::GenerateOptions go;
+        go.data_dir = data_dir;
+        go.max_scans = max_scans;
+        if (radio->parsed()) {
+          nlohmann::json j = nlohmann::json::array();
+          for (const auto& p : cdc::sim::scenario_radio_periods(sc, go)) {
+            j.push_back({{"a", p.a}, {"b", p.b}, {"start", p.start}, {"end", p.end}});
+          }
+          std::cout << j.dump() << '\n';
+          return 0;
+        }
+        const auto t0 = std::chrono::steady_clock::now();
+        const auto sum = cdc::sim::generate_dataset(sc, scenario_path, out_dir, go);
+        std::printf("%s: %zu robots, %zu scans, %zu points, %zu out-of-range periods, %.1f s\n", out_dir.c_str(),
+                    sum.robots, sum.scans, sum.points, sum.out_of_range_periods,
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+        return 0;
+      },
+      [](const std::exception& e) { return dynamic_cast<const cdc::config::ConfigError*>(&e) != nullptr ? 2 : 1; });
 }

@@ -1,11 +1,17 @@
 #include "cdc/dds/liveliness.hpp"
 
+#include "cdc/base/names.hpp"
 #include "cdc/dds/error.hpp"
 #include "cdc/dds/qos.hpp"
 #include "cdc/dds/waitset.hpp"
 
+#include <array>
+
 namespace cdc::dds {
 namespace {
+
+constexpr std::array<base::Named<Liveliness>, 3> kLivelinessNames{
+    {{Liveliness::kUnknown, "unknown"}, {Liveliness::kAlive, "alive"}, {Liveliness::kLost, "lost"}}};
 
 void liveliness_changed_cb(dds_entity_t /*reader*/, const dds_liveliness_changed_status_t status, void* arg) {
   static_cast<LivelinessMonitor*>(arg)->on_liveliness_changed(static_cast<int32_t>(status.alive_count));
@@ -13,17 +19,7 @@ void liveliness_changed_cb(dds_entity_t /*reader*/, const dds_liveliness_changed
 
 }  // namespace
 
-const char* to_string(Liveliness state) noexcept {
-  switch (state) {
-    case Liveliness::kAlive:
-      return "alive";
-    case Liveliness::kLost:
-      return "lost";
-    case Liveliness::kUnknown:
-      break;
-  }
-  return "unknown";
-}
+const char* to_string(Liveliness state) noexcept { return base::name_of(kLivelinessNames, state, "unknown"); }
 
 LivelinessMonitor::LivelinessMonitor(const Participant& participant, dds_entity_t topic, std::string name)
     : name_(std::move(name)) {

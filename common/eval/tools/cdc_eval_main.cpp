@@ -1,4 +1,5 @@
 // cdc-eval: compares estimated trajectories with ground truth (TUM or KITTI files).
+#include "cdc/base/tool.hpp"
 #include "cdc/eval/evaluation.hpp"
 
 #include <CLI/CLI.hpp>
@@ -143,11 +144,8 @@ int main(int argc, char** argv) {
               << " --est files\n";
     return 2;
   }
-  try {
+  return cdc::base::run_tool("cdc-eval", [&] {
     evaluate_all(o);
     return 0;
-  } catch (const std::exception& e) {
-    std::cerr << "cdc-eval: " << e.what() << '\n';
-    return 1;
-  }
+  });
 }

@@ -1,5 +1,6 @@
 #include "cdc/geometry/metrics.hpp"
 
+#include "cdc/base/names.hpp"
 #include "cdc/geometry/se3.hpp"
 
 #include <algorithm>
@@ -11,6 +12,9 @@ namespace cdc::geometry {
 namespace {
 
 constexpr double kRadToDeg = 180.0 / M_PI;
+
+constexpr std::array<base::Named<AlignMode>, 3> kAlignModeNames{
+    {{AlignMode::kNone, "none"}, {AlignMode::kSE3, "se3"}, {AlignMode::kSim3, "sim3"}}};
 
 Eigen::Matrix3Xd positions(const Poses& poses) {
   Eigen::Matrix3Xd m(3, static_cast<Eigen::Index>(poses.size()));
@@ -61,24 +65,9 @@ size_t first_frame_after(const std::vector<double>& dist, size_t i, double lengt
 
 }  // namespace
 
-std::optional<AlignMode> parse_align_mode(const std::string& name) {
-  if (name == "none") return AlignMode::kNone;
-  if (name == "se3") return AlignMode::kSE3;
-  if (name == "sim3") return AlignMode::kSim3;
-  return std::nullopt;
-}
+std::optional<AlignMode> parse_align_mode(const std::string& name) { return base::value_of(kAlignModeNames, name); }
 
-const char* to_string(AlignMode mode) {
-  switch (mode) {
-    case AlignMode::kNone:
-      return "none";
-    case AlignMode::kSE3:
-      return "se3";
-    case AlignMode::kSim3:
-      return "sim3";
-  }
-  return "?";
-}
+const char* to_string(AlignMode mode) { return base::name_of(kAlignModeNames, mode, "?"); }
 
 ErrorStats compute_stats(std::vector<double> values) {
   ErrorStats s;

@@ -1,4 +1,5 @@
 // cdc-pgo: solve a pose graph from g2o files, centralized or distributed over robots.
+#include "cdc/base/tool.hpp"
 #include "cdc/graph/distributed.hpp"
 #include "cdc/graph/g2o.hpp"
 #include "cdc/graph/initialise.hpp"
@@ -284,11 +285,8 @@ int main(int argc, char** argv) {
   Options o;
   add_options(app, o);
   CLI11_PARSE(app, argc, argv);
-  try {
+  return cdc::base::run_tool("cdc-pgo", [&] {
     run(o);
     return 0;
-  } catch (const std::exception& e) {
-    std::cerr << "cdc-pgo: " << e.what() << '\n';
-    return 1;
-  }
+  });
 }

@@ -6,6 +6,7 @@
 #include "decompress.hpp"
 #include "ros1_bag.hpp"
 #include "ros2_bag.hpp"
+#include "yaml_file.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -125,12 +126,7 @@ struct Ros2Metadata {
 
 Ros2Metadata read_metadata(const fs::path& yaml_path) {
   const std::string name = yaml_path.string();
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(name);
-  } catch (const YAML::Exception& e) {
-    throw FormatError(name + ": not valid YAML: " + e.what());
-  }
+  const YAML::Node root = detail::load_yaml_file(name);
   const YAML::Node info = root["rosbag2_bagfile_information"];
   if (!info.IsMap()) throw FormatError(name + ": no 'rosbag2_bagfile_information' map at the top level");
   auto scalar = [&](const char* key) -> std::string {

@@ -1,10 +1,12 @@
 #include "cdc/io/dataset.hpp"
 
+#include "cdc/base/names.hpp"
 #include "cdc/io/error.hpp"
 
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -15,6 +17,9 @@
 namespace cdc::io {
 namespace fs = std::filesystem;
 namespace {
+
+constexpr std::array<base::Named<PointTimes>, 3> kPointTimesNames{
+    {{PointTimes::kSensor, "sensor"}, {PointTimes::kAzimuth, "azimuth"}, {PointTimes::kNone, "none"}}};
 
 std::string sweep_name(size_t k) {
   char name[32];
@@ -31,24 +36,9 @@ void write_text(const fs::path& p, const std::string& text) {
 
 }  // namespace
 
-const char* to_string(PointTimes t) {
-  switch (t) {
-    case PointTimes::kSensor:
-      return "sensor";
-    case PointTimes::kAzimuth:
-      return "azimuth";
-    case PointTimes::kNone:
-      return "none";
-  }
-  return "sensor";
-}
+const char* to_string(PointTimes t) { return base::name_of(kPointTimesNames, t, "sensor"); }
 
-std::optional<PointTimes> parse_point_times(const std::string& s) {
-  if (s == "sensor") return PointTimes::kSensor;
-  if (s == "azimuth") return PointTimes::kAzimuth;
-  if (s == "none") return PointTimes::kNone;
-  return std::nullopt;
-}
+std::optional<PointTimes> parse_point_times(const std::string& s) { return base::value_of(kPointTimesNames, s); }
 
 DatasetInfo read_dataset_info(const fs::path& dir) {
   const fs::path p = dir / "dataset.json";

@@ -348,26 +348,38 @@ class McapBag final : public BagReader {
           }
           footer = true;
           break;
-        case kSchema:
-          on_schema(r.content, place);
-          break;
-        case kChannel:
-          on_channel(r.content, place);
-          break;
-        case kMessage:
-          on_message(r.content, place, kNoChunk, pos + kRecordHeaderBytes);
-          break;
         case kChunk:
           on_chunk(r.content, place, pos);
           break;
         default:
-          break;  // indexes, attachments, metadata, statistics, summary offsets, data end
+          // Schema, Channel, Message; indexes, attachments, metadata, statistics, summary offsets and
+          // data end are skipped.
+          on_data_record(r, place, kNoChunk, pos);
+          break;
       }
       pos = r.end;
     }
     if (!footer) fail("no Footer record before the closing magic at byte " + std::to_string(end));
     std::stable_sort(entries_.begin(), entries_.end(),
                      [](const Entry& a, const Entry& b) { return a.log_time < b.log_time; });
+  }
+
+  // A Schema, Channel or Message record, at the top level (kNoChunk) or in a chunk, `pos` the byte
+  // where its header starts; other records are skipped.
+  void on_data_record(const Framed& r, const Place& place, uint32_t chunk, uint64_t pos) {
+    switch (r.opcode) {
+      case kSchema:
+        on_schema(r.content, place);
+        break;
+      case kChannel:
+        on_channel(r.content, place);
+        break;
+      case kMessage:
+        on_message(r.content, place, chunk, pos + kRecordHeaderBytes);
+        break;
+      default:
+        break;
+    }
   }
 
   void on_schema(std::span<const uint8_t> content, const Place& place) {
@@ -474,19 +486,7 @@ class McapBag final : public BagReader {
     while (pos < plain.size()) {
       const Framed r = frame(plain, pos, plain.size(), record_offset);
       const Place inner{r.opcode, pos, record_offset};
-      switch (r.opcode) {
-        case kSchema:
-          on_schema(r.content, inner);
-          break;
-        case kChannel:
-          on_channel(r.content, inner);
-          break;
-        case kMessage:
-          on_message(r.content, inner, chunk_index, pos + kRecordHeaderBytes);
-          break;
-        default:
-          break;  // the specification allows only the three above; others are skipped
-      }
+      on_data_record(r, inner, chunk_index, pos);  // the specification allows no other records in a chunk
       pos = r.end;
     }
   }

@@ -10,6 +10,7 @@
 #include "ros1_messages.hpp"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cmath>
 #include <initializer_list>
@@ -157,53 +158,49 @@ class CdrReader {
 
 // ------------------------------------------------------------------ PointCloud2 -> points
 
-enum PointFieldType : uint8_t { kInt8 = 1, kUint8, kInt16, kUint16, kInt32, kUint32, kFloat32, kFloat64 };
+template <class T>
+double load_as_double(const uint8_t* p, bool big_endian) {
+  return static_cast<double>(load<T>(p, big_endian));
+}
+
+// sensor_msgs/PointField datatypes 1 (INT8) to 8 (FLOAT64), in that order.
+struct Datatype {
+  const char* name;
+  size_t size;
+  bool is_float;
+  double (*read)(const uint8_t* p, bool big_endian);
+};
+constexpr std::array<Datatype, 8> kDatatypes{{{"INT8", 1, false, &load_as_double<int8_t>},
+                                              {"UINT8", 1, false, &load_as_double<uint8_t>},
+                                              {"INT16", 2, false, &load_as_double<int16_t>},
+                                              {"UINT16", 2, false, &load_as_double<uint16_t>},
+                                              {"INT32", 4, false, &load_as_double<int32_t>},
+                                              {"UINT32", 4, false, &load_as_double<uint32_t>},
+                                              {"FLOAT32", 4, true, &load_as_double<float>},
+                                              {"FLOAT64", 8, true, &load_as_double<double>}}};
+
+// The datatype numbered t, or nullptr for a number outside 1..8.
+const Datatype* datatype(uint8_t t) { return t >= 1 && t <= kDatatypes.size() ? &kDatatypes[t - 1] : nullptr; }
 
 size_t datatype_size(uint8_t t) {
-  switch (t) {
-    case kInt8:
-    case kUint8:
-      return 1;
-    case kInt16:
-    case kUint16:
-      return 2;
-    case kInt32:
-    case kUint32:
-    case kFloat32:
-      return 4;
-    case kFloat64:
-      return 8;
-    default:
-      return 0;
-  }
+  const Datatype* d = datatype(t);
+  return d != nullptr ? d->size : 0;
 }
 
 const char* datatype_name(uint8_t t) {
-  static const char* names[] = {"INT8", "UINT8", "INT16", "UINT16", "INT32", "UINT32", "FLOAT32", "FLOAT64"};
-  return t >= kInt8 && t <= kFloat64 ? names[t - 1] : "unknown";
+  const Datatype* d = datatype(t);
+  return d != nullptr ? d->name : "unknown";
 }
 
-bool is_float(uint8_t t) { return t == kFloat32 || t == kFloat64; }
+bool is_float(uint8_t t) {
+  const Datatype* d = datatype(t);
+  return d != nullptr && d->is_float;
+}
 
+// Callers have checked the datatype (datatype_size > 0).
 double read_value(const uint8_t* p, uint8_t t, bool big) {
-  switch (t) {
-    case kInt8:
-      return load<int8_t>(p, big);
-    case kUint8:
-      return load<uint8_t>(p, big);
-    case kInt16:
-      return load<int16_t>(p, big);
-    case kUint16:
-      return load<uint16_t>(p, big);
-    case kInt32:
-      return load<int32_t>(p, big);
-    case kUint32:
-      return load<uint32_t>(p, big);
-    case kFloat32:
-      return load<float>(p, big);
-    default:
-      return load<double>(p, big);
-  }
+  const Datatype* d = datatype(t);
+  return d != nullptr ? d->read(p, big) : load<double>(p, big);
 }
 
 [[noreturn]] void cloud_error(const PointCloud2Msg& c, const std::string& what) {

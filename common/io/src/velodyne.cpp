@@ -1,6 +1,9 @@
 #include "cdc/io/velodyne.hpp"
 
+#include "cdc/base/names.hpp"
 #include "cdc/io/error.hpp"
+
+#include "yaml_file.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -21,6 +24,19 @@ constexpr std::size_t kBlockSize = 100;
 constexpr std::size_t kChannelsPerBlock = 32;
 constexpr int kAzimuthUnits = 36000;  // 0.01 deg per unit
 constexpr double kDegToRad = std::numbers::pi / 180.0;
+
+constexpr std::array<base::Named<VelodyneModel>, 6> kModelNames{{{VelodyneModel::kVLP16, "VLP16"},
+                                                                 {VelodyneModel::kVLP32C, "VLP32C"},
+                                                                 {VelodyneModel::kHDL32E, "HDL32E"},
+                                                                 {VelodyneModel::kHDL64E, "HDL64E"},
+                                                                 {VelodyneModel::kHDL64ES3, "HDL64E_S3"},
+                                                                 {VelodyneModel::kVLS128, "VLS128"}}};
+constexpr std::array<base::Named<VelodynePacketStatus>, 5> kPacketStatusNames{
+    {{VelodynePacketStatus::kOk, "ok"},
+     {VelodynePacketStatus::kTruncated, "truncated"},
+     {VelodynePacketStatus::kMalformed, "malformed"},
+     {VelodynePacketStatus::kWrongModel, "wrong model"},
+     {VelodynePacketStatus::kOutOfOrder, "out of order"}}};
 
 uint16_t read_u16(std::span<const uint8_t> b, std::size_t at) {
   return static_cast<uint16_t>(b[at] | (b[at + 1] << 8));
@@ -316,23 +332,7 @@ struct CalibrationFile {
 
 // ---------------------------------------------------------------------------------------------
 
-std::string_view to_string(VelodyneModel model) {
-  switch (model) {
-    case VelodyneModel::kVLP16:
-      return "VLP16";
-    case VelodyneModel::kVLP32C:
-      return "VLP32C";
-    case VelodyneModel::kHDL32E:
-      return "HDL32E";
-    case VelodyneModel::kHDL64E:
-      return "HDL64E";
-    case VelodyneModel::kHDL64ES3:
-      return "HDL64E_S3";
-    case VelodyneModel::kVLS128:
-      return "VLS128";
-  }
-  return "unknown";
-}
+std::string_view to_string(VelodyneModel model) { return base::name_of(kModelNames, model, "unknown"); }
 
 VelodyneModel velodyne_model_from_string(std::string_view name) {
   const std::string n = upper_alnum(name);
@@ -378,33 +378,14 @@ int velodyne_laser_count(VelodyneModel model) {
   return 0;
 }
 
-std::string_view to_string(VelodynePacketStatus status) {
-  switch (status) {
-    case VelodynePacketStatus::kOk:
-      return "ok";
-    case VelodynePacketStatus::kTruncated:
-      return "truncated";
-    case VelodynePacketStatus::kMalformed:
-      return "malformed";
-    case VelodynePacketStatus::kWrongModel:
-      return "wrong model";
-    case VelodynePacketStatus::kOutOfOrder:
-      return "out of order";
-  }
-  return "unknown";
-}
+std::string_view to_string(VelodynePacketStatus status) { return base::name_of(kPacketStatusNames, status, "unknown"); }
 
 // ---------------------------------------------------------------------------------------------
 // Calibration
 
 VelodyneCalibration read_velodyne_calibration(const std::filesystem::path& path, std::optional<VelodyneModel> model) {
   const std::string file = path.string();
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(file);
-  } catch (const YAML::Exception& e) {
-    throw FormatError(file + ": not a readable YAML file: " + e.what());
-  }
+  const YAML::Node root = detail::load_yaml_file(file);
   if (!root.IsMap()) throw FormatError(file + ": expected a map with num_lasers and lasers");
   const CalibrationFile f{file};
   VelodyneCalibration c;

@@ -5,6 +5,7 @@
 //                           as OUT/velodyne/NNNNNN.bin (KITTI: float32 x, y, z, intensity), per-point time
 //                           offset and ring in OUT/velodyne_meta/NNNNNN.bin, and OUT/times.txt (sweep
 //                           stamps [ns]); prints the counts.
+#include "cdc/base/tool.hpp"
 #include "cdc/io/bag.hpp"
 #include "cdc/io/cloud.hpp"
 #include "cdc/io/pcap.hpp"
@@ -207,15 +208,12 @@ int main(int argc, char** argv) {
   dec->add_flag("--keep-incomplete", d.keep_incomplete, "also write sweeps ended by a gap or the end of the capture");
   CLI11_PARSE(app, argc, argv);
 
-  try {
+  return cdc::base::run_tool("cdc-velodyne-pcap", [&] {
     if (b2p->parsed()) return bag_to_pcap(bag, out_pcap, topic, bag_port);
     if (d.model.empty() && d.calibration.empty()) {
       std::cerr << "cdc-velodyne-pcap decode: give --calibration or --model (for the built-in table)\n";
       return 1;
     }
     return decode(d);
-  } catch (const std::exception& e) {
-    std::cerr << "cdc-velodyne-pcap: " << e.what() << "\n";
-    return 1;
-  }
+  });
 }

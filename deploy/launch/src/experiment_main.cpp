@@ -6,6 +6,8 @@
 
 #include "process.hpp"
 
+#include "cdc/base/tool.hpp"
+
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
@@ -415,7 +417,7 @@ int main(int argc, char** argv) {
   add_options(app, o);
   CLI11_PARSE(app, argc, argv);
   cdc::launch::install_stop_signals();
-  try {
+  return cdc::base::run_tool("cdc-experiment", [&] {
     if (o.per_robot && !o.miscalibrated()) {
       throw std::runtime_error(
           "--lidar-per-robot needs a calibration error to draw (--lidar-elevation-error, "
@@ -431,8 +433,5 @@ int main(int argc, char** argv) {
     std::ofstream(fs::path(o.out) / "table4.json") << table.dump(2) << '\n';
     std::cout << md.str();
     return cdc::launch::stop_signal() != 0 ? 130 : 0;
-  } catch (const std::exception& e) {
-    std::cerr << "cdc-experiment: " << e.what() << '\n';
-    return 1;
-  }
+  });
 }

@@ -7,6 +7,7 @@
 #include "report.hpp"
 #include "swarm.hpp"
 
+#include "cdc/base/tool.hpp"
 #include "cdc/config/reader.hpp"
 
 #include <CLI/CLI.hpp>
@@ -776,25 +777,20 @@ int main(int argc, char** argv) {
   app.add_flag("--no-progress", o.no_progress, "no progress display");
   app.add_option("--stop-after", o.stop_after_s, "stop as on Ctrl-C once this much sim time has passed (testing)");
   CLI11_PARSE(app, argc, argv);
-  try {
-    SwarmConfig c = load_swarm(o.swarm, o.root);
-    if (!o.network.empty()) {
-      c.network = o.network == "netns"      ? NetworkMode::kNetns
-                  : o.network == "loopback" ? NetworkMode::kLoopback
-                                            : NetworkMode::kAuto;
-    }
-    if (o.max_scans >= 0) c.max_scans = static_cast<size_t>(o.max_scans);
-    if (!o.dataset.empty()) c.dataset = o.dataset;
-    if (o.slam_domain >= 0) c.slam_domain = static_cast<uint32_t>(o.slam_domain);
-    if (o.sim_domain >= 0) c.sim_domain = static_cast<uint32_t>(o.sim_domain);
-    if (c.slam_domain == c.sim_domain) throw cdc::config::ConfigError("the SLAM and simulator domains must differ");
-    Launcher l(o, std::move(c));
-    return l.run();
-  } catch (const cdc::config::ConfigError& e) {
-    std::cerr << "cdc-launch: " << e.what() << '\n';
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "cdc-launch: " << e.what() << '\n';
-    return 1;
-  }
+  return cdc::base::run_tool(
+      "cdc-launch",
+      [&] {
+        SwarmConfig c = load_swarm(o.swarm, o.root);
+        if (!o.network.empty()) {
+          c.network = parse_network_mode(o.network).value_or(NetworkMode::kAuto);
+        }
+        if (o.max_scans >= 0) c.max_scans = static_cast<size_t>(o.max_scans);
+        if (!o.dataset.empty()) c.dataset = o.dataset;
+        if (o.slam_domain >= 0) c.slam_domain = static_cast<uint32_t>(o.slam_domain);
+        if (o.sim_domain >= 0) c.sim_domain = static_cast<uint32_t>(o.sim_domain);
+        if (c.slam_domain == c.sim_domain) throw cdc::config::ConfigError("the SLAM and simulator domains must differ");
+        Launcher l(o, std::move(c));
+        return l.run();
+      },
+      [](const std::exception& e) { return dynamic_cast<const cdc::config::ConfigError*>(&e) != nullptr ? 2 : 1; });
 }

@@ -2,18 +2,22 @@
 
 #include "network.hpp"
 
+#include "cdc/base/names.hpp"
+
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <optional>
 #include <set>
 #include <stdexcept>
 
 namespace cdc::launch {
 namespace {
 
-const std::map<std::string, FaultKind> kKinds{{"loss", FaultKind::kLoss},
-                                              {"one_way", FaultKind::kOneWay},
-                                              {"flap", FaultKind::kFlap},
-                                              {"partition", FaultKind::kPartition}};
+constexpr std::array<base::Named<FaultKind>, 4> kKindNames{{{FaultKind::kLoss, "loss"},
+                                                            {FaultKind::kOneWay, "one_way"},
+                                                            {FaultKind::kFlap, "flap"},
+                                                            {FaultKind::kPartition, "partition"}}};
 
 // Keys each kind accepts besides kind, from_s and to_s.
 const std::map<FaultKind, std::set<std::string>> kKeys{{FaultKind::kLoss, {"probability", "between"}},
@@ -60,9 +64,9 @@ double read_number(const YAML::Node& n, const std::string& key, double lo, doubl
 FaultKind read_kind(const YAML::Node& item) {
   if (!item.IsMap()) throw std::invalid_argument("expected a map with a 'kind'");
   const YAML::Node k = item["kind"];
-  if (!k || !k.IsScalar() || !kKinds.count(k.Scalar()))
-    throw std::invalid_argument("kind: expected loss, one_way, flap or partition");
-  return kKinds.at(k.Scalar());
+  const std::optional<FaultKind> kind = k && k.IsScalar() ? base::value_of(kKindNames, k.Scalar()) : std::nullopt;
+  if (!kind) throw std::invalid_argument("kind: expected " + base::names_list(kKindNames));
+  return *kind;
 }
 
 void read_window(const YAML::Node& item, RadioFault& f) {
@@ -152,12 +156,7 @@ double drop(const RadioFault& f, uint32_t src, uint32_t dst, double wall_s) {
 
 }  // namespace
 
-const char* to_string(FaultKind k) {
-  for (const auto& [name, kind] : kKinds) {
-    if (kind == k) return name.c_str();
-  }
-  return "?";
-}
+const char* to_string(FaultKind k) { return base::name_of(kKindNames, k, "?"); }
 
 std::vector<RadioFault> parse_radio_faults(const YAML::Node& list, std::vector<std::string>& errors) {
   std::vector<RadioFault> out;

@@ -1,35 +1,29 @@
 #include "swarm.hpp"
 
+#include "cdc/base/names.hpp"
 #include "cdc/config/reader.hpp"
 
+#include <array>
 #include <filesystem>
+#include <optional>
+#include <string_view>
 
 namespace cdc::launch {
 namespace fs = std::filesystem;
 
-const char* to_string(NetworkMode m) {
-  switch (m) {
-    case NetworkMode::kAuto:
-      return "auto";
-    case NetworkMode::kNetns:
-      return "netns";
-    case NetworkMode::kLoopback:
-      return "loopback";
-  }
-  return "?";
-}
+namespace {
 
-const char* to_string(Variant v) {
-  switch (v) {
-    case Variant::kSingle:
-      return "single";
-    case Variant::kDistributed:
-      return "distributed";
-    case Variant::kSwitching:
-      return "switching";
-  }
-  return "?";
-}
+constexpr std::array<base::Named<NetworkMode>, 3> kNetworkModeNames{
+    {{NetworkMode::kAuto, "auto"}, {NetworkMode::kNetns, "netns"}, {NetworkMode::kLoopback, "loopback"}}};
+constexpr std::array<base::Named<Variant>, 3> kVariantNames{
+    {{Variant::kSingle, "single"}, {Variant::kDistributed, "distributed"}, {Variant::kSwitching, "switching"}}};
+
+}  // namespace
+
+const char* to_string(NetworkMode m) { return base::name_of(kNetworkModeNames, m, "?"); }
+const char* to_string(Variant v) { return base::name_of(kVariantNames, v, "?"); }
+
+std::optional<NetworkMode> parse_network_mode(std::string_view name) { return base::value_of(kNetworkModeNames, name); }
 
 namespace {
 
@@ -44,13 +38,11 @@ void read_run(config::Reader& r, SwarmConfig& c) {
   r.get<int>(
       "max_scans", max_scans, [](const int& v) { return v >= 0; }, ">= 0");
   c.max_scans = static_cast<size_t>(max_scans);
-  std::string network = "auto";
+  std::string network = to_string(NetworkMode::kAuto);
   r.get<std::string>(
-      "network", network, [](const std::string& s) { return s == "auto" || s == "netns" || s == "loopback"; },
-      "auto, netns or loopback");
-  c.network = network == "netns"      ? NetworkMode::kNetns
-              : network == "loopback" ? NetworkMode::kLoopback
-                                      : NetworkMode::kAuto;
+      "network", network, [](const std::string& s) { return parse_network_mode(s).has_value(); },
+      base::names_list(kNetworkModeNames));
+  c.network = parse_network_mode(network).value_or(NetworkMode::kAuto);
 }
 
 // How it runs: playback, the system variant, the end of the mission.
@@ -59,13 +51,11 @@ void read_behaviour(config::Reader& r, SwarmConfig& c) {
   r.get<double>(
       "rate", c.rate, [](const double& v) { return v > 0; }, "> 0");
   r.get<bool>("lidar_only", c.lidar_only);
-  std::string variant = "switching";
+  std::string variant = to_string(Variant::kSwitching);
   r.get<std::string>(
-      "variant", variant, [](const std::string& s) { return s == "single" || s == "distributed" || s == "switching"; },
-      "single, distributed or switching");
-  c.variant = variant == "single"        ? Variant::kSingle
-              : variant == "distributed" ? Variant::kDistributed
-                                         : Variant::kSwitching;
+      "variant", variant, [](const std::string& s) { return base::value_of(kVariantNames, s).has_value(); },
+      base::names_list(kVariantNames));
+  c.variant = base::value_of(kVariantNames, variant).value_or(Variant::kSwitching);
   r.get<bool>("frontend_correction", c.frontend_correction);
   r.get<double>(
       "settle_s", c.settle_s, [](const double& v) { return v >= 0; }, ">= 0");

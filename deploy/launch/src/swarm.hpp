@@ -5,7 +5,9 @@
 #include "radio_faults.hpp"
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace cdc::launch {
@@ -55,6 +57,7 @@ struct SwarmConfig {
 SwarmConfig load_swarm(const std::string& path, const std::string& root);
 
 const char* to_string(NetworkMode m);
+std::optional<NetworkMode> parse_network_mode(std::string_view name);  // "auto", "netns", "loopback"
 const char* to_string(Variant v);
 
 }  // namespace cdc::launch

@@ -4,6 +4,7 @@
 // formats) and the keyframes, and reports drift and ATE when there is ground truth.
 #include "frontend_config.hpp"
 
+#include "cdc/base/tool.hpp"
 #include "cdc/frontend/frontend_core.hpp"
 #include "cdc/geometry/metrics.hpp"
 #include "cdc/geometry/se3.hpp"
@@ -249,7 +250,7 @@ int main(int argc, char** argv) {
   Options o;
   add_options(app, o);
   CLI11_PARSE(app, argc, argv);
-  try {
+  return base::run_tool("cdc-odometry", [&] {
     const auto wall0 = std::chrono::steady_clock::now();
     const Input in = read_input(o);
     const frontend::FrontendNodeOptions config = frontend::load_frontend_options(o.config_path);
@@ -266,8 +267,5 @@ int main(int argc, char** argv) {
       print_summary(o.input, report);
     }
     return 0;
-  } catch (const std::exception& e) {
-    std::cerr << "cdc-odometry: " << e.what() << '\n';
-    return 1;
-  }
+  });
 }

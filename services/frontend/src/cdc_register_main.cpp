@@ -1,6 +1,7 @@
 // cdc-register: registers one saved sweep onto another with the front-end's point-to-plane
 // registration or generalized ICP (common/odometry/pair_registration.hpp) and prints T_target_source; with a reference
 // transform it prints how far the result is from it.
+#include "cdc/base/tool.hpp"
 #include "cdc/geometry/se3.hpp"
 #include "cdc/odometry/pair_registration.hpp"
 
@@ -135,16 +136,16 @@ int main(int argc, char** argv) {
   add_options(app, o);
   CLI11_PARSE(app, argc, argv);
   o.p.method = o.method == "gicp" ? odometry::PairMethod::kGicp : odometry::PairMethod::kPointToPlane;
-  try {
-    const nlohmann::json out = register_sweeps(o);
-    if (o.json) {
-      std::cout << out.dump() << '\n';
-    } else {
-      print_text(out);
-    }
-    return 0;
-  } catch (const std::exception& e) {
-    std::cerr << "cdc-register: " << e.what() << '\n';
-    return 2;
-  }
+  return base::run_tool(
+      "cdc-register",
+      [&] {
+        const nlohmann::json out = register_sweeps(o);
+        if (o.json) {
+          std::cout << out.dump() << '\n';
+        } else {
+          print_text(out);
+        }
+        return 0;
+      },
+      [](const std::exception&) { return 2; });
 }

@@ -1,4 +1,5 @@
 // cdc-loops: offline place recognition and outlier rejection tools of the loop-closure service.
+#include "cdc/base/tool.hpp"
 #include "cdc/graph/g2o.hpp"
 #include "cdc/graph/pcm.hpp"
 #include "cdc/io/dataset.hpp"
@@ -307,10 +308,6 @@ int main(int argc, char** argv) {
   RunCommand run;
   const CLI::App* run_app = add_run_command(app, run);
   CLI11_PARSE(app, argc, argv);
-  try {
-    return run_app->parsed() ? run_dataset(run.resolved()) : run_pcm(pcm);
-  } catch (const std::exception& e) {
-    std::cerr << "cdc-loops: " << e.what() << '\n';
-    return 1;
-  }
+  return cdc::base::run_tool("cdc-loops",
+                             [&] { return run_app->parsed() ? run_dataset(run.resolved()) : run_pcm(pcm); });
 }

@@ -1,24 +1,24 @@
 #include "cdc/peer_optimiser/rtdos.hpp"
 
+#include "cdc/base/names.hpp"
+
 #include <algorithm>
+#include <array>
 
 namespace cdc::peer {
+namespace {
+
+constexpr std::array<base::Named<SwitchReason>, 4> kSwitchReasonNames{
+    {{SwitchReason::kStartup, "startup"},
+     {SwitchReason::kLivelinessLost, "liveliness lost"},
+     {SwitchReason::kOutOfRange, "out of range"},
+     {SwitchReason::kBackInRange, "back in range"}}};
+
+}  // namespace
 
 const char* to_string(Mode mode) noexcept { return mode == Mode::kCentralized ? "CENTRALIZED" : "DISTRIBUTED"; }
 
-const char* to_string(SwitchReason reason) noexcept {
-  switch (reason) {
-    case SwitchReason::kStartup:
-      return "startup";
-    case SwitchReason::kLivelinessLost:
-      return "liveliness lost";
-    case SwitchReason::kOutOfRange:
-      return "out of range";
-    case SwitchReason::kBackInRange:
-      return "back in range";
-  }
-  return "?";
-}
+const char* to_string(SwitchReason reason) noexcept { return base::name_of(kSwitchReasonNames, reason, "?"); }
 
 Rtdos::Rtdos(const RtdosParams& params, Nanos start) : params_(params), last_switch_(start) {}
 

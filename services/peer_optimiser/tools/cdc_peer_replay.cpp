@@ -5,6 +5,7 @@
 // them. Every robot steps at once, as the nodes do. Reports per robot the ATE of the odometry, of the
 // keyframes where the corrections had placed them when they were made (the real-time view), and of
 // the final estimate; and the joint cost of the distributed estimate against the centralized optimum.
+#include "cdc/base/tool.hpp"
 #include "cdc/geometry/metrics.hpp"
 #include "cdc/geometry/trajectory.hpp"
 #include "cdc/graph/g2o.hpp"
@@ -478,15 +479,15 @@ int main(int argc, char** argv) {
   app.add_flag("--verbose", o.verbose, "print the joint cost every 5 s of replayed time");
   CLI11_PARSE(app, argc, argv);
   apply_peer_options(o);
-  try {
-    const RunData run = read_run(o);
-    const Schedule schedule = make_schedule(run, o);
-    Replay replay(o, run, schedule);
-    replay.run();
-    report(replay, run, schedule, o);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "cdc-peer-replay: %s\n", e.what());
-    return 2;
-  }
-  return 0;
+  return base::run_tool(
+      "cdc-peer-replay",
+      [&] {
+        const RunData run = read_run(o);
+        const Schedule schedule = make_schedule(run, o);
+        Replay replay(o, run, schedule);
+        replay.run();
+        report(replay, run, schedule, o);
+        return 0;
+      },
+      [](const std::exception&) { return 2; });
 }

@@ -1,6 +1,7 @@
 #include "cdc/velodyne_driver/velodyne_driver_core.hpp"
 
 #include <algorithm>
+#include <array>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -55,42 +56,36 @@ DatagramStatus from_packet_status(io::VelodynePacketStatus s) {
   return DatagramStatus::kMalformed;
 }
 
+// Each status with its name and its counter in DriverStats.
+struct StatusEntry {
+  DatagramStatus status;
+  const char* name;
+  uint64_t DriverStats::*count;
+};
+constexpr std::array<StatusEntry, 6> kStatuses{
+    {{DatagramStatus::kOk, "ok", &DriverStats::ok},
+     {DatagramStatus::kOtherPort, "other_port", &DriverStats::other_port},
+     {DatagramStatus::kTruncated, "truncated", &DriverStats::truncated},
+     {DatagramStatus::kMalformed, "malformed", &DriverStats::malformed},
+     {DatagramStatus::kWrongModel, "wrong_model", &DriverStats::wrong_model},
+     {DatagramStatus::kOutOfOrder, "out_of_order", &DriverStats::out_of_order}}};
+
+const StatusEntry* find_status(DatagramStatus status) {
+  const auto* it =
+      std::find_if(kStatuses.begin(), kStatuses.end(), [&](const StatusEntry& e) { return e.status == status; });
+  return it != kStatuses.end() ? it : nullptr;
+}
+
 uint64_t& counter(DriverStats& s, DatagramStatus status) {
-  switch (status) {
-    case DatagramStatus::kOk:
-      return s.ok;
-    case DatagramStatus::kOtherPort:
-      return s.other_port;
-    case DatagramStatus::kTruncated:
-      return s.truncated;
-    case DatagramStatus::kMalformed:
-      return s.malformed;
-    case DatagramStatus::kWrongModel:
-      return s.wrong_model;
-    case DatagramStatus::kOutOfOrder:
-      return s.out_of_order;
-  }
-  return s.malformed;
+  const StatusEntry* e = find_status(status);
+  return s.*(e != nullptr ? e->count : &DriverStats::malformed);
 }
 
 }  // namespace
 
 std::string_view to_string(DatagramStatus status) {
-  switch (status) {
-    case DatagramStatus::kOk:
-      return "ok";
-    case DatagramStatus::kOtherPort:
-      return "other_port";
-    case DatagramStatus::kTruncated:
-      return "truncated";
-    case DatagramStatus::kMalformed:
-      return "malformed";
-    case DatagramStatus::kWrongModel:
-      return "wrong_model";
-    case DatagramStatus::kOutOfOrder:
-      return "out_of_order";
-  }
-  return "unknown";
+  const StatusEntry* e = find_status(status);
+  return e != nullptr ? e->name : "unknown";
 }
 
 VelodyneDriverCore::VelodyneDriverCore(const VelodyneDriverConfig& config)

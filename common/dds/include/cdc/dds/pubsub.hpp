@@ -124,19 +124,11 @@ class Writer {
     check(dds_assert_liveliness(writer_.handle()), "assert liveliness on '" + topic_name_ + "'");
   }
 
-  uint32_t matched_readers() const {
-    dds_publication_matched_status_t st{};
-    check(dds_get_publication_matched_status(writer_.handle(), &st), "publication matched status");
-    return st.current_count;
-  }
+  uint32_t matched_readers() const { return matched_status().current_count; }
 
   // Readers ever matched (a reader that went out of reach and came back counts again): a rise
   // means a reader may have missed samples written while it was away.
-  uint32_t readers_ever_matched() const {
-    dds_publication_matched_status_t st{};
-    check(dds_get_publication_matched_status(writer_.handle(), &st), "publication matched status");
-    return st.total_count;
-  }
+  uint32_t readers_ever_matched() const { return matched_status().total_count; }
 
   // Waits until at least n readers match. The first sample written before matching is lost
   // on a volatile topic: call this before the first write where that matters.
@@ -149,6 +141,11 @@ class Writer {
   const std::string& topic_name() const noexcept { return topic_name_; }
 
  private:
+  dds_publication_matched_status_t matched_status() const {
+    dds_publication_matched_status_t st{};
+    check(dds_get_publication_matched_status(writer_.handle(), &st), "publication matched status");
+    return st;
+  }
   dds_entity_t create() const { return create(publisher_); }
   dds_entity_t create(const Entity& publisher) const {
     return check(
