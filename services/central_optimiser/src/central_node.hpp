@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include <deque>
+#include <optional>
 #include <vector>
 
 namespace cdc::central {
@@ -29,6 +30,7 @@ class CentralNode {
   nlohmann::json stats(double final_cost) const;
 
  private:
+  void take_inputs();
   void on_keyframe(const cdc_msg_Keyframe& m);
   void on_loop(const cdc_msg_LoopClosure& m);
   void on_world(const cdc_msg_WorldTransform& m);
@@ -37,6 +39,8 @@ class CentralNode {
   void publish_result(const RobotEstimate& e);
   void publish_acknowledgements();
   void publish_status();
+  std::optional<Eigen::Vector3d> position() const;
+  nlohmann::json reader_losses() const;
 
   CentralNodeOptions o_;
   uint32_t incarnation_;
@@ -55,7 +59,6 @@ class CentralNode {
   CentralCore core_;
   UpdateSchedule schedule_;
   UpdateSchedule::Clock::time_point last_status_;
-  Eigen::Vector3d central_position_;
   bool acks_dirty_ = false;
   std::vector<cdc_msg_KeyframePose> pose_storage_;
 };
