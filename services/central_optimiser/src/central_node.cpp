@@ -4,6 +4,7 @@
 #include "cdc/dds/qos.hpp"
 #include "cdc/dds/shutdown.hpp"
 #include "cdc/dds/topics.hpp"
+#include "cdc/geometry/metrics.hpp"
 #include "cdc/graph/g2o.hpp"
 #include "cdc/runtime/stats.hpp"
 
@@ -167,6 +168,7 @@ void CentralNode::on_world(const cdc_msg_WorldTransform& m) {
 void CentralNode::optimise(Clock::time_point now) {
   const UpdateStats u = core_.optimise();
   w_alive_.assert_liveliness();
+  record_update_time(std::chrono::duration<double, std::milli>(Clock::now() - now).count());
   spdlog::debug("update {} (graph version {}): {} pass over {} poses and {} factors, {} iterations in {:.0f} ms, {}",
                 schedule_.updates() + 1, core_.version(), u.full ? "full" : "local", u.poses, u.factors, u.iterations,
                 u.time_s * 1e3, u.converged ? "converged" : "not converged");
@@ -233,6 +235,15 @@ void CentralNode::publish_status() {
   w_alive_.write(s);
 }
 
+// The wall time of the most recent updates (at most kUpdateTimesKept), for the stats.
+void CentralNode::record_update_time(double ms) {
+  if (update_ms_.size() < kUpdateTimesKept) {
+    update_ms_.push_back(ms);
+  } else {
+    update_ms_[schedule_.updates() % kUpdateTimesKept] = ms;
+  }
+}
+
 // Samples the DDS readers lost or refused (what never reached the boundary), by input.
 nlohmann::json CentralNode::reader_losses() const {
   nlohmann::json j;
@@ -245,12 +256,18 @@ nlohmann::json CentralNode::reader_losses() const {
   return j;
 }
 
+nlohmann::json CentralNode::update_times() const {
+  const geometry::ErrorStats t = geometry::compute_stats(update_ms_);
+  return {{"recent", t.count}, {"median", t.median}, {"p90", t.p90}, {"max", t.max}};
+}
+
 nlohmann::json CentralNode::stats(double final_cost) const {
   nlohmann::json j = core_.counters();
   j.update({{"incarnation", incarnation_},
             {"keyframes_pending", core_.keyframes_pending()},
             {"max_pending_keyframes", o_.core.max_pending_keyframes},
             {"reader_losses", reader_losses()},
+            {"update_ms", update_times()},
             {"graph_poses", core_.graph().poses.size()},
             {"graph_factors", core_.graph().factors.size()},
             {"updates", schedule_.updates()},

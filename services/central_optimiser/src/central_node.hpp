@@ -41,6 +41,8 @@ class CentralNode {
   void publish_status();
   std::optional<Eigen::Vector3d> position() const;
   nlohmann::json reader_losses() const;
+  void record_update_time(double ms);
+  nlohmann::json update_times() const;
 
   CentralNodeOptions o_;
   uint32_t incarnation_;
@@ -61,6 +63,8 @@ class CentralNode {
   UpdateSchedule::Clock::time_point last_status_;
   bool acks_dirty_ = false;
   std::vector<cdc_msg_KeyframePose> pose_storage_;
+  static constexpr size_t kUpdateTimesKept = 4096;
+  std::vector<double> update_ms_;  // wall time of the most recent updates [ms]
 };
 
 }  // namespace cdc::central

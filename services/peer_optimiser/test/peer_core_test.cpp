@@ -353,12 +353,17 @@ TEST(PeerCore, ForwardsKeyframesOnlyWhileCentralizedAndDropsUndeliveredOnesOnLea
   EXPECT_FALSE(core.step(t += 50ms, false).drop_undelivered_keyframes) << "only at the switch";
 }
 
-TEST(PeerCore, RangeTriggerUsesTheEstimatedDistanceToTheCentral) {
-  const auto s = test::make_swarm_stream({});
+// Robot 1 with a central range of 50 m (hysteresis 5 m).
+PeerConfig range_config() {
   PeerConfig c = config(1);
   c.rtdos.range_m = 50;
   c.rtdos.hysteresis_m = 5;
-  PeerCore core(c);
+  return c;
+}
+
+TEST(PeerCore, RangeTriggerUsesTheEstimatedDistanceToTheCentral) {
+  const auto s = test::make_swarm_stream({});
+  PeerCore core(range_config());
   core.add_keyframe(kf_from(s.keyframes[1][0]), 0s);
   core.on_central_result(central_for(s, 1, 0, Eigen::Isometry3d::Identity()));
   const Eigen::Vector3d p = s.keyframes[1][0].T_world_truth.translation();
@@ -380,10 +385,7 @@ TEST(PeerCore, RangeTriggerUsesTheEstimatedDistanceToTheCentral) {
 // then, and so is the distance to it, which keeps a robot CENTRALIZED (not "out of range" of the origin).
 TEST(PeerCore, ACentralWithoutAWorldIsAtAnUnknownDistance) {
   const auto s = test::make_swarm_stream({});
-  PeerConfig c = config(1);
-  c.rtdos.range_m = 50;
-  c.rtdos.hysteresis_m = 5;
-  PeerCore core(c);
+  PeerCore core(range_config());
   core.add_keyframe(kf_from(s.keyframes[1][0]), 0s);
   Eigen::Isometry3d far = Eigen::Isometry3d::Identity();
   far.translation() = Eigen::Vector3d(100, 0, 0);  // the robot 100 m from the world origin
