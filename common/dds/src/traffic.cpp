@@ -174,8 +174,8 @@ std::map<std::pair<uint32_t, std::string>, TopicTotals> topic_traffic() {
   const std::lock_guard<std::mutex> lock(r.mutex);
   std::map<std::pair<uint32_t, std::string>, TopicTotals> out;
   for (const auto& [key, c] : r.topics) {
-    out[key] = {c->samples_written.load(), c->bytes_written.load(), c->samples_taken.load(), c->bytes_taken.load(),
-                c->undecodable.load()};
+    out[key] = {c->samples_written.load(), c->bytes_written.load(), c->samples_taken.load(),   c->bytes_taken.load(),
+                c->undecodable.load(),     c->samples_lost.load(),  c->samples_rejected.load()};
   }
   return out;
 }

@@ -161,6 +161,31 @@ TEST(PubSub, PerTopicTrafficCountsSerialisedBytesWrittenAndTaken) {
   EXPECT_EQ(t.bytes_taken, t.bytes_written);
 }
 
+// Samples a reader's resource limits refuse never reach take(): the reader counts them, and so does
+// the topic's traffic.
+TEST(PubSub, SamplesTheReaderRefusesAreCounted) {
+  Qos qos;
+  qos.best_effort().keep_all();
+  Qos limited = qos;
+  dds_qset_resource_limits(limited.get(), 4, DDS_LENGTH_UNLIMITED, DDS_LENGTH_UNLIMITED);
+  Participant participant{test_options()};
+  Topic<cdc_msg_Keyframe> topic(participant, unique_topic("refused"));
+  Writer<cdc_msg_Keyframe> writer(participant, topic, qos);
+  Reader<cdc_msg_Keyframe> reader(participant, topic, limited);
+  ASSERT_TRUE(writer.wait_for_readers(1, 5s));
+  KeyframeSample sample(10);
+  for (uint32_t id = 0; id < 10; ++id) {
+    sample.msg.keyframe_id = id;
+    writer.write(sample.msg);
+  }
+  ASSERT_TRUE(wait_until([&] { return reader.losses().rejected == 6; }, 5000ms))
+      << "rejected " << reader.losses().rejected;
+  EXPECT_EQ(reader.take(64).size(), 4u);
+  EXPECT_EQ(reader.losses().rejected, 6u);
+  EXPECT_EQ(reader.losses().lost, 0u);
+  EXPECT_EQ(topic_traffic().at({topic.domain(), topic.name()}).samples_rejected, 6u);
+}
+
 TEST(PubSub, MalformedSampleIsRejectedAtTheReaderBoundary) {
   WriterAndReader<cdc_msg_Keyframe> wr("bad_keyframe", qos::event_stream());
   auto& [p, topic, writer, reader] = wr;

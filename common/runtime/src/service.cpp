@@ -9,9 +9,26 @@
 
 namespace cdc::runtime {
 
-bool Boundary::refuse(std::string_view topic, const dds::Validation& v) {
+bool Boundary::refuse(std::string_view topic, const dds::Validation& v, bool* logged) {
   if (!rejected_.record(topic, v)) return false;
-  spdlog::warn("rejected {}: {}", topic, v.reason());
+  const auto now = std::chrono::steady_clock::now();
+  const std::lock_guard<std::mutex> lock(log_mutex_);
+  auto gate = log_gates_.find(topic);
+  const bool first = gate == log_gates_.end();
+  if (first) gate = log_gates_.emplace(std::string(topic), LogGate{now, 0}).first;
+  const bool log = first || now - gate->second.last >= kLogPeriod;
+  if (logged != nullptr) *logged = log;
+  if (!log) {
+    ++gate->second.unlogged;
+    return true;
+  }
+  if (gate->second.unlogged > 0) {
+    spdlog::warn("rejected {}: {} (and {} more not logged in the last {:.1f} s)", topic, v.reason(),
+                 gate->second.unlogged, std::chrono::duration<double>(now - gate->second.last).count());
+  } else {
+    spdlog::warn("rejected {}: {}", topic, v.reason());
+  }
+  gate->second = {now, 0};
   return true;
 }
 

@@ -121,6 +121,22 @@ TEST(Stats, OwnCountersRejectionsAndTraffic) {
   EXPECT_THROW(write_stats("/nonexistent-dir/stats.json", OwnCounters{}, boundary), std::runtime_error);
 }
 
+TEST(Boundary, EveryRefusalIsCountedAndAFloodIsLoggedOncePerPeriod) {
+  Boundary boundary(three_robots());
+  int lines = 0;
+  for (int i = 0; i < 1000; ++i) {
+    bool logged = false;
+    EXPECT_TRUE(boundary.refuse("flood", dds::Validation::fail("bad"), &logged));
+    lines += logged ? 1 : 0;
+  }
+  bool other = false;
+  EXPECT_TRUE(boundary.refuse("other", dds::Validation::fail("bad"), &other));
+  EXPECT_TRUE(other) << "each topic has its own log period";
+  EXPECT_EQ(lines, 1) << "1,000 refusals within one log period make one log line";
+  EXPECT_EQ(boundary.rejected().count("flood"), 1000u);
+  EXPECT_EQ(boundary.rejected().total(), 1001u);
+}
+
 TEST(Options, SharedOptionsParseAndRobotIsChecked) {
   ServiceSpec spec{"cdc-test", "a test service", "see nowhere", kRobotService};
   ServiceOptions o;

@@ -24,6 +24,10 @@ CentralNodeOptions load_options(const std::string& path) {
   o.central_position = Eigen::Vector3d(pos[0], pos[1], pos[2]);
   r.get<int>(
       "lease_ms", o.lease_ms, [](const int& v) { return v >= 50 && v <= 60000; }, "50..60000");
+  int max_pending = static_cast<int>(o.core.max_pending_keyframes);
+  r.get<int>(
+      "max_pending_keyframes", max_pending, [](const int& v) { return v >= 1 && v <= 10'000'000; }, "1..10000000");
+  o.core.max_pending_keyframes = static_cast<size_t>(max_pending);
   r.get<int>("update_period_ms", o.update_period_ms, positive, "> 0");
   r.get<int>("status_period_ms", o.status_period_ms, positive, "> 0");
   r.get<int>("max_result_age_ms", o.max_result_age_ms, positive, "> 0");

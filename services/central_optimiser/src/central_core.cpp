@@ -61,7 +61,15 @@ AddResult CentralCore::add_keyframe(const KeyframeIn& kf) {
     ++counters_.keyframes_duplicate;
     return {Outcome::kDuplicate, {}};
   }
-  s->keyframes.emplace(kf.id, kf);
+  if (kf.id > s->contiguous && pending_keyframes_ >= config_.max_pending_keyframes) {
+    ++counters_.keyframes_rejected;
+    ++counters_.keyframes_pending_full;
+    return {Outcome::kRejected, "keyframe " + std::to_string(kf.id) + " of robot " + std::to_string(kf.robot) +
+                                    " waits for keyframe " + std::to_string(s->contiguous) + " and " +
+                                    std::to_string(pending_keyframes_) +
+                                    " keyframes already wait (max_pending_keyframes)"};
+  }
+  hold(*s, kf);
   ++counters_.keyframes_accepted;
   // The world frame is robot 0's first odometry frame: its first keyframe anchors the graph.
   const bool anchor = kf.robot == 0 && s->index == 0 && kf.id == 0;
@@ -80,19 +88,32 @@ AddResult CentralCore::add_keyframe(const KeyframeIn& kf) {
   return {};
 }
 
+// Holds kf and moves the session's contiguous end past every keyframe that now follows without a
+// gap: those stop pending. Each keyframe is passed over once, so the intake costs O(log n) each.
+void CentralCore::hold(Session& s, const KeyframeIn& kf) {
+  auto it = s.keyframes.emplace(kf.id, kf).first;
+  if (kf.id != s.contiguous) {
+    ++pending_keyframes_;
+    return;
+  }
+  ++s.contiguous;
+  for (++it; it != s.keyframes.end() && it->first == s.contiguous; ++it) {
+    ++s.contiguous;
+    --pending_keyframes_;
+  }
+}
+
+// Chains the held keyframes that follow the graph's newest one of the session, in id order: the
+// graph holds ids 0 .. in_graph.size() - 1, so the next one is looked up, never searched for.
 void CentralCore::insert_ready_keyframes(Session& s) {
-  for (auto& [id, kf] : s.keyframes) {
-    if (s.in_graph.count(id) != 0) {
-      continue;
-    }
+  for (uint64_t next = s.in_graph.size(); next < s.contiguous; ++next) {
+    const auto id = static_cast<uint32_t>(next);
+    const KeyframeIn& kf = s.keyframes.at(id);
     if (id == 0) {
       graph_.poses[key(s, 0)] = s.T_world_odom * kf.T_odom_keyframe;
       s.in_graph.insert(0);
       touch(s, 0);
       continue;
-    }
-    if (s.in_graph.count(id - 1) == 0) {
-      continue;  // waits for its predecessor (ids arrive in order, so later ones wait too)
     }
     const Key prev = key(s, id - 1), cur = key(s, id);
     graph_.poses[cur] = graph_.poses.at(prev) * kf.T_prev_keyframe;  // chained from the optimised predecessor
@@ -364,16 +385,23 @@ std::vector<Acknowledgement> CentralCore::acknowledgements() const {
       Acknowledgement a;
       a.robot = robot;
       a.incarnation = s.incarnation;
-      std::set<uint32_t> ids;
-      for (const auto& [id, _] : s.keyframes) {
-        ids.insert(id);
-      }
-      a.highest_contiguous_keyframe = highest_contiguous(ids);
+      a.highest_contiguous_keyframe = static_cast<int64_t>(s.contiguous) - 1;
       a.highest_contiguous_loop_seq = highest_contiguous(s.loop_seqs);
       out.push_back(a);
     }
   }
   return out;
+}
+
+std::optional<Eigen::Vector3d> CentralCore::newest_position(uint32_t robot) const {
+  auto it = sessions_.find(robot);
+  if (it == sessions_.end() || it->second.empty()) return std::nullopt;
+  const Session& s = it->second.back();
+  if (s.placed && !s.in_graph.empty()) return graph_.poses.at(key(s, *s.in_graph.rbegin())).translation();
+  if (s.hint && s.contiguous > 0) {
+    return (*s.hint * s.keyframes.at(static_cast<uint32_t>(s.contiguous - 1)).T_odom_keyframe).translation();
+  }
+  return std::nullopt;
 }
 
 size_t CentralCore::keyframes_held(uint32_t robot, uint32_t incarnation) const {

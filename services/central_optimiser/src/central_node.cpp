@@ -4,6 +4,7 @@
 #include "cdc/dds/qos.hpp"
 #include "cdc/dds/shutdown.hpp"
 #include "cdc/dds/topics.hpp"
+#include "cdc/geometry/metrics.hpp"
 #include "cdc/graph/g2o.hpp"
 #include "cdc/runtime/logging.hpp"
 #include "cdc/runtime/stats.hpp"
@@ -16,7 +17,8 @@
 namespace cdc::central {
 
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(Counters, keyframes_accepted, keyframes_duplicate, keyframes_rejected,
-                                   loops_accepted, loops_duplicate, loops_rejected, loops_withdrawn)
+                                   keyframes_pending_full, loops_accepted, loops_duplicate, loops_rejected,
+                                   loops_withdrawn)
 
 namespace {
 
@@ -88,8 +90,7 @@ CentralNode::CentralNode(const runtime::ServiceOptions& common, const CentralNod
       w_status_(service_.radio(), topics::kRobotStatus, dds::qos::keyed_state()),
       core_(o.core),
       schedule_(std::chrono::milliseconds(o.update_period_ms), std::chrono::milliseconds(o.max_result_age_ms)),
-      last_status_(Clock::now() - std::chrono::hours(1)),
-      central_position_(o.central_position) {
+      last_status_(Clock::now() - std::chrono::hours(1)) {
   for (uint32_t k = 0; k < o.core.robot_count; ++k) {
     w_results_.emplace_back(service_.radio(), t_opt_, dds::qos::keyed_state(1).partitions({dds::partitions::robot(k)}));
   }
@@ -104,9 +105,7 @@ void CentralNode::spin() {
   const auto tick = std::chrono::milliseconds(std::max(10, o_.lease_ms / 5));
   while (service_.wait(tick)) {
     w_alive_.assert_liveliness();
-    keyframes_.poll(1024);
-    loops_.poll(1024);
-    world_.poll();
+    take_inputs();
     const auto now = Clock::now();
     if (schedule_.update_due(core_.dirty(), core_.settled(), now)) optimise(now);
     if (acks_dirty_) publish_acknowledgements();
@@ -117,8 +116,19 @@ void CentralNode::spin() {
   }
 }
 
+// A bounded batch of each input per wake-up (each sample costs the core O(log n)), liveliness asserted
+// after each: a flood waits in the readers' history, not in the work loop.
+void CentralNode::take_inputs() {
+  keyframes_.poll(1024);
+  w_alive_.assert_liveliness();
+  loops_.poll(1024);
+  w_alive_.assert_liveliness();
+  world_.poll();
+}
+
 void CentralNode::on_keyframe(const cdc_msg_Keyframe& m) {
   const AddResult r = core_.add_keyframe(to_core(m));
+  if (r.outcome == Outcome::kRejected) service_.boundary().refuse(topics::kKeyframe, dds::Validation::fail(r.reason));
   acks_dirty_ = acks_dirty_ || r.outcome == Outcome::kAccepted;
 }
 
@@ -136,6 +146,7 @@ void CentralNode::on_world(const cdc_msg_WorldTransform& m) {
 void CentralNode::optimise(Clock::time_point now) {
   const UpdateStats u = core_.optimise();
   w_alive_.assert_liveliness();
+  record_update_time(std::chrono::duration<double, std::milli>(Clock::now() - now).count());
   spdlog::debug("update {} (graph version {}): {} pass over {} poses and {} factors, {} iterations in {:.0f} ms, {}",
                 schedule_.updates() + 1, core_.version(), u.full ? "full" : "local", u.poses, u.factors, u.iterations,
                 u.time_s * 1e3, u.converged ? "converged" : "not converged");
@@ -146,10 +157,14 @@ void CentralNode::publish_results() {
   for (const RobotEstimate& e : core_.estimates()) {
     publish_result(e);
     log_result(core_.version(), e);
-    if (static_cast<int>(e.robot) == o_.central_on_robot && !e.poses.empty()) {
-      central_position_ = e.poses.back().second.translation();
-    }
   }
+}
+
+// Where the central is in W: fixed, or its host robot's newest keyframe; nullopt while the host
+// robot is not in the world (a restarted central knows no world until the host's poses arrive).
+std::optional<Eigen::Vector3d> CentralNode::position() const {
+  if (o_.central_on_robot < 0) return o_.central_position;
+  return core_.newest_position(static_cast<uint32_t>(o_.central_on_robot));
 }
 
 void CentralNode::publish_result(const RobotEstimate& e) {
@@ -186,9 +201,10 @@ void CentralNode::publish_status() {
   s.robot_id = o_.central_id;
   s.incarnation = incarnation_;
   s.stamp_ns = dds::now_ns();
-  s.world_valid = true;
+  const std::optional<Eigen::Vector3d> p = position();
+  s.world_valid = p.has_value();
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.translation() = central_position_;
+  if (p) T.translation() = *p;
   s.T_world_base = dds::to_msg(T);
   s.last_keyframe_id = -1;
   s.mode = cdc_msg_MODE_CENTRALIZED;
@@ -197,9 +213,39 @@ void CentralNode::publish_status() {
   w_alive_.write(s);
 }
 
+// The wall time of the most recent updates (at most kUpdateTimesKept), for the stats.
+void CentralNode::record_update_time(double ms) {
+  if (update_ms_.size() < kUpdateTimesKept) {
+    update_ms_.push_back(ms);
+  } else {
+    update_ms_[schedule_.updates() % kUpdateTimesKept] = ms;
+  }
+}
+
+// Samples the DDS readers lost or refused (what never reached the boundary), by input.
+nlohmann::json CentralNode::reader_losses() const {
+  nlohmann::json j;
+  const auto add = [&j](const std::string& name, const dds::ReaderLosses& l) {
+    j[name] = {{"lost", l.lost}, {"rejected", l.rejected}};
+  };
+  add("keyframes", keyframes_.reader().losses());
+  add("loops", loops_.reader().losses());
+  add("world", world_.reader().losses());
+  return j;
+}
+
+nlohmann::json CentralNode::update_times() const {
+  const geometry::ErrorStats t = geometry::compute_stats(update_ms_);
+  return {{"recent", t.count}, {"median", t.median}, {"p90", t.p90}, {"max", t.max}};
+}
+
 nlohmann::json CentralNode::stats(double final_cost) const {
   nlohmann::json j = core_.counters();
   j.update({{"incarnation", incarnation_},
+            {"keyframes_pending", core_.keyframes_pending()},
+            {"max_pending_keyframes", o_.core.max_pending_keyframes},
+            {"reader_losses", reader_losses()},
+            {"update_ms", update_times()},
             {"graph_poses", core_.graph().poses.size()},
             {"graph_factors", core_.graph().factors.size()},
             {"updates", schedule_.updates()},

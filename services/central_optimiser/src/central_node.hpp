@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include <deque>
+#include <optional>
 #include <vector>
 
 namespace cdc::central {
@@ -30,6 +31,7 @@ class CentralNode {
   nlohmann::json stats(double final_cost) const;
 
  private:
+  void take_inputs();
   void on_keyframe(const cdc_msg_Keyframe& m);
   void on_loop(const cdc_msg_LoopClosure& m);
   void on_world(const cdc_msg_WorldTransform& m);
@@ -38,6 +40,10 @@ class CentralNode {
   void publish_result(const RobotEstimate& e);
   void publish_acknowledgements();
   void publish_status();
+  std::optional<Eigen::Vector3d> position() const;
+  nlohmann::json reader_losses() const;
+  void record_update_time(double ms);
+  nlohmann::json update_times() const;
 
   CentralNodeOptions o_;
   uint32_t incarnation_;
@@ -54,9 +60,10 @@ class CentralNode {
   CentralCore core_;
   UpdateSchedule schedule_;
   UpdateSchedule::Clock::time_point last_status_;
-  Eigen::Vector3d central_position_;
   bool acks_dirty_ = false;
   std::vector<cdc_msg_KeyframePose> pose_storage_;
+  static constexpr size_t kUpdateTimesKept = 4096;
+  std::vector<double> update_ms_;  // wall time of the most recent updates [ms]
 };
 
 }  // namespace cdc::central

@@ -8,6 +8,7 @@
 
 #include <unistd.h>
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <random>
@@ -146,6 +147,87 @@ TEST(CentralCore, AcknowledgesOnlyContiguousKeyframesAndLoops) {
   l.seq = 0;
   core.add_loop(l);
   EXPECT_EQ(core.acknowledgements()[0].highest_contiguous_loop_seq, 1);
+}
+
+// A writer sending keyframes whose ids never become contiguous (ids 1,000,000, 1,000,002, ...)
+// must neither grow the held set without bound nor slow the intake down: each one is held, up to
+// the pending cap, or refused and counted; the robot's real keyframes carry on into the graph.
+TEST(CentralCore, AFloodOfKeyframesThatNeverBecomeContiguousIsBoundedAndCounted) {
+  const auto s = test::make_swarm_stream(small());
+  CentralCore core(CentralConfig{});
+  feed_in_order(core, s);
+  constexpr uint32_t kFlood = 20'000;
+  KeyframeIn hostile = to_in(s.keyframes[1][10]);
+  const auto t0 = std::chrono::steady_clock::now();
+  for (uint32_t i = 0; i < kFlood; ++i) {
+    hostile.id = 1'000'000 + 2 * i;
+    const AddResult r = core.add_keyframe(hostile);
+    EXPECT_NE(r.outcome, Outcome::kDuplicate);
+    if (r.outcome == Outcome::kRejected) {
+      EXPECT_NE(r.reason, "") << "a refusal names its reason";
+    }
+  }
+  const double flood_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("%u non-contiguous keyframes taken in %.3f s\n", kFlood, flood_s);
+  EXPECT_LT(flood_s, 1.0) << "the intake rescans what it holds";
+  const size_t held = core.keyframes_held(1, 7) - 250;
+  EXPECT_LT(held, size_t{kFlood}) << "non-contiguous keyframes are held without a cap";
+  EXPECT_EQ(held + core.counters().keyframes_rejected, kFlood) << "every refused keyframe is counted";
+  EXPECT_EQ(core.graph().poses.size(), 750u);
+  for (const auto& ack : core.acknowledgements()) {
+    EXPECT_EQ(ack.highest_contiguous_keyframe, 249);
+  }
+  // The robot's next real keyframe still extends its chain in the graph.
+  test::SwarmStreamOptions longer = small();
+  longer.keyframes_per_robot = 251;
+  const auto next = test::make_swarm_stream(longer).keyframes[1][250];
+  EXPECT_EQ(core.add_keyframe(to_in(next)).outcome, Outcome::kAccepted);
+  EXPECT_EQ(core.graph().poses.size(), 751u);
+}
+
+// Beyond max_pending_keyframes a keyframe waiting for a predecessor is refused with its reason; a
+// keyframe that extends its session's contiguous ids is never refused, and filling a gap frees the cap.
+TEST(CentralCore, PendingKeyframesStopAtTheCapAndAFilledGapFreesIt) {
+  const auto s = test::make_swarm_stream(small());
+  CentralConfig c;
+  c.max_pending_keyframes = 3;
+  CentralCore core(c);
+  for (uint32_t id : {2u, 3u, 4u}) {
+    EXPECT_EQ(core.add_keyframe(to_in(s.keyframes[1][id])).outcome, Outcome::kAccepted);
+  }
+  EXPECT_EQ(core.keyframes_pending(), 3u);
+  const AddResult refused = core.add_keyframe(to_in(s.keyframes[1][6]));
+  EXPECT_EQ(refused.outcome, Outcome::kRejected);
+  EXPECT_EQ(refused.reason,
+            "keyframe 6 of robot 1 waits for keyframe 0 and 3 keyframes already wait (max_pending_keyframes)");
+  EXPECT_EQ(core.counters().keyframes_pending_full, 1u);
+  EXPECT_EQ(core.counters().keyframes_rejected, 1u);
+  EXPECT_EQ(core.add_keyframe(to_in(s.keyframes[1][0])).outcome, Outcome::kAccepted);
+  EXPECT_EQ(core.add_keyframe(to_in(s.keyframes[1][1])).outcome, Outcome::kAccepted);  // 1..4 contiguous now
+  EXPECT_EQ(core.keyframes_pending(), 0u);
+  EXPECT_EQ(core.acknowledgements()[0].highest_contiguous_keyframe, 4);
+  EXPECT_EQ(core.add_keyframe(to_in(s.keyframes[1][6])).outcome, Outcome::kAccepted);  // re-sent: room again
+  EXPECT_EQ(core.keyframes_pending(), 1u);
+  EXPECT_EQ(core.keyframes_held(1, 7), 6u);
+}
+
+// The central's world is robot 0's: without robot 0's keyframes (a restarted central fed the other
+// robots first) no robot 0 position exists; then it is robot 0's newest keyframe in the graph.
+TEST(CentralCore, NoPositionForARobotOutsideTheWorld) {
+  const auto s = test::make_swarm_stream(small());
+  CentralCore core(CentralConfig{});
+  for (uint32_t id = 0; id < 20; ++id) {
+    core.add_keyframe(to_in(s.keyframes[1][id]));
+    core.add_keyframe(to_in(s.keyframes[2][id]));
+  }
+  EXPECT_FALSE(core.newest_position(0));
+  EXPECT_FALSE(core.newest_position(1)) << "robot 1 is not tied to the world yet";
+  for (uint32_t id = 0; id < 20; ++id) {
+    core.add_keyframe(to_in(s.keyframes[0][id]));
+  }
+  const auto p = core.newest_position(0);
+  ASSERT_TRUE(p);
+  EXPECT_LT((*p - s.keyframes[0][19].T_world_truth.translation()).norm(), 1.0);
 }
 
 TEST(CentralCore, ANewIncarnationIsANewSessionAndOldOnesAreKept) {

@@ -107,6 +107,11 @@ cdc_msg_WorldTransform world_transform(const Origin& o, const Eigen::Isometry3d&
   return w;
 }
 
+std::optional<Eigen::Vector3d> status_position(const cdc_msg_RobotStatus& m) {
+  if (!m.world_valid) return std::nullopt;
+  return dds::to_eigen(m.T_world_base.position);
+}
+
 cdc_msg_RobotStatus robot_status(const Origin& o, const std::optional<Eigen::Isometry3d>& T_world_base,
                                  int64_t last_keyframe_id, Mode mode) {
   cdc_msg_RobotStatus s{};

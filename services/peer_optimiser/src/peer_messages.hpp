@@ -40,6 +40,9 @@ cdc_msg_ModeState mode_state(const Origin& o, Mode mode, SwitchReason reason, st
                              uint32_t transitions);
 // The robot's own T_world_robot for the central (a distributed estimate, on rejoining).
 cdc_msg_WorldTransform world_transform(const Origin& o, const Eigen::Isometry3d& T_world_robot, uint64_t rounds);
+// The position in W a status carries; nullopt when its sender knows no world yet (world_valid false).
+std::optional<Eigen::Vector3d> status_position(const cdc_msg_RobotStatus& m);
+
 // The robot's status on the radio: its pose in W for its peers' range checks, and its mode.
 cdc_msg_RobotStatus robot_status(const Origin& o, const std::optional<Eigen::Isometry3d>& T_world_base,
                                  int64_t last_keyframe_id, Mode mode);

@@ -152,12 +152,11 @@ void PeerNode::on_separator(const cdc_msg_SeparatorPoses& m) { core_.on_separato
 
 void PeerNode::on_status(const cdc_msg_RobotStatus& m) {
   if (!m.is_central) core_.on_peer_mode(m.robot_id, from_msg(m.mode));
-  if (!m.world_valid) return;
-  const Eigen::Vector3d p = dds::to_eigen(m.T_world_base.position);
+  const std::optional<Eigen::Vector3d> p = status_position(m);
   if (m.is_central) {
-    core_.on_central_position(p);
-  } else {
-    core_.on_peer_position(m.robot_id, p);
+    core_.on_central_position(p);  // no world: the distance is unknown (in range), not from the origin
+  } else if (p) {
+    core_.on_peer_position(m.robot_id, *p);
   }
 }
 

@@ -348,12 +348,17 @@ TEST(PeerCore, ForwardsKeyframesOnlyWhileCentralizedAndDropsUndeliveredOnesOnLea
   EXPECT_FALSE(core.step(t += 50ms, false).drop_undelivered_keyframes) << "only at the switch";
 }
 
-TEST(PeerCore, RangeTriggerUsesTheEstimatedDistanceToTheCentral) {
-  const auto s = test::make_swarm_stream({});
+// Robot 1 with a central range of 50 m (hysteresis 5 m).
+PeerConfig range_config() {
   PeerConfig c = config(1);
   c.rtdos.range_m = 50;
   c.rtdos.hysteresis_m = 5;
-  PeerCore core(c);
+  return c;
+}
+
+TEST(PeerCore, RangeTriggerUsesTheEstimatedDistanceToTheCentral) {
+  const auto s = test::make_swarm_stream({});
+  PeerCore core(range_config());
   core.add_keyframe(kf_from(s.keyframes[1][0]), 0s);
   core.on_central_result(central_for(s, 1, 0, Eigen::Isometry3d::Identity()));
   const Eigen::Vector3d p = s.keyframes[1][0].T_world_truth.translation();
@@ -369,6 +374,34 @@ TEST(PeerCore, RangeTriggerUsesTheEstimatedDistanceToTheCentral) {
   ASSERT_TRUE(out.transition);
   EXPECT_EQ(out.transition->reason, SwitchReason::kOutOfRange);
   EXPECT_NEAR(*out.transition->distance_m, 60.0, 1e-6);
+}
+
+// A restarted central knows no world until its host robot's poses reach it: its position is unknown
+// then, and so is the distance to it, which keeps a robot CENTRALIZED (not "out of range" of the origin).
+TEST(PeerCore, ACentralWithoutAWorldIsAtAnUnknownDistance) {
+  const auto s = test::make_swarm_stream({});
+  PeerCore core(range_config());
+  core.add_keyframe(kf_from(s.keyframes[1][0]), 0s);
+  Eigen::Isometry3d far = Eigen::Isometry3d::Identity();
+  far.translation() = Eigen::Vector3d(100, 0, 0);  // the robot 100 m from the world origin
+  core.on_central_result(central_for(s, 1, 0, far));
+  Nanos t = 0s;
+  for (; t <= 1500ms; t += 100ms) {
+    core.step(t, true);
+  }
+  ASSERT_EQ(core.mode(), Mode::kCentralized);
+  ASSERT_TRUE(core.world_pose());
+  const Eigen::Vector3d p = core.world_pose()->translation();
+  ASSERT_GT(p.norm(), 60.0) << "the robot is out of range of the origin";
+  core.on_central_position(p + Eigen::Vector3d(10, 0, 0));
+  EXPECT_FALSE(core.step(t += 100ms, true).transition);
+  ASSERT_NEAR(*core.distance_to_central(), 10.0, 1e-6);
+  core.on_central_position(std::nullopt);  // the central restarted
+  EXPECT_FALSE(core.distance_to_central());
+  for (int i = 0; i < 10; ++i) {
+    EXPECT_FALSE(core.step(t += 100ms, true).transition);
+  }
+  EXPECT_EQ(core.mode(), Mode::kCentralized);
 }
 
 TEST(PeerCore, TwoPeersPlaceEachOtherThroughSeparatorsAlone) {

@@ -109,6 +109,15 @@ TEST(PeerMessages, OutgoingStateMessages) {
   EXPECT_TRUE(dds::to_eigen(placed.T_world_base).isApprox(pose(3.0, 0.0), 1e-12));
 }
 
+// A status without a world (world_valid false) carries no position, whatever its pose field holds.
+TEST(PeerMessages, AStatusWithoutAWorldHasNoPosition) {
+  const Origin o{0, 5, 123};
+  EXPECT_FALSE(status_position(robot_status(o, std::nullopt, -1, Mode::kCentralized)));
+  const auto p = status_position(robot_status(o, pose(3.0, 0.0), 10, Mode::kCentralized));
+  ASSERT_TRUE(p);
+  EXPECT_TRUE(p->isApprox(pose(3.0, 0.0).translation(), 1e-12));
+}
+
 TEST(PeerMessages, CorrectionCarriesItsSourceVersionAndPoses) {
   Correction c{pose(0.5, 0.05), 0.3, false, {{8, pose(8.0, 0.0)}, {9, pose(9.0, 0.1)}}};
   std::vector<cdc_msg_KeyframePose> storage;

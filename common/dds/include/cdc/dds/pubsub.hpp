@@ -210,6 +210,12 @@ class PerRobotWriters {
 template <class>
 class Reader;
 
+// Samples meant for a reader that it never got: lost on the way (a writer gave them up: DDS
+// SAMPLE_LOST) or refused by the reader's resource limits (SAMPLE_REJECTED).
+struct ReaderLosses {
+  uint64_t lost = 0, rejected = 0;
+};
+
 // Samples taken by a reader, deserialised into the reader's reusable buffers: valid until this
 // object is destroyed (the buffers go back to the reader then). The reader must outlive it.
 template <class T>
@@ -279,7 +285,23 @@ class Reader {
     counters_->samples_taken.fetch_add(valid, std::memory_order_relaxed);
     counters_->bytes_taken.fetch_add(bytes, std::memory_order_relaxed);
     counters_->undecodable.fetch_add(failed, std::memory_order_relaxed);
+    losses();
     return s;
+  }
+
+  // What this reader has lost or refused so far (noticed at every take, and by this call; counted in
+  // the topic's traffic too).
+  ReaderLosses losses() const {
+    dds_sample_lost_status_t l{};
+    check(dds_get_sample_lost_status(reader_.handle(), &l), "sample lost status on '" + topic_name_ + "'");
+    dds_sample_rejected_status_t r{};
+    check(dds_get_sample_rejected_status(reader_.handle(), &r), "sample rejected status on '" + topic_name_ + "'");
+    // The change since the previous call (each call resets it): counted once however often asked.
+    const auto lost = static_cast<uint64_t>(std::max(l.total_count_change, int32_t{0}));
+    const auto rejected = static_cast<uint64_t>(std::max(r.total_count_change, int32_t{0}));
+    counters_->samples_lost.fetch_add(lost, std::memory_order_relaxed);
+    counters_->samples_rejected.fetch_add(rejected, std::memory_order_relaxed);
+    return {lost_.fetch_add(lost) + lost, rejected_.fetch_add(rejected) + rejected};
   }
 
   uint32_t matched_writers() const {
@@ -303,6 +325,7 @@ class Reader {
   Entity reader_;
   std::unique_ptr<detail::SampleBuffers> spare_;  // buffers not lent out, reused by the next take
   std::atomic<uint64_t> samples_taken_{0};
+  mutable std::atomic<uint64_t> lost_{0}, rejected_{0};  // ReaderLosses so far
 };
 
 }  // namespace cdc::dds

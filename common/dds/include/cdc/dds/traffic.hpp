@@ -1,7 +1,8 @@
 // Per-topic traffic of this process: samples and serialised payload bytes (XCDR1, as they go on
 // the wire before RTPS headers) written and taken on every topic, counted by Writer::write and
 // Reader::take (a reader counts the size of the serialised data it received; samples Cyclone
-// delivered but could not deserialise count as undecodable). A sample written once counts once
+// delivered but could not deserialise count as undecodable, samples its readers lost or refused as
+// samples_lost and samples_rejected). A sample written once counts once
 // here however many readers it reaches; the bytes on each link are counted at the IP level by
 // cdc-launch.
 #pragma once
@@ -19,10 +20,14 @@ namespace cdc::dds {
 struct TopicCounters {
   std::atomic<uint64_t> samples_written{0}, bytes_written{0}, samples_taken{0}, bytes_taken{0};
   std::atomic<uint64_t> undecodable{0};  // samples taken that Cyclone could not deserialise (dropped)
+  // Samples this process's readers never got: lost on the way (SAMPLE_LOST) or refused by a reader's
+  // resource limits (SAMPLE_REJECTED); see Reader::losses.
+  std::atomic<uint64_t> samples_lost{0}, samples_rejected{0};
 };
 
 struct TopicTotals {
   uint64_t samples_written = 0, bytes_written = 0, samples_taken = 0, bytes_taken = 0, undecodable = 0;
+  uint64_t samples_lost = 0, samples_rejected = 0;
 };
 
 // The process-wide counters of `topic` on `domain` (created on first use; the reference stays valid).

@@ -69,6 +69,7 @@ class Input {
   }
 
   dds::Reader<Msg>& reader() noexcept { return reader_; }
+  const dds::Reader<Msg>& reader() const noexcept { return reader_; }
   const std::string& topic() const noexcept { return topic_.name(); }
 
  private:

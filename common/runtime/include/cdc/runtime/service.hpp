@@ -9,7 +9,9 @@
 #include "cdc/runtime/options.hpp"
 
 #include <chrono>
+#include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -17,13 +19,18 @@
 
 namespace cdc::runtime {
 
-// Validation at a node's boundary: a refused sample is counted by topic and logged with its reason.
+// Validation at a node's boundary: a refused sample is counted by topic and logged with its reason,
+// at most one line per topic per log period (a flood of bad samples is not a flood of log lines: the
+// next line says how many went unlogged).
 class Boundary {
  public:
+  static constexpr std::chrono::milliseconds kLogPeriod{1000};
+
   explicit Boundary(dds::ValidationLimits limits) : limits_(std::move(limits)) {}
   const dds::ValidationLimits& limits() const noexcept { return limits_; }
-  // Counts and logs v when it refuses a sample of `topic`; true when it did.
-  bool refuse(std::string_view topic, const dds::Validation& v);
+  // Counts v when it refuses a sample of `topic`, and logs it unless the topic's log line is due later;
+  // true when it refused. Returns whether it logged in *logged when given.
+  bool refuse(std::string_view topic, const dds::Validation& v, bool* logged = nullptr);
   // The sample passes dds::validate.
   template <class Msg>
   bool admit(std::string_view topic, const Msg& m) {
@@ -32,8 +39,14 @@ class Boundary {
   const dds::RejectionCounter& rejected() const noexcept { return rejected_; }
 
  private:
+  struct LogGate {
+    std::chrono::steady_clock::time_point last;
+    uint64_t unlogged = 0;
+  };
   dds::ValidationLimits limits_;
   dds::RejectionCounter rejected_;
+  std::mutex log_mutex_;
+  std::map<std::string, LogGate, std::less<>> log_gates_;
 };
 
 // The limits of a swarm of `robots` (ids 0 .. robots - 1) and the other node ids it accepts (a

@@ -58,6 +58,9 @@ struct CentralConfig {
   // most loops either of its keyframes takes part in (graph::share_loop_information).
   bool share_loop_information = true;
   size_t max_pending_loops = 100'000;
+  // Keyframes held beyond a gap in their robot session's ids (waiting for a predecessor), over all
+  // sessions. One beyond the cap is refused: it is not acknowledged, so a real one is sent again.
+  size_t max_pending_keyframes = 10'000;
   // Incremental updates re-optimise what changed (new keyframes, loop ends) plus this many
   // preceding keyframes of the same robot, the rest held fixed; every full_every updates (and
   // whenever a robot joins the world, after any update that did not converge, and once a robot has
@@ -96,6 +99,7 @@ struct UpdateStats {
 
 struct Counters {
   uint64_t keyframes_accepted = 0, keyframes_duplicate = 0, keyframes_rejected = 0;
+  uint64_t keyframes_pending_full = 0;  // of keyframes_rejected: refused at max_pending_keyframes
   uint64_t loops_accepted = 0, loops_duplicate = 0, loops_rejected = 0, loops_withdrawn = 0;
 };
 
@@ -125,6 +129,11 @@ class CentralCore {
   const Counters& counters() const noexcept { return counters_; }
   // Keyframes held per robot incarnation (in the graph or waiting for a predecessor).
   size_t keyframes_held(uint32_t robot, uint32_t incarnation) const;
+  // Keyframes held beyond a gap in their session's ids, over all sessions (at most max_pending_keyframes).
+  size_t keyframes_pending() const noexcept { return pending_keyframes_; }
+  // The position in W of the robot's newest keyframe of its current session: in the graph once it is
+  // placed, else from its own hint; nullopt while it is not in the world.
+  std::optional<Eigen::Vector3d> newest_position(uint32_t robot) const;
   bool dirty() const noexcept { return dirty_; }
   // Whether the last update converged within its budget. A large change (a robot rejoining with
   // its backlog and the loops it missed) takes several bounded passes; the estimates between them
@@ -135,9 +144,10 @@ class CentralCore {
   struct Session {
     uint32_t robot = 0;
     uint32_t incarnation = 0;
-    uint32_t index = 0;  // session number of this robot: key = (robot, index << 32 | id)
-    std::map<uint32_t, KeyframeIn> keyframes;
-    std::set<uint32_t> in_graph;
+    uint32_t index = 0;                        // session number of this robot: key = (robot, index << 32 | id)
+    std::map<uint32_t, KeyframeIn> keyframes;  // held, by id: the next contiguous one is a lookup
+    uint64_t contiguous = 0;                   // ids 0 .. contiguous - 1 are all held
+    std::set<uint32_t> in_graph;               // ids 0 .. in_graph.size() - 1 (chained from 0)
     bool placed = false;
     std::optional<Eigen::Isometry3d> hint;                           // T_world_robot from the robot
     Eigen::Isometry3d T_world_odom = Eigen::Isometry3d::Identity();  // once placed
@@ -153,6 +163,7 @@ class CentralCore {
   Session* session(uint32_t robot, uint32_t incarnation, bool create);
   Session* current_session(uint32_t robot);
   Key key(const Session& s, uint32_t id) const { return graph::make_key(s.robot, (uint64_t{s.index} << 32) | id); }
+  void hold(Session& s, const KeyframeIn& kf);
   void insert_ready_keyframes(Session& s);
   void try_insert_loops();
   void place(Session& s, const Eigen::Isometry3d& T_world_odom);
@@ -163,6 +174,7 @@ class CentralCore {
   CentralConfig config_;
   std::map<uint32_t, std::vector<Session>> sessions_;  // per robot, by arrival of incarnations
   std::vector<StoredLoop> loops_;
+  size_t pending_keyframes_ = 0;                                 // held beyond a gap, over all sessions
   std::set<std::tuple<uint32_t, uint32_t, uint32_t>> loop_ids_;  // (sender, incarnation, seq)
   graph::PoseGraph graph_;
   uint64_t version_ = 0;

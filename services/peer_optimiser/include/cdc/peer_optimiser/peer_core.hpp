@@ -37,7 +37,9 @@ class PeerCore {
   void on_central_result(const CentralResult& r);
   void on_ack(const AckIn& a);
   void on_separator(uint32_t from, const KeyframePoses& poses) { known_.on_separator(from, poses); }
-  void on_central_position(const Eigen::Vector3d& p) { central_position_ = p; }
+  // The central's position in W; nullopt when the central knows no world yet (a restarted one before
+  // its host robot's poses reach it): the distance to it is then unknown, not measured from the origin.
+  void on_central_position(const std::optional<Eigen::Vector3d>& p) { central_position_ = p; }
   void on_peer_position(uint32_t robot, const Eigen::Vector3d& p) { separators_.on_peer_position(robot, p); }
   // The back-end mode a peer reports. A CENTRALIZED peer solves with the central's poses, not with
   // separators: it gets none, and all of them at the first round after it reports DISTRIBUTED.
