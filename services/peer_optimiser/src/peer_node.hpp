@@ -41,6 +41,7 @@ struct PeerNodeState {
   std::string mode;
   uint32_t transitions = 0;
   uint64_t keyframes = 0, distributed_rounds = 0, radio_cuts = 0;
+  uint64_t keyframes_duplicate = 0, keyframes_refused = 0;  // own keyframes not taken (PeerCore::add_keyframe)
 };
 
 class PeerNode {
@@ -95,6 +96,7 @@ class PeerNode {
   dds::Topic<cdc_msg_OptimizedPoses> t_corr_;
   dds::Topic<cdc_msg_SeparatorPoses> t_sep_;
   dds::Topic<cdc_msg_WorldTransform> t_world_;
+  dds::Topic<cdc_msg_KeyframeSequence> t_sequence_;
   dds::Topic<cdc_msg_Keyframe> t_kf_;
   dds::Topic<cdc_msg_LoopClosure> t_loop_;
   dds::Topic<cdc_msg_RobotStatus> t_status_;
@@ -103,6 +105,7 @@ class PeerNode {
   dds::Writer<cdc_msg_OptimizedPoses> w_corr_;
   dds::PerRobotWriters<cdc_msg_SeparatorPoses> w_sep_;
   dds::Writer<cdc_msg_WorldTransform> w_world_;
+  dds::Writer<cdc_msg_KeyframeSequence> w_sequence_;
   dds::Writer<cdc_msg_Keyframe> w_kf_;
   dds::Writer<cdc_msg_LoopClosure> w_loop_;
   dds::Writer<cdc_msg_RobotStatus> w_status_;
