@@ -11,6 +11,7 @@ inline central::KeyframeIn to_central(const StreamKeyframe& k, uint32_t incarnat
   in.robot = k.robot;
   in.incarnation = incarnation;
   in.id = k.id;
+  in.stamp_ns = int64_t{k.id} * 1'000'000'000;  // one a second
   in.T_odom_keyframe = k.T_odom_keyframe;
   in.T_prev_keyframe = k.T_prev_keyframe;
   in.information = k.information;

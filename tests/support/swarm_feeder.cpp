@@ -1,5 +1,7 @@
 // cdc-test-swarm-feeder: publishes a simulated swarm's keyframes and loop closures over DDS at a
 // fixed rate, standing in for the robots' front-end and loop-closure services in back-end tests.
+// With --continue-wait-ms it starts as a restarted front-end does: each robot's keyframes go on after
+// the newest its back-end holds (cdc/backend/sequence), under that sequence's incarnation.
 #include "cdc/dds/convert.hpp"
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
@@ -9,8 +11,40 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <cstdio>
 #include <thread>
+#include <vector>
+
+namespace {
+
+// Where each robot's keyframe sequence stands in its back-end: per robot, the first stream keyframe
+// to send and its incarnation (unchanged for a robot whose back-end holds none or did not answer).
+void learn_sequences(cdc::dds::Participant& participant, std::chrono::milliseconds wait, std::vector<uint32_t>& first,
+                     std::vector<uint32_t>& incarnations) {
+  namespace dds = cdc::dds;
+  dds::Topic<cdc_msg_KeyframeSequence> topic(participant, dds::topics::kKeyframeSequence);
+  dds::Reader<cdc_msg_KeyframeSequence> reader(
+      participant, topic, dds::qos::keyed_state().partitions(dds::partitions::all_robots_reader()));
+  std::vector<bool> heard(first.size(), false);
+  const auto until = std::chrono::steady_clock::now() + wait;
+  while (std::chrono::steady_clock::now() < until && std::find(heard.begin(), heard.end(), false) != heard.end()) {
+    reader.take(16).for_each_valid([&](const cdc_msg_KeyframeSequence& m, const dds_sample_info_t&) {
+      if (m.robot_id >= first.size()) return;
+      heard[m.robot_id] = true;
+      if (m.newest_keyframe_id < 0) return;
+      first[m.robot_id] = static_cast<uint32_t>(m.newest_keyframe_id) + 1;
+      incarnations[m.robot_id] = m.incarnation;
+    });
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  for (size_t r = 0; r < first.size(); ++r) {
+    std::printf("feeder: robot %zu %s, from keyframe %u of incarnation %u\n", r,
+                heard[r] ? "continues its back-end's sequence" : "heard no back-end", first[r], incarnations[r]);
+  }
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   cdc::dds::ShutdownSignal::install();
@@ -18,7 +52,7 @@ int main(int argc, char** argv) {
   cdc::test::SwarmStreamOptions so;
   double rate_hz = 25;
   uint32_t wait_readers = 0, incarnation = 4242;
-  int domain = -1;
+  int domain = -1, continue_wait_ms = 0;
   std::string graph_out;
   app.add_option("--robots", so.robots)->capture_default_str();
   app.add_option("--keyframes", so.keyframes_per_robot, "keyframes per robot")->capture_default_str();
@@ -31,6 +65,9 @@ int main(int argc, char** argv) {
   app.add_option("--wait-readers", wait_readers, "wait for this many keyframe readers before starting");
   app.add_option("--incarnation", incarnation)->capture_default_str();
   app.add_option("--domain", domain, "DDS domain id (default: CDC_DDS_DOMAIN or 0)")->check(CLI::Range(0, 232));
+  app.add_option("--continue-wait-ms", continue_wait_ms,
+                 "start as a restarted front-end: wait this long for each robot's back-end sequence, continue it")
+      ->check(CLI::Range(0, 60000));
   app.add_option("--graph-out", graph_out, "write the whole stream as g2o");
   CLI11_PARSE(app, argc, argv);
 
@@ -46,6 +83,11 @@ int main(int argc, char** argv) {
     cdc::dds::Topic<cdc_msg_LoopClosure> t_loop(participant, cdc::dds::topics::kLoopClosure);
     cdc::dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, cdc::dds::qos::event_stream(4096));
     cdc::dds::Writer<cdc_msg_LoopClosure> w_loop(participant, t_loop, cdc::dds::qos::event_stream(4096));
+    std::vector<uint32_t> first(so.robots, 0), incarnations(so.robots, incarnation);
+    if (continue_wait_ms > 0) {
+      learn_sequences(participant, std::chrono::milliseconds(continue_wait_ms), first, incarnations);
+    }
+    const uint32_t start = *std::min_element(first.begin(), first.end());
     if (wait_readers > 0 && !w_kf.wait_for_readers(wait_readers, std::chrono::seconds(30))) {
       std::fprintf(stderr, "cdc-test-swarm-feeder: only %u of %u readers matched\n", w_kf.matched_readers(),
                    wait_readers);
@@ -58,13 +100,15 @@ int main(int argc, char** argv) {
     const auto period = std::chrono::duration<double>(1.0 / rate_hz);
     auto next = std::chrono::steady_clock::now();
     size_t next_loop = 0;
-    for (uint32_t k = 0; k < so.keyframes_per_robot && !cdc::dds::ShutdownSignal::requested(); ++k) {
+    while (next_loop < stream.loops.size() && stream.loops[next_loop].step < start) ++next_loop;  // sent before
+    for (uint32_t k = start; k < so.keyframes_per_robot && !cdc::dds::ShutdownSignal::requested(); ++k) {
       for (const auto& robot : stream.keyframes) {
         const auto& kf = robot[k];
+        if (k < first[kf.robot]) continue;
         cdc_msg_Keyframe m{};
         m.robot_id = kf.robot;
         m.keyframe_id = kf.id;
-        m.incarnation = incarnation;
+        m.incarnation = incarnations[kf.robot];
         m.stamp_ns = cdc::dds::now_ns();
         m.T_odom_keyframe = cdc::dds::to_msg(kf.T_odom_keyframe);
         m.T_prev_keyframe = cdc::dds::to_msg(kf.T_prev_keyframe);
@@ -80,7 +124,7 @@ int main(int argc, char** argv) {
         m.robot_b = l.robot_b;
         m.keyframe_b = l.keyframe_b;
         m.sender_robot_id = l.sender;
-        m.sender_incarnation = incarnation;
+        m.sender_incarnation = incarnations[l.sender];
         m.loop_seq = l.seq;
         m.stamp_ns = cdc::dds::now_ns();
         m.status = cdc_msg_LOOP_ACCEPTED;

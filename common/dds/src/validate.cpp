@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <sstream>
 
 namespace cdc::dds {
@@ -345,6 +346,15 @@ Validation validate(const cdc_msg_WorldTransform& m, const ValidationLimits& lim
   CDC_CHECK(validate_robot_id(m.robot_id, "robot_id", limits));
   CDC_CHECK(check_enum(m.source, 3, "source"));
   return validate_pose(m.T_world_robot, "T_world_robot", limits);
+}
+
+Validation validate(const cdc_msg_KeyframeSequence& m, const ValidationLimits& limits) {
+  CDC_CHECK(validate_robot_id(m.robot_id, "robot_id", limits));
+  if (m.newest_keyframe_id < -1 || m.newest_keyframe_id > int64_t{std::numeric_limits<uint32_t>::max()}) {
+    return Validation::fail("newest_keyframe_id: " + std::to_string(m.newest_keyframe_id) +
+                            " is neither -1 nor a keyframe id");
+  }
+  return validate_pose(m.T_odom_keyframe, "T_odom_keyframe", limits);
 }
 
 Validation validate(const cdc_msg_ModeState& m, const ValidationLimits& limits) {

@@ -38,6 +38,7 @@ const std::vector<Type>& all_types() {
       {"OptimizedPoses", &cdc_msg_OptimizedPoses_desc},
       {"SeparatorPoses", &cdc_msg_SeparatorPoses_desc},
       {"WorldTransform", &cdc_msg_WorldTransform_desc},
+      {"KeyframeSequence", &cdc_msg_KeyframeSequence_desc},
       {"ModeState", &cdc_msg_ModeState_desc},
       {"RobotStatus", &cdc_msg_RobotStatus_desc},
       {"Acknowledgement", &cdc_msg_Acknowledgement_desc},

@@ -57,9 +57,8 @@ AddResult CentralCore::add_keyframe(const KeyframeIn& kf) {
     return {Outcome::kRejected, "unknown robot id " + std::to_string(kf.robot)};
   }
   Session* s = session(kf.robot, kf.incarnation, true);
-  if (s->keyframes.count(kf.id) != 0) {
-    ++counters_.keyframes_duplicate;
-    return {Outcome::kDuplicate, {}};
+  if (const auto held = s->keyframes.find(kf.id); held != s->keyframes.end()) {
+    return held_already(held->second, kf);
   }
   if (kf.id > s->contiguous && pending_keyframes_ >= config_.max_pending_keyframes) {
     ++counters_.keyframes_rejected;
@@ -86,6 +85,21 @@ AddResult CentralCore::add_keyframe(const KeyframeIn& kf) {
   try_insert_loops();
   dirty_ = true;
   return {};
+}
+
+// A keyframe id names one keyframe of a robot's sequence (idl/README.md): the same keyframe again (a
+// re-send) is a duplicate; other contents under a held id (a front-end that numbered afresh under the
+// same incarnation) are refused, never taken for a duplicate.
+AddResult CentralCore::held_already(const KeyframeIn& held, const KeyframeIn& kf) {
+  if (held.stamp_ns == kf.stamp_ns) {
+    ++counters_.keyframes_duplicate;
+    return {Outcome::kDuplicate, {}};
+  }
+  ++counters_.keyframes_rejected;
+  return {Outcome::kRejected, "robot " + std::to_string(kf.robot) + " keyframe " + std::to_string(kf.id) +
+                                  " of incarnation " + std::to_string(kf.incarnation) + " (stamp " +
+                                  std::to_string(kf.stamp_ns) + " ns): id held already with stamp " +
+                                  std::to_string(held.stamp_ns) + " ns (other contents)"};
 }
 
 // Holds kf and moves the session's contiguous end past every keyframe that now follows without a

@@ -241,6 +241,55 @@ TEST(CentralCore, ANewIncarnationIsANewSessionAndOldOnesAreKept) {
   EXPECT_EQ(core.acknowledgements().size(), 4u);
 }
 
+// A restarted front-end continues its robot's keyframe sequence (same incarnation, the ids after the
+// newest, linked by a weak odometry edge): every keyframe of both front-ends joins one chain, once.
+TEST(CentralCore, KeyframesOfARestartedFrontEndJoinTheRobotsChain) {
+  const auto s = test::make_swarm_stream(small());
+  CentralCore core(CentralConfig{});
+  feed_in_order(core, s);  // robot 2's front-end made 0..249 and restarts
+  const Eigen::Isometry3d T_last = s.keyframes[2][249].T_odom_keyframe;
+  for (uint32_t i = 0; i < 50; ++i) {
+    KeyframeIn k = to_in(s.keyframes[2][i]);
+    k.id = 250 + i;
+    k.stamp_ns = int64_t{k.id} * 1'000'000'000;
+    k.T_odom_keyframe = T_last * s.keyframes[2][0].T_odom_keyframe.inverse() * s.keyframes[2][i].T_odom_keyframe;
+    if (i == 0) {
+      k.T_prev_keyframe = T_last.inverse() * k.T_odom_keyframe;
+      k.information = Matrix6d::Identity() * 1e-2;  // where the robot was at the restart is barely known
+    }
+    EXPECT_EQ(core.add_keyframe(k).outcome, Outcome::kAccepted) << k.id;
+    EXPECT_EQ(core.add_keyframe(k).outcome, Outcome::kDuplicate) << k.id;
+  }
+  core.optimise_fully();
+  EXPECT_EQ(core.keyframes_held(2, 7), 300u);
+  EXPECT_EQ(core.counters().keyframes_duplicate, 50u);
+  EXPECT_EQ(core.acknowledgements().size(), 3u);
+  for (const auto& ack : core.acknowledgements()) {
+    EXPECT_EQ(ack.highest_contiguous_keyframe, ack.robot == 2 ? 299 : 249);
+  }
+  for (const RobotEstimate& e : core.estimates()) {
+    EXPECT_EQ(e.poses.size(), e.robot == 2 ? 300u : 250u) << "robot " << e.robot;
+  }
+}
+
+// A held id with other contents (a front-end that numbered afresh under the same incarnation) is
+// refused and counted, with the robot, the id and both stamps named; it is not a duplicate.
+TEST(CentralCore, AHeldIdWithOtherContentsIsRefusedNotTakenForADuplicate) {
+  const auto s = test::make_swarm_stream(small());
+  CentralCore core(CentralConfig{});
+  for (uint32_t id = 0; id < 10; ++id) core.add_keyframe(to_in(s.keyframes[1][id]));
+  KeyframeIn afresh = to_in(s.keyframes[1][3]);
+  afresh.stamp_ns = 600'000'000'000;
+  const AddResult r = core.add_keyframe(afresh);
+  EXPECT_EQ(r.outcome, Outcome::kRejected);
+  EXPECT_NE(r.reason.find("robot 1 keyframe 3 of incarnation 7 (stamp 600000000000 ns)"), std::string::npos)
+      << r.reason;
+  EXPECT_NE(r.reason.find("held already with stamp 3000000000 ns"), std::string::npos) << r.reason;
+  EXPECT_EQ(core.counters().keyframes_rejected, 1u);
+  EXPECT_EQ(core.counters().keyframes_duplicate, 0u);
+  EXPECT_EQ(core.keyframes_held(1, 7), 10u);
+}
+
 TEST(CentralCore, RejectsUnknownRobotsAndWaitsForUnknownKeyframes) {
   CentralConfig c;
   c.robot_count = 2;

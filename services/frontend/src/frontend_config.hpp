@@ -20,6 +20,9 @@ struct FrontendNodeOptions {
   bool take_corrections = true;  // false: the back-end's corrections are ignored (an ablation)
   double imu_gap_s = 0.05;       // a larger gap between IMU samples is reported and bridged by constant velocity
   std::chrono::milliseconds imu_wait{100};  // a sweep waits this long at most for the IMU to reach its end
+  // The first sweep waits this long at most for the back-end to say where the robot's keyframe
+  // sequence stands (cdc/backend/sequence); without an answer the front-end starts a new sequence.
+  std::chrono::milliseconds sequence_wait{2000};
   uint32_t max_scan_points = 500'000;
 };
 

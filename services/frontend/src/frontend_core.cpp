@@ -40,7 +40,7 @@ ScanOut FrontendCore::process(int64_t stamp_ns, const std::vector<ScanPoint>& po
   measure_motion(in.dt, T_map, T_out, out);
   keyframes_.add_registration(out.registration);
   // A deskewed first sweep's keyframe waits for the second sweep, which tells its motion.
-  out.keyframe = keyframes_.select(stamp_ns, T_out, sweep.cloud, first_ && p_.deskew && in.t_max > 0);
+  out.keyframe = keyframes_.select(stamp_ns, T_odom_start_ * T_out, sweep.cloud, first_ && p_.deskew && in.t_max > 0);
   stats_.keyframes = keyframes_.count();
   fuse(T_out, out);
   end_sweep(in, T_map, T_out, std::move(sweep));
@@ -105,14 +105,15 @@ void FrontendCore::measure_motion(double dt, const Eigen::Isometry3d& T_map, con
   if (first_) return;
   const Eigen::Isometry3d delta = T_last_.inverse() * T_map;
   predictor_.record_motion(delta, dt);
-  out.linear_velocity = (T_out.translation() - T_out_last_.translation()) / dt;
+  out.linear_velocity = T_odom_start_.linear() * (T_out.translation() - T_out_last_.translation()) / dt;
   out.angular_velocity = geometry::so3_log(delta.rotation()) / dt;
 }
 
 void FrontendCore::fuse(const Eigen::Isometry3d& T_out, ScanOut& out) {
   const Eigen::Isometry3d increment = first_ ? Eigen::Isometry3d::Identity() : T_out_last_.inverse() * T_out;
-  const CorrectionFusion::Fused f = fusion_.fuse(increment, T_out);
-  out.T_odom_raw = T_out;
+  const Eigen::Isometry3d T_odom = T_odom_start_ * T_out;
+  const CorrectionFusion::Fused f = fusion_.fuse(increment, T_odom);
+  out.T_odom_raw = T_odom;
   out.T_odom_base = f.T_odom_base;
   out.T_world_base = f.T_world_base;
   out.fusion_lambda = f.lambda;
@@ -129,6 +130,13 @@ void FrontendCore::end_sweep(const SweepIn& in, const Eigen::Isometry3d& T_map, 
   T_out_last_ = T_out;
   last_stamp_ = in.stamp_ns;
   first_ = false;
+}
+
+void FrontendCore::continue_sequence(uint32_t newest_id, const Eigen::Isometry3d& T_odom_newest) {
+  T_odom_start_ = T_odom_newest;
+  Eigen::Matrix<double, 6, 1> sigma;
+  sigma << Eigen::Vector3d::Constant(p_.restart_link_sigma_m), Eigen::Vector3d::Constant(p_.restart_link_sigma_rad);
+  keyframes_.continue_after(newest_id, T_odom_newest, Matrix6d(sigma.array().square().inverse().matrix().asDiagonal()));
 }
 
 bool FrontendCore::set_correction(uint32_t keyframe_id, const Eigen::Isometry3d& T_world_keyframe,

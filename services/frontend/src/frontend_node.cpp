@@ -43,6 +43,9 @@ FrontendNode::FrontendNode(const runtime::ServiceOptions& common, const Frontend
       imu_(service_, service_.secondary(), topics::kImu, dds::qos::sensor_stream(64, true)),
       corrections_(service_, service_.radio(), topics::kCorrection,
                    dds::qos::event_stream(64).partitions(dds::partitions::own_reader(common.robot))),
+      // Where the back-end's keyframe sequence stands (transient-local: what it last wrote comes at once).
+      sequence_(service_, service_.radio(), topics::kKeyframeSequence,
+                dds::qos::keyed_state().partitions(dds::partitions::own_reader(common.robot))),
       w_odom_(service_.radio(), topics::kOdometry,
               dds::qos::sensor_stream(16, true).partitions({dds::partitions::robot(common.robot)})),
       w_kf_(service_.radio(), topics::kKeyframe,
@@ -54,6 +57,8 @@ FrontendNode::FrontendNode(const runtime::ServiceOptions& common, const Frontend
       .on([this](const cdc_msg_ImuBatch& m) { on_imu(m); });
   corrections_.filter([this, me](const cdc_msg_OptimizedPoses& m) { return m.robot_id == me && o_.take_corrections; })
       .on([this](const cdc_msg_OptimizedPoses& m) { on_correction(m); });
+  sequence_.filter([me](const cdc_msg_KeyframeSequence& m) { return m.robot_id == me; })
+      .on([this](const cdc_msg_KeyframeSequence& m) { on_sequence(m); });
   scans_.filter([me](const cdc_msg_LidarScan& m) { return m.robot_id == me; })
       .check([this](const cdc_msg_LidarScan& m) { return check_scan(m); })
       .on([this](const cdc_msg_LidarScan& m) { on_scan(m); });
@@ -67,6 +72,7 @@ void FrontendNode::spin() {
   while (service_.wait(pending_.empty() ? std::chrono::milliseconds(200) : std::chrono::milliseconds(5))) {
     imu_.poll(64);  // IMU first: a sweep needs the samples up to its end
     corrections_.poll(16);
+    sequence_.poll(4);
     scans_.poll(4);
     process_ready_scans();
   }
@@ -131,10 +137,34 @@ void FrontendNode::on_scan(const cdc_msg_LidarScan& m) {
   }
 }
 
+void FrontendNode::on_sequence(const cdc_msg_KeyframeSequence& m) { backend_sequence_ = m; }
+
+// Keyframe ids name one keyframe of the robot's sequence for every consumer (idl/README.md): before
+// its first sweep the front-end learns from its back-end where the sequence stands and continues it
+// (a restart), or starts a new one under its sweeps' incarnation when the back-end holds none or does
+// not answer within sequence_wait.
+bool FrontendNode::sequence_decided() {
+  if (sequence_incarnation_) return true;
+  const bool waited = std::chrono::steady_clock::now() - started_ >= o_.sequence_wait;
+  if (!backend_sequence_ && !waited) return false;
+  if (backend_sequence_ && backend_sequence_->newest_keyframe_id >= 0) {
+    const cdc_msg_KeyframeSequence& b = *backend_sequence_;
+    core_.continue_sequence(static_cast<uint32_t>(b.newest_keyframe_id), dds::to_eigen(b.T_odom_keyframe));
+    sequence_incarnation_ = b.incarnation;
+    spdlog::info("continuing robot {}'s keyframe sequence of incarnation {} after keyframe {}",
+                 service_.options().robot, b.incarnation, b.newest_keyframe_id);
+    return true;
+  }
+  sequence_incarnation_ = pending_.front().incarnation;
+  spdlog::info("a new keyframe sequence of incarnation {} ({})", *sequence_incarnation_,
+               backend_sequence_ ? "the back-end holds no keyframe" : "no back-end answered");
+  return true;
+}
+
 // A sweep and the IMU samples up to its end travel on different topics and may arrive in either
 // order: a sweep waits (at most imu_wait) until the IMU has reached its end.
 void FrontendNode::process_ready_scans() {
-  while (!pending_.empty()) {
+  while (!pending_.empty() && sequence_decided()) {
     const PendingScan& scan = pending_.front();
     const bool imu_covers = !o_.use_imu || last_imu_stamp_ >= scan.end_ns - static_cast<int64_t>(o_.imu_gap_s * 1e9);
     if (!imu_covers && std::chrono::steady_clock::now() - scan.received < o_.imu_wait) break;
@@ -185,7 +215,7 @@ void FrontendNode::publish_keyframe(const KeyframeOut& k) {
   cdc_msg_Keyframe kf{};
   kf.robot_id = service_.options().robot;
   kf.keyframe_id = k.id;
-  kf.incarnation = incarnation_;
+  kf.incarnation = *sequence_incarnation_;
   kf.stamp_ns = k.stamp_ns;
   kf.T_odom_keyframe = dds::to_msg(k.T_odom_keyframe);
   kf.T_prev_keyframe = dds::to_msg(k.T_prev);

@@ -15,6 +15,7 @@
 
 #include <chrono>
 #include <deque>
+#include <optional>
 #include <vector>
 
 namespace cdc::frontend {
@@ -51,6 +52,8 @@ class FrontendNode {
   void on_correction(const cdc_msg_OptimizedPoses& m);
   void on_scan(const cdc_msg_LidarScan& m);
   dds::Validation check_scan(const cdc_msg_LidarScan& m) const;
+  void on_sequence(const cdc_msg_KeyframeSequence& m);
+  bool sequence_decided();
   void process_ready_scans();
   void log_registration_failure(const PendingScan& scan, const FrontendStats& before, const ScanOut& out) const;
   void publish(const PendingScan& scan, const ScanOut& out);
@@ -61,6 +64,7 @@ class FrontendNode {
   runtime::Input<cdc_msg_LidarScan> scans_;
   runtime::Input<cdc_msg_ImuBatch> imu_;
   runtime::Input<cdc_msg_OptimizedPoses> corrections_;
+  runtime::Input<cdc_msg_KeyframeSequence> sequence_;
   dds::TopicWriter<cdc_msg_Odometry> w_odom_;
   dds::TopicWriter<cdc_msg_Keyframe> w_kf_;
   dds::TopicWriter<cdc_msg_ConsumerProgress> w_progress_;
@@ -69,7 +73,11 @@ class FrontendNode {
   FrontendNodeCounters counters_;
   std::deque<PendingScan> pending_;
   int64_t last_scan_stamp_ = -1, last_imu_stamp_ = -1;
-  uint32_t incarnation_ = 0;
+  uint32_t incarnation_ = 0;  // of the sweeps
+  // The keyframe sequence this front-end numbers its keyframes in: its incarnation once decided.
+  std::optional<uint32_t> sequence_incarnation_;
+  std::optional<cdc_msg_KeyframeSequence> backend_sequence_;  // as the back-end last said
+  const std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
   geometry::Trajectory trajectory_;
   std::vector<cdc_msg_PointXYZI> cloud_;  // the keyframe cloud being published
 };

@@ -39,12 +39,17 @@ KeyframeOut KeyframeSelector::cut(int64_t stamp_ns, const Eigen::Isometry3d& T_o
                                   const std::vector<Eigen::Vector3d>& deskewed) {
   KeyframeOut k;
   k.id = next_id_++;
+  ++made_;
   k.stamp_ns = stamp_ns;
   k.T_odom_keyframe = T_odom;
-  k.T_prev = have_keyframe_ ? since : Eigen::Isometry3d::Identity();
+  k.T_prev = have_keyframe_ || link_information_ ? since : Eigen::Isometry3d::Identity();
   Matrix6d cov = cov_since_keyframe_;
   cov.diagonal().array() += 1e-8;
-  k.information = have_keyframe_ ? Matrix6d(cov.inverse()) : Matrix6d::Identity() * 1e6;
+  if (have_keyframe_) {
+    k.information = cov.inverse();
+  } else {
+    k.information = link_information_.value_or(Matrix6d::Identity() * 1e6);
+  }
   k.information = 0.5 * (k.information + k.information.transpose());
   k.cloud = cloud(deskewed);
   poses_.emplace_back(k.id, T_odom);
@@ -52,6 +57,14 @@ KeyframeOut KeyframeSelector::cut(int64_t stamp_ns, const Eigen::Isometry3d& T_o
   cov_since_keyframe_.setZero();
   have_keyframe_ = true;
   return k;
+}
+
+void KeyframeSelector::continue_after(uint32_t newest_id, const Eigen::Isometry3d& T_odom_newest,
+                                      const Matrix6d& link_information) {
+  next_id_ = newest_id + 1;
+  T_last_keyframe_ = T_odom_newest;
+  link_information_ = link_information;
+  poses_.emplace_back(newest_id, T_odom_newest);  // a correction naming it applies at once
 }
 
 void KeyframeSelector::redeskew_held(const std::vector<Eigen::Vector3d>& deskewed) {

@@ -11,7 +11,7 @@ struct FrontendFlags {
   int sensor_domain = -1;
   std::string sensor_dds_config, trajectory_out;
   bool lidar_only = false, no_corrections = false;
-  int imu_wait_ms = -1;
+  int imu_wait_ms = -1, sequence_wait_ms = -1;
 
   void declare(CLI::App& app) {
     app.add_option("--sensor-domain", sensor_domain,
@@ -26,6 +26,10 @@ struct FrontendFlags {
                    "a sweep waits at most this long for the IMU to reach its end (default 100; lock-step playback,\n"
                    "where the IMU always comes, can wait longer so that a busy machine never changes the result)")
         ->check(CLI::Range(0, 60000));
+    app.add_option("--sequence-wait-ms", sequence_wait_ms,
+                   "the first sweep waits at most this long for the back-end's keyframe sequence, which a restarted\n"
+                   "front-end continues (default 2000; without an answer a new sequence starts)")
+        ->check(CLI::Range(0, 60000));
     app.add_option("--trajectory-out", trajectory_out, "write the published odometry (TUM) here at shutdown");
   }
   void apply(cdc::frontend::FrontendNodeOptions& o, const cdc::runtime::ServiceOptions&) const {
@@ -35,6 +39,7 @@ struct FrontendFlags {
     if (lidar_only) o.use_imu = false;
     if (no_corrections) o.take_corrections = false;
     if (imu_wait_ms >= 0) o.imu_wait = std::chrono::milliseconds(imu_wait_ms);
+    if (sequence_wait_ms >= 0) o.sequence_wait = std::chrono::milliseconds(sequence_wait_ms);
   }
 };
 

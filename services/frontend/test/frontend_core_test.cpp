@@ -126,6 +126,52 @@ TEST(Frontend, KeyframesCarryRelativeOdometryWithInformation) {
   EXPECT_LT(per_dof, 1.0);
 }
 
+// A restarted front-end continues the robot's keyframe sequence: ids after the newest keyframe its
+// back-end holds, its odometry frame that keyframe's (its start placed at the keyframe's pose), and a
+// first keyframe tied to that keyframe by a weak link; later keyframes chain as usual.
+TEST(Frontend, ARestartedFrontEndContinuesTheKeyframeSequence) {
+  Drive d(5.0, 0.3, 6.0);
+  FrontendCore first(FrontendParams{});
+  std::optional<KeyframeOut> newest;
+  for (int k = 0; k < 20; ++k) {
+    const double t = 0.2 + 0.1 * k;
+    if (auto o = first.process(static_cast<int64_t>(t * 1e9), d.sweep(t)); o.keyframe) newest = std::move(o.keyframe);
+  }
+  ASSERT_TRUE(newest.has_value());
+  ASSERT_GT(newest->id, 0u);
+  FrontendParams params;
+  FrontendCore restarted(params), fresh(params);  // fresh: the same sweeps in a new sequence
+  restarted.continue_sequence(newest->id, newest->T_odom_keyframe);
+  const double t0 = 3.0;  // the restart took a second
+  std::vector<KeyframeOut> kfs;
+  for (int k = 0; k < 20; ++k) {
+    const double t = t0 + 0.1 * k;
+    const std::vector<ScanPoint> sweep = d.sweep(t);
+    const ScanOut o = restarted.process(static_cast<int64_t>(t * 1e9), sweep);
+    const ScanOut f = fresh.process(static_cast<int64_t>(t * 1e9), sweep);
+    // The odometry frame is the sequence's: this front-end's own odometry, from the newest keyframe's pose.
+    EXPECT_TRUE(o.T_odom_raw.isApprox(newest->T_odom_keyframe * f.T_odom_raw, 1e-9)) << "sweep " << k;
+    const Eigen::Isometry3d truth = newest->T_odom_keyframe * d.traj.pose(t0).inverse() * d.traj.pose(t);
+    EXPECT_LT((truth.inverse() * o.T_odom_raw).translation().norm(), 0.2) << "sweep " << k;
+    if (o.keyframe) kfs.push_back(*o.keyframe);
+  }
+  ASSERT_GE(kfs.size(), 3u);
+  EXPECT_EQ(kfs[0].id, newest->id + 1);
+  EXPECT_TRUE(kfs[0].T_odom_keyframe.isApprox(newest->T_odom_keyframe, 1e-9));
+  EXPECT_TRUE(kfs[0].T_prev.isApprox(Eigen::Isometry3d::Identity(), 1e-9));
+  const Matrix6d link = kfs[0].information;
+  EXPECT_NEAR(link(0, 0), 1.0 / (params.restart_link_sigma_m * params.restart_link_sigma_m), 1e-9);
+  EXPECT_NEAR(link(5, 5), 1.0 / (params.restart_link_sigma_rad * params.restart_link_sigma_rad), 1e-9);
+  EXPECT_NEAR((link - Matrix6d(link.diagonal().asDiagonal())).norm(), 0.0, 1e-12);
+  for (size_t i = 1; i < kfs.size(); ++i) {
+    EXPECT_EQ(kfs[i].id, kfs[0].id + i);
+    const Eigen::Isometry3d chained = kfs[i - 1].T_odom_keyframe * kfs[i].T_prev;
+    EXPECT_LT((chained.inverse() * kfs[i].T_odom_keyframe).translation().norm(), 1e-9);
+    EXPECT_GT(kfs[i].information(0, 0), 10.0 * link(0, 0)) << "measured odometry is not weak";
+  }
+  EXPECT_EQ(restarted.stats().keyframes, kfs.size());
+}
+
 // A sweep whose points all carry time 0 has no per-point times: it is taken as it is whether
 // deskewing is on or off (there is nothing to deskew it with), and the first keyframe goes out at once.
 TEST(FrontendRecovery, ASweepWithoutPerPointTimesIsTakenAsItIs) {

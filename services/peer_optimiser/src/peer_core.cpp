@@ -14,14 +14,65 @@ PeerCore::PeerCore(const PeerConfig& config, Nanos start)
       separators_(config),
       distributed_(config) {}
 
-void PeerCore::add_keyframe(const OwnKeyframe& kf, Nanos now) {
-  if (!known_.add_keyframe(kf)) {
-    return;  // already held
+KeyframeAdmission PeerCore::add_keyframe(const OwnKeyframe& kf, Nanos now) {
+  const auto held = known_.keyframes().find(kf.id);
+  if (held != known_.keyframes().end() && held->second.incarnation == kf.incarnation &&
+      held->second.stamp_ns == kf.stamp_ns) {
+    ++keyframe_counters_.duplicate;
+    return {Admission::kDuplicate, {}};
   }
+  if (std::optional<std::string> reason = conflict(kf)) {
+    ++keyframe_counters_.refused;
+    return {Admission::kRefused, std::move(*reason)};
+  }
+  known_.add_keyframe(kf);
   backlog_.add_keyframe(kf.id, now);
   if (mode() == Mode::kDistributed) {
     distributed_.extend(kf);
   }
+  return {};
+}
+
+// Why a keyframe that is not a duplicate cannot join the robot's sequence, if it cannot: its id is
+// held already (a front-end that numbered afresh), or it belongs to another sequence.
+std::optional<std::string> PeerCore::conflict(const OwnKeyframe& kf) const {
+  const OwnKeyframe* newest = newest_keyframe();
+  if (newest == nullptr) return std::nullopt;  // the first keyframe starts the sequence
+  const std::string what = "robot " + std::to_string(config_.robot) + " keyframe " + std::to_string(kf.id) +
+                           " of incarnation " + std::to_string(kf.incarnation) + " (stamp " +
+                           std::to_string(kf.stamp_ns) + " ns)";
+  const std::string restart = "; a restarted front-end continues after keyframe " + std::to_string(newest->id) +
+                              " of incarnation " + std::to_string(newest->incarnation);
+  const auto held = known_.keyframes().find(kf.id);
+  if (held != known_.keyframes().end()) {
+    return what + ": id held already from incarnation " + std::to_string(held->second.incarnation) + " (stamp " +
+           std::to_string(held->second.stamp_ns) + " ns) with other contents" + restart;
+  }
+  if (kf.incarnation != newest->incarnation) {
+    return what + ": not of the keyframe sequence held (incarnation " + std::to_string(newest->incarnation) + ")" +
+           restart;
+  }
+  return std::nullopt;
+}
+
+const OwnKeyframe* PeerCore::newest_keyframe() const {
+  const auto& keyframes = known_.keyframes();
+  return keyframes.empty() ? nullptr : &keyframes.rbegin()->second;
+}
+
+const OwnKeyframe* PeerCore::keyframe(uint32_t id) const {
+  const auto it = known_.keyframes().find(id);
+  return it == known_.keyframes().end() ? nullptr : &it->second;
+}
+
+geometry::Trajectory PeerCore::world_trajectory() const {
+  std::map<uint32_t, Eigen::Isometry3d> T_odom;
+  for (const auto& [id, k] : known_.keyframes()) T_odom[id] = k.T_odom;
+  geometry::Trajectory trajectory;
+  for (const auto& [id, T] : complete_world_poses(T_odom, corrected_)) {
+    trajectory.push_back({known_.keyframes().at(id).stamp_ns, T});
+  }
+  return trajectory;
 }
 
 void PeerCore::add_loop(const LoopRecord& loop, Nanos now) {
@@ -195,6 +246,7 @@ Correction PeerCore::next_correction(bool from_central) {
     const Eigen::Isometry3d to_sent = c.T_world_robot * solution_T_world_robot->inverse();
     for (auto& [id, T] : c.poses) T = to_sent * T;
   }
+  for (const auto& [id, T] : c.poses) corrected_[id] = T;
   return c;
 }
 

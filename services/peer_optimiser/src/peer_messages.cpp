@@ -49,7 +49,11 @@ Mode from_msg(cdc_msg_BackendMode mode) {
 }
 
 OwnKeyframe own_keyframe(const cdc_msg_Keyframe& m) {
-  return OwnKeyframe{m.keyframe_id, m.incarnation, dds::to_eigen(m.T_odom_keyframe), dds::to_eigen(m.T_prev_keyframe),
+  return OwnKeyframe{m.keyframe_id,
+                     m.incarnation,
+                     m.stamp_ns,
+                     dds::to_eigen(m.T_odom_keyframe),
+                     dds::to_eigen(m.T_prev_keyframe),
                      dds::information_to_eigen(m.information)};
 }
 
@@ -137,6 +141,30 @@ cdc_msg_SeparatorPoses separator_message(const Origin& o, const SeparatorOut& s,
   lend(m.poses, storage, s.poses, [](uint32_t id, const Eigen::Isometry3d& T) {
     return cdc_msg_KeyframePoseF{id, dds::to_msg_f(T)};
   });
+  return m;
+}
+
+cdc_msg_Keyframe keyframe_message(uint32_t robot, const OwnKeyframe& k, std::vector<cdc_msg_PointXYZI>& cloud) {
+  cdc_msg_Keyframe m{};
+  m.robot_id = robot;
+  m.keyframe_id = k.id;
+  m.incarnation = k.incarnation;
+  m.stamp_ns = k.stamp_ns;
+  m.T_odom_keyframe = dds::to_msg(k.T_odom);
+  m.T_prev_keyframe = dds::to_msg(k.T_prev);
+  dds::information_to_msg(k.information, m.information);
+  m.point_count = static_cast<uint32_t>(cloud.size());
+  dds::borrow(m.cloud, cloud);
+  return m;
+}
+
+cdc_msg_KeyframeSequence keyframe_sequence(uint32_t robot, const OwnKeyframe* newest) {
+  cdc_msg_KeyframeSequence m{};
+  m.robot_id = robot;
+  m.newest_keyframe_id = newest != nullptr ? int64_t{newest->id} : int64_t{-1};
+  m.incarnation = newest != nullptr ? newest->incarnation : 0;
+  m.stamp_ns = newest != nullptr ? newest->stamp_ns : 0;
+  m.T_odom_keyframe = dds::to_msg(newest != nullptr ? newest->T_odom : Eigen::Isometry3d::Identity());
   return m;
 }
 

@@ -49,6 +49,10 @@ cdc_msg_RobotStatus robot_status(const Origin& o, const std::optional<Eigen::Iso
 // The messages below borrow `storage` for their poses: it must outlive the write.
 cdc_msg_SeparatorPoses separator_message(const Origin& o, const SeparatorOut& s, uint32_t round,
                                          std::vector<cdc_msg_KeyframePoseF>& storage);
+// An own keyframe as the core holds it, with its cloud, for re-sending to the central.
+cdc_msg_Keyframe keyframe_message(uint32_t robot, const OwnKeyframe& k, std::vector<cdc_msg_PointXYZI>& cloud);
+// Where the robot's keyframe sequence stands: its newest keyframe (nullptr: none held yet).
+cdc_msg_KeyframeSequence keyframe_sequence(uint32_t robot, const OwnKeyframe* newest);
 // version: the correction's number (graph_version), counted by the node.
 cdc_msg_OptimizedPoses correction_message(const Origin& o, const Correction& c, uint64_t version,
                                           std::vector<cdc_msg_KeyframePose>& storage);

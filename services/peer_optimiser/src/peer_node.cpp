@@ -18,7 +18,8 @@ namespace cdc::peer {
 // Counters and state as --stats-out names them.
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(PeerNodeCounters, forwarded_keyframes, withheld_keyframes, keyframe_writer_discards,
                                    resent_keyframes, resent_loops, corrections, separator_messages)
-NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(PeerNodeState, robot, mode, transitions, keyframes, distributed_rounds, radio_cuts)
+NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(PeerNodeState, robot, mode, transitions, keyframes, keyframes_duplicate,
+                                   keyframes_refused, distributed_rounds, radio_cuts)
 
 namespace {
 
@@ -53,6 +54,9 @@ PeerNode::PeerNode(const runtime::ServiceOptions& common, const PeerNodeOptions&
       // Separators go only to the peer they are for (each crosses only the link to it).
       w_sep_(service_.radio(), t_sep_, qos::event_stream(256), o.core.robot_count, o.core.robot),
       w_world_(service_.radio(), topics::kWorldTransform, qos::keyed_state()),
+      // Where the keyframe sequence stands, kept for a front-end that (re)starts (transient-local).
+      w_sequence_(service_.secondary(), topics::kKeyframeSequence,
+                  qos::keyed_state().partitions({partitions::robot(o.core.robot)})),
       w_kf_(service_.radio(), topics::kKeyframe, qos::event_stream(4096).partitions({partitions::robot(o.core.robot)})),
       // Own loops re-sent for the central: in the robot's partition, so that they do not cross to peers.
       w_loop_(service_.radio(), topics::kLoopClosure,
@@ -68,6 +72,7 @@ PeerNode::PeerNode(const runtime::ServiceOptions& common, const PeerNodeOptions&
   if (service_.split())
     local_loops_.emplace(service_, service_.secondary(), topics::kLoopClosure, qos::event_stream(4096));
   wire_inputs();
+  w_sequence_.write(keyframe_sequence(o.core.robot, nullptr));
   central_.set_notify(&liveliness_changed_);
   service_.watch(liveliness_changed_);
   spdlog::info("peer optimiser of robot {} up: CR_0 {} m, dwell {} ms, mask {} ms, domain {}{}", o.core.robot,
@@ -122,11 +127,16 @@ void PeerNode::take_inputs() {
   statuses_.poll(64);
 }
 
+// The core decides whether the keyframe joins the robot's sequence; only then does the node keep its
+// cloud, tell a restarting front-end where the sequence stands, and forward it.
 void PeerNode::on_keyframe(const cdc_msg_Keyframe& m) {
+  const KeyframeAdmission a = core_.add_keyframe(own_keyframe(m), now_);
+  if (a.outcome == Admission::kRefused) service_.boundary().refuse(topics::kKeyframe, dds::Validation::fail(a.reason));
+  if (a.outcome != Admission::kAccepted) return;
   incarnation_ = m.incarnation;
   sim_stamp_ns_ = std::max(sim_stamp_ns_, m.stamp_ns);
-  records_.keep(m);
-  core_.add_keyframe(own_keyframe(m), now_);
+  records_.keep_cloud(m);
+  w_sequence_.write(keyframe_sequence(o_.core.robot, core_.newest_keyframe()));
   // The central (and its map) read keyframes on the SLAM domain. Only a CENTRALIZED robot sends
   // them: a DISTRIBUTED one exchanges descriptors and separators only, and its keyframes reach the
   // central as the backlog it re-sends on rejoining (all the central has not acknowledged).
@@ -205,7 +215,7 @@ void PeerNode::on_transition(const Transition& t, bool central_alive, bool drop_
     w_kf_.discard_unacknowledged();
     ++counters_.keyframe_writer_discards;
   }
-  mode_files_.transition(t, dds::now_ns(), sim_stamp_ns_, o_.core.robot, records_.keyframes());
+  mode_files_.transition(t, dds::now_ns(), sim_stamp_ns_, o_.core.robot, core_.keyframes_held());
 }
 
 // distance: the one the switch was decided on (the estimate can move within the same step).
@@ -215,10 +225,11 @@ void PeerNode::publish_mode(SwitchReason reason, std::optional<double> distance)
 
 void PeerNode::resend(const StepOutput& out) {
   for (uint32_t id : out.resend_keyframes) {
-    if (const std::optional<cdc_msg_Keyframe> m = records_.keyframe(id)) {
-      w_kf_.write(*m);
-      ++counters_.resent_keyframes;
-    }
+    const OwnKeyframe* k = core_.keyframe(id);
+    std::vector<cdc_msg_PointXYZI>* cloud = records_.cloud(id);
+    if (k == nullptr || cloud == nullptr) continue;
+    w_kf_.write(keyframe_message(o_.core.robot, *k, *cloud));
+    ++counters_.resent_keyframes;
   }
   for (uint32_t seq : out.resend_loops) {
     if (const cdc_msg_LoopClosure* m = records_.loop(seq)) {
@@ -242,7 +253,6 @@ void PeerNode::publish_separators(const std::vector<SeparatorOut>& separators) {
 }
 
 void PeerNode::publish_correction(const Correction& c) {
-  for (const auto& [id, T] : c.poses) records_.corrected(id, T);
   w_corr_.write(correction_message(origin(), c, counters_.corrections, pose_storage_));
   ++counters_.corrections;
   if (spdlog::should_log(spdlog::level::debug) && !c.poses.empty()) log_correction(c);
@@ -268,7 +278,7 @@ void PeerNode::publish_status(bool central_alive) {
 }
 
 void PeerNode::write_now(bool central_alive) const {
-  mode_files_.now(BackendState{core_.mode(), records_.keyframes(), core_.rtdos().transitions(), central_alive,
+  mode_files_.now(BackendState{core_.mode(), core_.keyframes_held(), core_.rtdos().transitions(), central_alive,
                                core_.central_acknowledged_keyframe()});
 }
 
@@ -279,7 +289,9 @@ nlohmann::json PeerNode::stats() const {
   state.robot = o_.core.robot;
   state.mode = to_string(core_.mode());
   state.transitions = core_.rtdos().transitions();
-  state.keyframes = records_.keyframes();
+  state.keyframes = core_.keyframes_held();
+  state.keyframes_duplicate = core_.keyframe_counters().duplicate;
+  state.keyframes_refused = core_.keyframe_counters().refused;
   state.distributed_rounds = core_.distributed_rounds();
   state.radio_cuts = service_.robot_domains()->radio_cuts();
   nlohmann::json j = state;
@@ -288,7 +300,7 @@ nlohmann::json PeerNode::stats() const {
 }
 
 void PeerNode::finish() const {
-  if (!o_.trajectory_out.empty()) geometry::write_tum(o_.trajectory_out, records_.world_trajectory());
+  if (!o_.trajectory_out.empty()) geometry::write_tum(o_.trajectory_out, core_.world_trajectory());
   if (!o_.graph_out.empty()) graph::write_g2o(o_.graph_out, core_.graph());
   runtime::write_stats(service_, stats());
   spdlog::info("stopped (signal {})", dds::ShutdownSignal::signal_number());

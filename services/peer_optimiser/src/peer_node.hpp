@@ -42,6 +42,7 @@ struct PeerNodeState {
   std::string mode;
   uint32_t transitions = 0;
   uint64_t keyframes = 0, distributed_rounds = 0, radio_cuts = 0;
+  uint64_t keyframes_duplicate = 0, keyframes_refused = 0;  // own keyframes not taken (PeerCore::add_keyframe)
 };
 
 class PeerNode {
@@ -98,6 +99,7 @@ class PeerNode {
   dds::TopicWriter<cdc_msg_OptimizedPoses> w_corr_;
   dds::PerRobotWriters<cdc_msg_SeparatorPoses> w_sep_;
   dds::TopicWriter<cdc_msg_WorldTransform> w_world_;
+  dds::TopicWriter<cdc_msg_KeyframeSequence> w_sequence_;
   dds::TopicWriter<cdc_msg_Keyframe> w_kf_;
   dds::TopicWriter<cdc_msg_LoopClosure> w_loop_;
   dds::TopicWriter<cdc_msg_RobotStatus> w_status_;

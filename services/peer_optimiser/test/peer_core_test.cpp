@@ -588,3 +588,92 @@ TEST(PeerCore, ACentralizedPeerGetsNoSeparatorPosesUntilItReportsDistributed) {
 
 }  // namespace
 }  // namespace cdc::peer
+
+namespace cdc::peer {
+namespace {
+
+using namespace std::chrono_literals;
+
+// Robot 1's first front-end makes keyframes 0..99 of incarnation 3; a restarted one continues the
+// sequence with 100..199 (incarnation 3, after a weak link): the core holds all 200, chained.
+TEST(PeerCore, ARestartedFrontEndThatContinuesTheSequenceHasEveryKeyframeHeld) {
+  test::SwarmStreamOptions so;
+  so.keyframes_per_robot = 200;
+  const auto s = test::make_swarm_stream(so);
+  PeerCore core(config(1));
+  for (uint32_t id = 0; id < 200; ++id) {
+    OwnKeyframe k = kf_from(s.keyframes[1][id]);
+    if (id == 100) k.information = Matrix6d::Identity() * 1e-2;  // the link across the restart
+    EXPECT_EQ(core.add_keyframe(k, 0s).outcome, Admission::kAccepted) << "keyframe " << id;
+  }
+  EXPECT_EQ(core.keyframes_held(), 200u);
+  EXPECT_EQ(core.last_keyframe_id(), 199);
+  EXPECT_EQ(core.graph().count(graph::FactorKind::kOdometry), 199u);
+  const geometry::Trajectory t = core.world_trajectory();
+  ASSERT_EQ(t.size(), 200u);
+  for (size_t i = 1; i < t.size(); ++i) EXPECT_GT(t[i].stamp_ns, t[i - 1].stamp_ns);
+}
+
+// The hole of a front-end that numbers afresh: keyframes whose ids the core holds, of another
+// incarnation or another stamp, are refused with the robot, the id and both incarnations named; the
+// core's copy stays (it is what is re-sent and written out). A re-delivery of a held keyframe is a
+// duplicate, and a keyframe of another incarnation beyond the held ids is refused too.
+TEST(PeerCore, AKeyframeConflictingWithTheSequenceIsRefusedAndNamed) {
+  const auto s = test::make_swarm_stream({});
+  PeerCore core(config(1));
+  for (uint32_t id = 0; id < 100; ++id) core.add_keyframe(kf_from(s.keyframes[1][id]), 0s);
+  EXPECT_EQ(core.add_keyframe(kf_from(s.keyframes[1][7]), 1s).outcome, Admission::kDuplicate);
+  for (uint32_t id = 0; id < 100; ++id) {
+    OwnKeyframe afresh = kf_from(s.keyframes[1][id], 4);
+    afresh.stamp_ns += 500'000'000'000;  // later data, numbered from 0 again
+    const KeyframeAdmission a = core.add_keyframe(afresh, 1s);
+    ASSERT_EQ(a.outcome, Admission::kRefused);
+    if (id == 5) {
+      EXPECT_NE(a.reason.find("robot 1 keyframe 5 of incarnation 4"), std::string::npos) << a.reason;
+      EXPECT_NE(a.reason.find("held already from incarnation 3"), std::string::npos) << a.reason;
+      EXPECT_NE(a.reason.find("continues after keyframe 99 of incarnation 3"), std::string::npos) << a.reason;
+    }
+  }
+  OwnKeyframe same_incarnation = kf_from(s.keyframes[1][3]);
+  same_incarnation.stamp_ns += 1;
+  EXPECT_EQ(core.add_keyframe(same_incarnation, 1s).outcome, Admission::kRefused);
+  const KeyframeAdmission beyond = core.add_keyframe(kf_from(s.keyframes[1][100], 4), 1s);
+  EXPECT_EQ(beyond.outcome, Admission::kRefused);
+  EXPECT_NE(beyond.reason.find("not of the keyframe sequence held (incarnation 3)"), std::string::npos)
+      << beyond.reason;
+  EXPECT_EQ(core.keyframe_counters().refused, 102u);
+  EXPECT_EQ(core.keyframe_counters().duplicate, 1u);
+  EXPECT_EQ(core.keyframes_held(), 100u);
+  ASSERT_NE(core.keyframe(5), nullptr);
+  EXPECT_EQ(core.keyframe(5)->incarnation, 3u);
+  EXPECT_EQ(core.keyframe(5)->stamp_ns, stamp_of(5));
+  const geometry::Trajectory t = core.world_trajectory();
+  ASSERT_EQ(t.size(), 100u);
+  for (size_t i = 1; i < t.size(); ++i) EXPECT_GT(t[i].stamp_ns, t[i - 1].stamp_ns);
+}
+
+// The trajectory written at shutdown follows the corrections the core published.
+TEST(PeerCore, WorldTrajectoryFollowsThePublishedCorrections) {
+  const auto s = test::make_swarm_stream({});
+  PeerCore core(config(1));
+  EXPECT_TRUE(core.world_trajectory().empty());
+  const Nanos t = join_central(core, s, 1, 20, 1500ms);
+  ASSERT_EQ(core.mode(), Mode::kCentralized);
+  Eigen::Isometry3d up = Eigen::Isometry3d::Identity();
+  up.translation().z() = 0.5;
+  core.on_central_result(central_for(s, 1, 19, up));
+  std::optional<Correction> last;
+  for (Nanos now = t; now < t + 20s; now += 50ms) {
+    if (auto out = core.step(now, true); out.correction) last = out.correction;
+  }
+  ASSERT_TRUE(last);
+  const geometry::Trajectory traj = core.world_trajectory();
+  ASSERT_EQ(traj.size(), 20u);
+  EXPECT_EQ(traj[19].stamp_ns, stamp_of(19));
+  const auto& [id, T] = last->poses.back();
+  EXPECT_TRUE(traj[id].pose.isApprox(T, 1e-9));
+  EXPECT_NEAR(traj[19].pose.translation().z() - s.keyframes[1][19].T_world_truth.translation().z(), 0.5, 1e-6);
+}
+
+}  // namespace
+}  // namespace cdc::peer

@@ -27,12 +27,14 @@ TEST(PeerMessages, IncomingMessagesForTheCore) {
   cdc_msg_Keyframe k{};
   k.keyframe_id = 7;
   k.incarnation = 2;
+  k.stamp_ns = 123;
   k.T_odom_keyframe = dds::to_msg(pose(1.0, 0.1));
   k.T_prev_keyframe = dds::to_msg(pose(0.5, 0.0));
   dds::information_to_msg(Matrix6d::Identity() * 4.0, k.information);
   const OwnKeyframe kf = own_keyframe(k);
   EXPECT_EQ(kf.id, 7u);
   EXPECT_EQ(kf.incarnation, 2u);
+  EXPECT_EQ(kf.stamp_ns, 123);
   EXPECT_TRUE(kf.T_odom.isApprox(pose(1.0, 0.1), 1e-12));
   EXPECT_TRUE(kf.T_prev.isApprox(pose(0.5, 0.0), 1e-12));
   EXPECT_DOUBLE_EQ(kf.information(5, 5), 4.0);
@@ -49,6 +51,25 @@ TEST(PeerMessages, IncomingMessagesForTheCore) {
   const AckIn ack = ack_in(a);
   EXPECT_EQ(std::make_tuple(ack.central_incarnation, ack.robot_incarnation, ack.keyframe, ack.loop_seq),
             std::make_tuple(4u, 2u, int64_t{41}, int64_t{-1}));
+}
+
+// A re-sent keyframe is the core's keyframe with the node's cloud; the sequence names the newest.
+TEST(PeerMessages, ResentKeyframesAndTheSequence) {
+  const OwnKeyframe k{9, 3, 456, pose(1.0, 0.1), pose(0.5, 0.0), Matrix6d::Identity() * 2.0};
+  std::vector<cdc_msg_PointXYZI> cloud(4, cdc_msg_PointXYZI{1.0f, 2.0f, 3.0f, 0.0f});
+  const cdc_msg_Keyframe m = keyframe_message(1, k, cloud);
+  EXPECT_EQ(std::make_tuple(m.robot_id, m.keyframe_id, m.incarnation, m.stamp_ns, m.point_count, m.cloud._length),
+            std::make_tuple(1u, 9u, 3u, int64_t{456}, 4u, 4u));
+  const OwnKeyframe back = own_keyframe(m);
+  EXPECT_TRUE(back.T_odom.isApprox(k.T_odom, 1e-12));
+  EXPECT_TRUE(back.T_prev.isApprox(k.T_prev, 1e-12));
+  EXPECT_DOUBLE_EQ(back.information(2, 2), 2.0);
+
+  EXPECT_EQ(keyframe_sequence(1, nullptr).newest_keyframe_id, -1);
+  const cdc_msg_KeyframeSequence s = keyframe_sequence(1, &k);
+  EXPECT_EQ(std::make_tuple(s.robot_id, s.incarnation, s.newest_keyframe_id, s.stamp_ns),
+            std::make_tuple(1u, 3u, int64_t{9}, int64_t{456}));
+  EXPECT_TRUE(dds::to_eigen(s.T_odom_keyframe).isApprox(k.T_odom, 1e-12));
 }
 
 TEST(PeerMessages, CentralResultsAndSeparatorsKeepTheirPoses) {

@@ -37,8 +37,11 @@ inline PeerConfig config(uint32_t robot) {
   return c;
 }
 
+// Data time of stream keyframe `id` [ns]: one a second.
+inline int64_t stamp_of(uint32_t id) { return int64_t{id} * 1'000'000'000; }
+
 inline OwnKeyframe kf_from(const test::StreamKeyframe& k, uint32_t incarnation = 3) {
-  return OwnKeyframe{k.id, incarnation, k.T_odom_keyframe, k.T_prev_keyframe, k.information};
+  return OwnKeyframe{k.id, incarnation, stamp_of(k.id), k.T_odom_keyframe, k.T_prev_keyframe, k.information};
 }
 
 inline LoopRecord loop_from(const test::StreamLoop& l) {

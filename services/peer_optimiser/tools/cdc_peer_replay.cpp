@@ -278,7 +278,7 @@ std::vector<std::map<uint32_t, peer::OwnKeyframe>> chain_odometry(const graph::P
     auto& own = keyframes[graph::robot_of(f->a)];
     const auto id = static_cast<uint32_t>(graph::index_of(f->b));
     if (const auto prev = own.find(id - 1); id > 0 && prev != own.end()) {
-      own[id] = peer::OwnKeyframe{id, 0, prev->second.T_odom * f->measurement, f->measurement, f->information};
+      own[id] = peer::OwnKeyframe{id, 0, 0, prev->second.T_odom * f->measurement, f->measurement, f->information};
     }
   }
   return keyframes;

@@ -17,6 +17,8 @@ inline constexpr const char* kCentralAck = "cdc/central/ack";
 // The central optimiser's liveliness (MANUAL_BY_TOPIC) with its status: what the robots' mode switch watches.
 inline constexpr const char* kCentralAlive = "cdc/central/alive";
 inline constexpr const char* kCorrection = "cdc/backend/correction";
+// The newest keyframe the peer optimiser holds: where a restarted front-end continues.
+inline constexpr const char* kKeyframeSequence = "cdc/backend/sequence";
 inline constexpr const char* kMode = "cdc/backend/mode";
 inline constexpr const char* kSeparator = "cdc/peer/separator";
 inline constexpr const char* kWorldTransform = "cdc/peer/world_transform";

@@ -32,6 +32,7 @@ CDC_DDS_TYPE(cdc_msg_CloudReply);
 CDC_DDS_TYPE(cdc_msg_OptimizedPoses);
 CDC_DDS_TYPE(cdc_msg_SeparatorPoses);
 CDC_DDS_TYPE(cdc_msg_WorldTransform);
+CDC_DDS_TYPE(cdc_msg_KeyframeSequence);
 CDC_DDS_TYPE(cdc_msg_ModeState);
 CDC_DDS_TYPE(cdc_msg_RobotStatus);
 CDC_DDS_TYPE(cdc_msg_Acknowledgement);

@@ -60,6 +60,7 @@ Validation validate(const cdc_msg_CloudReply& m, const ValidationLimits& limits)
 Validation validate(const cdc_msg_OptimizedPoses& m, const ValidationLimits& limits);
 Validation validate(const cdc_msg_SeparatorPoses& m, const ValidationLimits& limits);
 Validation validate(const cdc_msg_WorldTransform& m, const ValidationLimits& limits);
+Validation validate(const cdc_msg_KeyframeSequence& m, const ValidationLimits& limits);
 Validation validate(const cdc_msg_ModeState& m, const ValidationLimits& limits);
 Validation validate(const cdc_msg_RobotStatus& m, const ValidationLimits& limits);
 Validation validate(const cdc_msg_Acknowledgement& m, const ValidationLimits& limits);

@@ -164,6 +164,7 @@ class CentralCore {
   Session* current_session(uint32_t robot);
   Key key(const Session& s, uint32_t id) const { return graph::make_key(s.robot, (uint64_t{s.index} << 32) | id); }
   void hold(Session& s, const KeyframeIn& kf);
+  AddResult held_already(const KeyframeIn& held, const KeyframeIn& kf);
   void insert_ready_keyframes(Session& s);
   void try_insert_loops();
   void place(Session& s, const Eigen::Isometry3d& T_world_odom);

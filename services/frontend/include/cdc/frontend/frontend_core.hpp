@@ -48,6 +48,12 @@ class FrontendCore {
   // One sweep; stamps strictly increasing (the caller validates).
   ScanOut process(int64_t stamp_ns, const std::vector<ScanPoint>& points);
 
+  // Continues the robot's keyframe sequence held by its back-end (a restarted front-end, before its
+  // first sweep): keyframe ids go on after `newest_id`, and the odometry frame is the sequence's, this
+  // front-end's start placed at the newest keyframe's pose T_odom_newest. The first keyframe's relative
+  // odometry is to that keyframe, with the weak information of FrontendParams::restart_link_sigma_*.
+  void continue_sequence(uint32_t newest_id, const Eigen::Isometry3d& T_odom_newest);
+
   // A back-end result for a keyframe: its optimised pose in the world and T_world_robot. Later
   // scans move the published pose towards it, each by at most the fusion thresholds.
   bool set_correction(uint32_t keyframe_id, const Eigen::Isometry3d& T_world_keyframe,
@@ -87,7 +93,10 @@ class FrontendCore {
   bool first_ = true;
   int64_t last_stamp_ = 0;
   Eigen::Isometry3d T_last_ = Eigen::Isometry3d::Identity();      // registered (map frame)
-  Eigen::Isometry3d T_out_last_ = Eigen::Isometry3d::Identity();  // published odometry frame
+  Eigen::Isometry3d T_out_last_ = Eigen::Isometry3d::Identity();  // levelled, from this front-end's start
+  // The odometry frame L from this front-end's start frame: identity, or where the keyframe sequence
+  // it continues stood.
+  Eigen::Isometry3d T_odom_start_ = Eigen::Isometry3d::Identity();
   // The first sweep, kept until the second one tells its motion (only when it is deskewed).
   std::vector<ScanPoint> first_points_;
   int64_t first_stamp_ = 0;

@@ -69,6 +69,11 @@ struct FrontendParams {
   double keyframe_distance_m = 1.0;  // LIO-SAM defaults
   double keyframe_angle_rad = 0.2;
   double keyframe_voxel_m = 0.4;  // keyframe clouds (for loop closure and maps)
+  // A restarted front-end's first keyframe is tied to the newest keyframe its back-end holds as if
+  // the robot had not moved since: how far it went during the restart is not measured, so the link
+  // is weak (these sigmas), and loops place the new segment.
+  double restart_link_sigma_m = 2.0;
+  double restart_link_sigma_rad = 0.35;
   // Registration Hessian -> information of a sweep's pose in the IMU window (LiDAR factors against
   // the IMU's preintegration).
   double information_scale = 20.0;

@@ -34,9 +34,14 @@ class KeyframeSelector {
   void redeskew_held(const std::vector<Eigen::Vector3d>& deskewed);
   bool holding() const noexcept { return held_.has_value(); }
 
+  // Continues a robot's keyframe sequence (before the first keyframe): ids go on after `newest_id`,
+  // and the first keyframe's relative odometry is to that keyframe (at T_odom_newest), with
+  // `link_information`.
+  void continue_after(uint32_t newest_id, const Eigen::Isometry3d& T_odom_newest, const Matrix6d& link_information);
+
   // A keyframe's odometry pose, if there is one with this id.
   std::optional<Eigen::Isometry3d> pose_of(uint32_t id) const;
-  uint64_t count() const noexcept { return next_id_; }
+  uint64_t count() const noexcept { return made_; }  // keyframes cut by this selector
 
  private:
   std::vector<Eigen::Vector3f> cloud(const std::vector<Eigen::Vector3d>& deskewed) const;
@@ -46,6 +51,8 @@ class KeyframeSelector {
   FrontendParams p_;
   bool have_keyframe_ = false;
   uint32_t next_id_ = 0;
+  uint64_t made_ = 0;
+  std::optional<Matrix6d> link_information_;  // of the first keyframe, when continuing a sequence
   Eigen::Isometry3d T_last_keyframe_ = Eigen::Isometry3d::Identity();
   Matrix6d cov_since_keyframe_ = Matrix6d::Zero();
   std::vector<std::pair<uint32_t, Eigen::Isometry3d>> poses_;

@@ -4,6 +4,7 @@
 // adaptive fusion (eq. 8-14), and tells the node what to re-send to a central that lacks it.
 #pragma once
 
+#include "cdc/geometry/trajectory.hpp"
 #include "cdc/graph/pose_graph.hpp"
 #include "cdc/peer_optimiser/central_backlog.hpp"
 #include "cdc/peer_optimiser/central_relay.hpp"
@@ -28,11 +29,21 @@ namespace cdc::peer {
 std::map<uint32_t, Eigen::Isometry3d> complete_world_poses(const std::map<uint32_t, Eigen::Isometry3d>& T_odom,
                                                            const std::map<uint32_t, Eigen::Isometry3d>& corrected);
 
+// Keyframes offered to the core that it did not take.
+struct KeyframeCounters {
+  uint64_t duplicate = 0;  // held already
+  uint64_t refused = 0;    // conflicting with what is held
+};
+
 class PeerCore {
  public:
   explicit PeerCore(const PeerConfig& config, Nanos start = Nanos{0});
 
-  void add_keyframe(const OwnKeyframe& kf, Nanos now);
+  // The core is the one owner of the robot's keyframes: the node keeps a keyframe's cloud only when
+  // this accepts it. A robot's keyframes form one sequence (one incarnation, ids 0, 1, 2, ... ; a
+  // restarted front-end continues it, see idl/README.md): a keyframe whose id is held with another
+  // incarnation or stamp, or of another incarnation than the sequence's, is refused with the reason.
+  KeyframeAdmission add_keyframe(const OwnKeyframe& kf, Nanos now);
   void add_loop(const LoopRecord& loop, Nanos now);  // any loop touching this robot
   void on_central_result(const CentralResult& r);
   void on_ack(const AckIn& a);
@@ -63,6 +74,14 @@ class PeerCore {
   std::optional<Eigen::Isometry3d> world_pose() const;
   std::optional<double> distance_to_central() const;
   int64_t last_keyframe_id() const;
+  // The newest keyframe held (where a restarted front-end continues), nullptr before the first.
+  const OwnKeyframe* newest_keyframe() const;
+  const OwnKeyframe* keyframe(uint32_t id) const;
+  size_t keyframes_held() const noexcept { return known_.keyframes().size(); }
+  const KeyframeCounters& keyframe_counters() const noexcept { return keyframe_counters_; }
+  // Every keyframe in W at its stamp, in id order: as the published corrections last placed it,
+  // else by its odometry relative to a corrected one (complete_world_poses).
+  geometry::Trajectory world_trajectory() const;
   // The highest keyframe id up to which the current central has acknowledged every keyframe (-1: none).
   int64_t central_acknowledged_keyframe() const noexcept { return backlog_.acknowledged_keyframe(); }
   uint64_t distributed_rounds() const noexcept { return distributed_.rounds(); }
@@ -78,6 +97,7 @@ class PeerCore {
   bool in_group_frame() const;
   std::vector<SeparatorOut> separators_due(Nanos now);
   Correction next_correction(bool from_central);
+  std::optional<std::string> conflict(const OwnKeyframe& kf) const;
 
   PeerConfig config_;
   Rtdos rtdos_;
@@ -91,6 +111,8 @@ class PeerCore {
   std::optional<Eigen::Isometry3d> published_;  // what the front-end has been told
   std::optional<Eigen::Vector3d> central_position_;
   Nanos last_round_{0};
+  std::map<uint32_t, Eigen::Isometry3d> corrected_;  // T_world_keyframe as last published
+  KeyframeCounters keyframe_counters_;
 };
 
 }  // namespace cdc::peer

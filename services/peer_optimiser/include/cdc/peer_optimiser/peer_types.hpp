@@ -12,6 +12,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <optional>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -57,10 +58,23 @@ struct PeerConfig {
 
 struct OwnKeyframe {
   uint32_t id = 0;
-  uint32_t incarnation = 0;
+  uint32_t incarnation = 0;  // of the robot's keyframe sequence
+  int64_t stamp_ns = 0;      // data time
   Eigen::Isometry3d T_odom = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d T_prev = Eigen::Isometry3d::Identity();
   Matrix6d information = Matrix6d::Identity();
+};
+
+// What became of a keyframe offered to the core (PeerCore::add_keyframe).
+enum class Admission {
+  kAccepted,
+  kDuplicate,  // this very keyframe is held already (same id, incarnation and stamp): nothing changes
+  kRefused,    // it conflicts with what is held: nothing changes, and `reason` says why
+};
+
+struct KeyframeAdmission {
+  Admission outcome = Admission::kAccepted;
+  std::string reason;  // for kRefused: robot, keyframe id, both incarnations
 };
 
 struct LoopRecord {
