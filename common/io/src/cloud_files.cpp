@@ -51,4 +51,12 @@ Sweep read_cloud_file(const fs::path& path) {
   }
 }
 
+std::vector<Eigen::Vector3d> read_cloud_xyz(const fs::path& path) {
+  const Sweep s = read_cloud_file(path);
+  std::vector<Eigen::Vector3d> out;
+  out.reserve(s.points.size());
+  for (const CloudPoint& p : s.points) out.emplace_back(p.x, p.y, p.z);
+  return out;
+}
+
 }  // namespace cdc::io

@@ -1,174 +1,129 @@
+// The registration's shared parts: the settings' GICP preset, the choice of method for plain
+// clouds, one Gauss-Newton step's bookkeeping, and the judging of a result.
 #include "cdc/odometry/registration.hpp"
 
 #include "cdc/geometry/se3.hpp"
+#include "cdc/odometry/normals.hpp"
 #include "kdtree.hpp"
+#include "registration_detail.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 
-#include <algorithm>
 #include <cmath>
+#include <string>
 
 namespace cdc::odometry {
 
-RegistrationOutput register_to_map(const std::vector<Eigen::Vector3d>& pts, const std::vector<Eigen::Vector3d>& normals,
-                                   const VoxelMap& map, const Eigen::Isometry3d& guess, const RegistrationParams& p) {
-  RegistrationOutput out;
-  out.T_map_sensor = guess;
-  const double gate2 = p.max_correspondence_m * p.max_correspondence_m;
-  const double k2 = p.kernel_m * p.kernel_m;
-  for (int it = 0; it < p.max_iterations; ++it) {
-    Matrix6d H = Matrix6d::Zero();
-    Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
-    const Eigen::Matrix3d R = out.T_map_sensor.rotation();
-    const Eigen::Vector3d t = out.T_map_sensor.translation();
-    int n = 0;
-    double sum2 = 0;
-    Eigen::Vector3d q;
-    double d2 = 0;
-    for (size_t i = 0; i < pts.size(); ++i) {
-      const Eigen::Vector3d& ps = pts[i];
-      if (normals[i].squaredNorm() < 0.5) continue;
-      const Eigen::Vector3d pw = R * ps + t;
-      if (!map.nearest(pw, q, d2, gate2)) continue;
-      const Eigen::Vector3d nw = R * normals[i];
-      const double e = nw.dot(pw - q);
-      const double s = k2 + e * e;
-      const double w = k2 * k2 / (s * s);  // Geman-McClure
-      Eigen::Matrix<double, 1, 6> J;
-      J.leftCols<3>() = nw.transpose() * R;
-      J.rightCols<3>() = -nw.transpose() * R * geometry::hat(ps);
-      H.noalias() += w * J.transpose() * J;
-      b.noalias() += w * J.transpose() * e;
-      ++n;
-      sum2 += e * e;
-    }
-    out.correspondences = n;
-    out.iterations = it + 1;
-    out.hessian = H;
-    out.rmse = n > 0 ? std::sqrt(sum2 / n) : 0;
-    if (n < 20) {
-      return out;  // not converged
-    }
-    const Eigen::Matrix<double, 6, 1> dx = H.ldlt().solve(-b);
-    if (!dx.allFinite()) {
-      return out;
-    }
-    out.T_map_sensor = out.T_map_sensor * geometry::se3_exp(dx);
-    if (dx.head<3>().norm() < p.convergence && dx.tail<3>().norm() < p.convergence) {
-      out.converged = true;
-      break;
-    }
-  }
-  if (!out.converged) out.converged = out.correspondences >= 20;
-  return out;
+RegistrationSettings RegistrationSettings::gicp() {
+  RegistrationSettings s;
+  s.method = RegistrationMethod::kGicp;
+  s.max_iterations = 64;
+  s.max_correspondence_m = 1.0;
+  s.translation_eps_m = 1e-5;
+  s.rotation_eps_rad = 1e-6;
+  s.voxel_m = 0.1;
+  s.neighbours = 10;
+  return s;
 }
 
-FitQuality evaluate_fit(const std::vector<Eigen::Vector3d>& pts, const std::vector<Eigen::Vector3d>& normals,
-                        const VoxelMap& map, const Eigen::Isometry3d& T, double max_distance_m, double inlier_m) {
-  FitQuality f;
-  const Eigen::Matrix3d R = T.rotation();
-  const double gate2 = max_distance_m * max_distance_m;
-  double sum2 = 0;
-  Eigen::Vector3d q;
-  double d2 = 0;
-  for (size_t i = 0; i < pts.size(); ++i) {
-    if (normals[i].squaredNorm() < 0.5) continue;
-    ++f.points;
-    const Eigen::Vector3d pw = T * pts[i];
-    if (!map.nearest(pw, q, d2, gate2)) continue;
-    const double e = (R * normals[i]).dot(pw - q);
-    if (std::abs(e) >= inlier_m) continue;
-    ++f.inliers;
-    sum2 += e * e;
+RegistrationResult register_clouds(const std::vector<Eigen::Vector3d>& source,
+                                   const std::vector<Eigen::Vector3d>& target, const Eigen::Isometry3d& initial,
+                                   const RegistrationSettings& s) {
+  if (s.method == RegistrationMethod::kGicp) {
+    return register_gicp(PreparedCloud(source, s), PreparedCloud(target, s), initial, s);
   }
-  f.inlier_fraction = f.points > 0 ? static_cast<double>(f.inliers) / f.points : 0.0;
-  f.inlier_rms = f.inliers > 0 ? std::sqrt(sum2 / f.inliers) : 0.0;
-  return f;
+  return detail::register_point_to_plane(source, target, initial, s);
 }
 
-std::vector<Eigen::Vector3d> range_image_normals(const std::vector<Eigen::Vector3d>& points,
-                                                 const std::vector<uint16_t>& rings, int columns,
-                                                 double max_neighbour_m) {
-  const size_t n = points.size();
-  std::vector<Eigen::Vector3d> normals(n, Eigen::Vector3d::Zero());
-  if (n == 0 || rings.size() != n) return normals;
-  int nrings = 0;
-  for (uint16_t r : rings) nrings = std::max(nrings, static_cast<int>(r) + 1);
-  std::vector<int> image(static_cast<size_t>(nrings) * static_cast<size_t>(columns), -1);
-  std::vector<int> col(n);
-  std::vector<char> usable(n, 0);
-  for (size_t i = 0; i < n; ++i) {
-    if (!points[i].allFinite()) continue;  // never index the image with a non-finite angle
-    usable[i] = 1;
-    double az = std::atan2(points[i].y(), points[i].x());
-    if (az < 0) az += 2 * M_PI;
-    col[i] = std::min(columns - 1, static_cast<int>(az / (2 * M_PI) * columns));
-    image[static_cast<size_t>(rings[i]) * static_cast<size_t>(columns) + static_cast<size_t>(col[i])] =
-        static_cast<int>(i);
+namespace detail {
+
+bool gauss_newton_step(const Matrix6d& H, const Eigen::Matrix<double, 6, 1>& b, int n, double sum2, int it,
+                       const RegistrationSettings& s, RegistrationResult& out) {
+  out.correspondences = n;
+  out.iterations = it + 1;
+  out.hessian = H;
+  out.rmse = n > 0 ? std::sqrt(sum2 / n) : 0;
+  if (n < 20) {
+    out.warnings.push_back("iteration " + std::to_string(it + 1) + ": " + std::to_string(n) +
+                           " correspondences, 20 needed");
+    return false;
   }
-  const double lim2 = max_neighbour_m * max_neighbour_m;
-  auto at = [&](int r, int c) -> int {
-    if (r < 0 || r >= nrings) return -1;
-    c = (c % columns + columns) % columns;
-    return image[static_cast<size_t>(r) * static_cast<size_t>(columns) + static_cast<size_t>(c)];
-  };
-  // The nearest filled cell within a few columns in the given direction.
-  auto find = [&](int r, int c, int step) -> int {
-    for (int k = 1; k <= 4; ++k) {
-      const int j = at(r, c + step * k);
-      if (j >= 0) return j;
-    }
-    return -1;
-  };
-  for (size_t i = 0; i < n; ++i) {
-    if (!usable[i]) continue;
-    const int r = rings[i], c = col[i];
-    const Eigen::Vector3d& p = points[i];
-    const int a = find(r, c, 1), b = find(r, c, -1);
-    int u = -1, d = -1;
-    for (int k = 0; k <= 2 && u < 0; ++k) u = at(r + 1, c + k) >= 0 ? at(r + 1, c + k) : at(r + 1, c - k);
-    for (int k = 0; k <= 2 && d < 0; ++k) d = at(r - 1, c + k) >= 0 ? at(r - 1, c + k) : at(r - 1, c - k);
-    const int along = a >= 0 ? a : b, across = u >= 0 ? u : d;
-    if (along < 0 || across < 0) continue;
-    const Eigen::Vector3d t1 = points[static_cast<size_t>(along)] - p, t2 = points[static_cast<size_t>(across)] - p;
-    if (t1.squaredNorm() > lim2 || t2.squaredNorm() > lim2) continue;
-    Eigen::Vector3d nrm = t1.cross(t2);
-    const double len = nrm.norm();
-    if (len < 1e-9 || len < 0.2 * t1.norm() * t2.norm()) continue;  // nearly collinear
-    nrm /= len;
-    // Coplanarity: the other neighbours must lie near the plane.
-    bool ok = true;
-    for (int j : {a, b, u, d}) {
-      if (j < 0) continue;
-      const Eigen::Vector3d v = points[static_cast<size_t>(j)] - p;
-      if (v.squaredNorm() <= lim2 && std::abs(nrm.dot(v)) > 0.1 + 0.05 * v.norm()) ok = false;
-    }
-    if (ok) normals[i] = nrm;
+  const Eigen::Matrix<double, 6, 1> dx = H.ldlt().solve(-b);
+  if (!dx.allFinite()) {
+    out.warnings.push_back("iteration " + std::to_string(it + 1) + ": the update is not finite");
+    return false;
   }
-  return normals;
+  out.T_target_source = out.T_target_source * geometry::se3_exp(dx);
+  if (dx.head<3>().norm() < s.translation_eps_m && dx.tail<3>().norm() < s.rotation_eps_rad) {
+    out.converged = true;
+    return false;
+  }
+  return true;
 }
 
-std::vector<Eigen::Vector3d> knn_normals(const std::vector<Eigen::Vector3d>& queries,
-                                         const std::vector<Eigen::Vector3d>& cloud, int k, double max_neighbour_m) {
-  std::vector<Eigen::Vector3d> normals(queries.size(), Eigen::Vector3d::Zero());
-  if (cloud.size() < static_cast<size_t>(k) || k < 3) return normals;
-  detail::CloudAdaptor adaptor{&cloud};
+void at_iteration_limit(const RegistrationSettings& s, RegistrationResult& out) {
+  if (out.correspondences < 20) {
+    out.warnings.push_back("no iteration ran (max_iterations " + std::to_string(s.max_iterations) + ")");
+    return;
+  }
+  out.converged = true;
+  out.warnings.push_back("stopped at max_iterations (" + std::to_string(s.max_iterations) +
+                         ") with the update still above the eps");
+}
+
+void judge_overlap(const std::vector<double>& distances, double inlier_m, RegistrationResult& r) {
+  double sum = 0;
+  size_t inliers = 0;
+  for (const double d : distances) {
+    if (d <= inlier_m) {
+      sum += d * d;
+      ++inliers;
+    }
+  }
+  r.overlap = distances.empty() ? 0.0 : static_cast<double>(inliers) / static_cast<double>(distances.size());
+  r.fitness = inliers > 0 ? sum / static_cast<double>(inliers) : 1e9;
+}
+
+void judge_information(double scale, RegistrationResult& r) {
+  // The graph's residual takes the translation in the target's frame: rotate that block.
+  Matrix6d J = Matrix6d::Identity();
+  J.topLeftCorner<3, 3>() = r.T_target_source.rotation();
+  const Matrix6d H = 0.5 * (r.hessian + r.hessian.transpose());
+  const Matrix6d info = scale * (J * H * J.transpose());
+  if (info.allFinite() && Eigen::SelfAdjointEigenSolver<Matrix6d>(info).eigenvalues()(0) > 0) {
+    r.information = 0.5 * (info + info.transpose());
+  } else {
+    r.converged = false;
+    r.warnings.emplace_back("the information is not positive definite: a direction is unconstrained");
+  }
+}
+
+}  // namespace detail
+
+AlignmentScore score_alignment(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
+                               const Eigen::Isometry3d& T_target_source, double voxel_m, double max_distance_m) {
+  const std::vector<Eigen::Vector3d> src = voxel_filter(source, voxel_m), tgt = voxel_filter(target, voxel_m);
+  const std::vector<Eigen::Vector3d> normals = knn_normals(tgt, tgt, 10, 1.0);
+  detail::CloudAdaptor adaptor{&tgt};
   const detail::KdTree tree(3, adaptor, nanoflann::KDTreeSingleIndexAdaptorParams(10));  // built by its constructor
-  std::vector<size_t> idx(static_cast<size_t>(k));
-  std::vector<double> d2(static_cast<size_t>(k));
-  const double lim2 = max_neighbour_m * max_neighbour_m;
-  for (size_t i = 0; i < queries.size(); ++i) {
-    const size_t found = tree.knnSearch(queries[i].data(), static_cast<size_t>(k), idx.data(), d2.data());
-    if (found < static_cast<size_t>(k) || d2[found - 1] > lim2) continue;
-    const Eigen::Matrix3d cov = detail::neighbour_scatter(cloud, idx.data(), found);
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
-    const Eigen::Vector3d ev = es.eigenvalues();  // ascending
-    // Planar: the normal's spread small against the middle one (a line has two small ones).
-    if (ev(0) > 0.1 * ev(1) || ev(1) < 0.05 * ev(2)) continue;
-    normals[i] = es.eigenvectors().col(0);
+  AlignmentScore out;
+  double sum2 = 0;
+  for (const Eigen::Vector3d& p : src) {
+    const Eigen::Vector3d q = T_target_source * p;
+    size_t j = 0;
+    double d2 = 0;
+    if (tree.knnSearch(q.data(), 1, &j, &d2) < 1 || d2 > max_distance_m * max_distance_m) continue;
+    if (normals[j].squaredNorm() < 0.5) continue;  // not on a plane
+    const double r = normals[j].dot(q - tgt[j]);
+    sum2 += r * r;
+    ++out.matched;
+    if (std::abs(r) <= 0.01) ++out.within_1cm;
+    if (std::abs(r) <= 0.02) ++out.within_2cm;
   }
-  return normals;
+  out.source_points = src.size();
+  out.rms_point_to_plane_m = out.matched > 0 ? std::sqrt(sum2 / static_cast<double>(out.matched)) : 0.0;
+  return out;
 }
 
 }  // namespace cdc::odometry

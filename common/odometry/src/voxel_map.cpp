@@ -133,6 +133,16 @@ std::vector<Eigen::Vector3d> voxel_centroids(const std::vector<Eigen::Vector3d>&
   return sum;
 }
 
+std::vector<Eigen::Vector3f> voxel_centroids(const std::vector<Eigen::Vector3f>& points, double voxel_m) {
+  if (voxel_m <= 0) return points;
+  std::vector<Eigen::Vector3d> d;
+  d.reserve(points.size());
+  for (const Eigen::Vector3f& p : points) d.push_back(p.cast<double>());
+  std::vector<Eigen::Vector3f> out;
+  for (const Eigen::Vector3d& c : voxel_centroids(d, voxel_m)) out.push_back(c.cast<float>());
+  return out;
+}
+
 std::vector<Eigen::Vector3d> voxel_filter(const std::vector<Eigen::Vector3d>& points, double voxel_m) {
   const std::vector<size_t> keep = voxel_filter_indices(points, voxel_m);
   std::vector<Eigen::Vector3d> out;

@@ -4,6 +4,7 @@
 // a sharp turn between two simulated sweeps without any guess.
 #include "cdc/odometry/global_registration.hpp"
 #include "cdc/geometry/se3.hpp"
+#include "cdc/odometry/normals.hpp"
 #include "cdc/odometry/registration.hpp"
 #include "cdc/odometry/voxel_index.hpp"
 #include "cdc/odometry/voxel_map.hpp"
@@ -139,16 +140,16 @@ TEST(GlobalRegistration, RecoversASharpTurnWithoutAGuessAndTheFitTellsTheMinima)
   std::vector<Eigen::Vector3d> pts;
   for (const auto& p : voxel_filter(b, 1.0)) pts.push_back(p);
   const std::vector<Eigen::Vector3d> normals = knn_normals(pts, b, 10, 1.5);
-  RegistrationParams rp;
+  RegistrationSettings rp;
   rp.max_correspondence_m = 2.0;
   rp.kernel_m = 2.0 / 9;
-  const RegistrationOutput good = register_to_map(pts, normals, map, A * g.T_target_source, rp);
-  const RegistrationOutput stuck = register_to_map(pts, normals, map, A, rp);
-  const Eigen::Isometry3d eg = B.inverse() * good.T_map_sensor, es = B.inverse() * stuck.T_map_sensor;
+  const RegistrationResult good = register_to_map(pts, normals, map, A * g.T_target_source, rp);
+  const RegistrationResult stuck = register_to_map(pts, normals, map, A, rp);
+  const Eigen::Isometry3d eg = B.inverse() * good.T_target_source, es = B.inverse() * stuck.T_target_source;
   EXPECT_LT(eg.translation().norm(), 0.05);
   EXPECT_GT(geometry::rotation_angle(es.rotation()), 10.0 * M_PI / 180) << "the wrong minimum this test needs";
-  const FitQuality fg = evaluate_fit(pts, normals, map, good.T_map_sensor, 1.0, 0.1);
-  const FitQuality fs = evaluate_fit(pts, normals, map, stuck.T_map_sensor, 1.0, 0.1);
+  const FitQuality fg = evaluate_fit(pts, normals, map, good.T_target_source, 1.0, 0.1);
+  const FitQuality fs = evaluate_fit(pts, normals, map, stuck.T_target_source, 1.0, 0.1);
   std::printf("fit: %.3f at the place, %.3f in the wrong minimum\n", fg.inlier_fraction, fs.inlier_fraction);
   EXPECT_GT(fg.inlier_fraction, 0.8);
   EXPECT_LT(fs.inlier_fraction, 0.75 * fg.inlier_fraction);

@@ -2,9 +2,11 @@
 // perturbations, forward and inverse; the voxel map stays bounded as the robot moves on. IMU
 // preintegration predicts a simulated drive, and its bias Jacobians agree with integrating again.
 #include "cdc/geometry/se3.hpp"
+#include "cdc/io/cloud.hpp"
 #include "cdc/io/kitti.hpp"
+#include "cdc/io/transform_file.hpp"
 #include "cdc/odometry/imu_preintegration.hpp"
-#include "cdc/odometry/pair_registration.hpp"
+#include "cdc/odometry/normals.hpp"
 #include "cdc/odometry/registration.hpp"
 #include "cdc/odometry/voxel_map.hpp"
 #include "cdc/sim/lidar.hpp"
@@ -15,12 +17,8 @@
 
 #include <gtest/gtest.h>
 
-#include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <random>
-
-#include <unistd.h>
 
 namespace cdc::odometry {
 namespace {
@@ -71,9 +69,9 @@ TEST(Registration, RecoversAKnownTransformFromSeededPerturbations) {
       geometry::Vector6d d;
       d << nt(rng), nt(rng), 0.3 * nt(rng), 0.3 * nr(rng), 0.3 * nr(rng), nr(rng);
       const Eigen::Isometry3d guess = B * geometry::se3_exp(d);
-      const RegistrationOutput r = register_to_map(b, normals, map, guess, RegistrationParams{});
+      const RegistrationResult r = register_to_map(b, normals, map, guess, RegistrationSettings{});
       ASSERT_TRUE(r.converged);
-      const Eigen::Isometry3d e = B.inverse() * r.T_map_sensor;
+      const Eigen::Isometry3d e = B.inverse() * r.T_target_source;
       EXPECT_LT(e.translation().norm(), 0.03) << "trial " << trial << (inverse ? " inverse" : "");
       EXPECT_LT(geometry::rotation_angle(e.rotation()), 0.2 * M_PI / 180) << "trial " << trial;
       EXPECT_GT(r.correspondences, 300);
@@ -94,16 +92,16 @@ TEST(Registration, GicpRecoversAKnownTransformFromSeededPerturbations) {
     for (int trial = 0; trial < 3; ++trial) {
       geometry::Vector6d d;
       d << nt(rng), nt(rng), 0.3 * nt(rng), 0.3 * nr(rng), 0.3 * nr(rng), nr(rng);
-      PairRegistrationParams p;
-      p.method = PairMethod::kGicp;
+      RegistrationSettings p = RegistrationSettings::gicp();
       // A VLP-16 sweep is sparse: at the 0.1 m default, a point's neighbours lie on its own ring (a
       // line, not a plane) and pull the estimate towards zero motion (0.24 m short here). Voxels
       // coarser than the ring spacing give planes again.
-      p.gicp_voxel_m = 0.5;
-      p.gicp_neighbours = 20;
-      const RegistrationOutput r = register_pair(source, target, B * geometry::se3_exp(d), p);
+      p.voxel_m = 0.5;
+      p.neighbours = 20;
+      const RegistrationResult r = register_clouds(source, target, B * geometry::se3_exp(d), p);
       ASSERT_TRUE(r.converged);
-      const Eigen::Isometry3d e = B.inverse() * r.T_map_sensor;
+      EXPECT_LT(r.iterations, p.max_iterations) << "converged within the eps, not at the limit";
+      const Eigen::Isometry3d e = B.inverse() * r.T_target_source;
       EXPECT_LT(e.translation().norm(), 0.03) << "trial " << trial << (inverse ? " inverse" : "");
       EXPECT_LT(geometry::rotation_angle(e.rotation()), 0.2 * M_PI / 180) << "trial " << trial;
     }
@@ -150,12 +148,15 @@ std::string data_dir() {
 
 // Source registered onto the target from the identity, by either method.
 Eigen::Isometry3d align(const std::vector<Eigen::Vector3d>& source, const std::vector<Eigen::Vector3d>& target,
-                        PairMethod method = PairMethod::kPointToPlane) {
-  PairRegistrationParams p;
-  p.method = method;
-  const RegistrationOutput r = register_pair(source, target, Eigen::Isometry3d::Identity(), p);
+                        RegistrationMethod method = RegistrationMethod::kPointToPlane) {
+  const RegistrationSettings p =
+      method == RegistrationMethod::kGicp ? RegistrationSettings::gicp() : RegistrationSettings{};
+  const RegistrationResult r = register_clouds(source, target, Eigen::Isometry3d::Identity(), p);
   EXPECT_TRUE(r.converged);
-  return r.T_map_sensor;
+  if (method == RegistrationMethod::kGicp) {
+    EXPECT_LT(r.iterations, p.max_iterations) << "converged within the eps";
+  }
+  return r.T_target_source;
 }
 
 TEST(Registration, RealKittiPairsAgreeWithGroundTruth) {
@@ -175,14 +176,14 @@ TEST(Registration, RealKittiPairsAgreeWithGroundTruth) {
     char pa[64], pb[64];
     std::snprintf(pa, sizeof pa, "/kitti/scans/seq00/%06d.bin", a);
     std::snprintf(pb, sizeof pb, "/kitti/scans/seq00/%06d.bin", b);
-    pairs.push_back({"KITTI 00 " + std::to_string(a) + "-" + std::to_string(b), read_cloud_file(d + pb),
-                     read_cloud_file(d + pa),
+    pairs.push_back({"KITTI 00 " + std::to_string(a) + "-" + std::to_string(b), io::read_cloud_xyz(d + pb),
+                     io::read_cloud_xyz(d + pa),
                      seq[static_cast<size_t>(a)].pose.inverse() * seq[static_cast<size_t>(b)].pose});
   }
   for (const Pair& p : pairs) {
     ASSERT_GT(p.source.size(), 10000u) << p.name;
-    for (const PairMethod m : {PairMethod::kPointToPlane, PairMethod::kGicp}) {
-      const std::string name = p.name + (m == PairMethod::kGicp ? " (GICP)" : " (point-to-plane)");
+    for (const RegistrationMethod m : {RegistrationMethod::kPointToPlane, RegistrationMethod::kGicp}) {
+      const std::string name = p.name + (m == RegistrationMethod::kGicp ? " (GICP)" : " (point-to-plane)");
       const Eigen::Isometry3d e = p.T_target_source.inverse() * align(p.source, p.target, m);
       const double deg = geometry::rotation_angle(e.rotation()) * 180 / M_PI;
       std::printf("%s: %.4f m, %.4f deg from the reference\n", name.c_str(), e.translation().norm(), deg);
@@ -225,16 +226,16 @@ TEST(Registration, RealSweepPairAgreesWithTheGicpReferences) {
       !std::filesystem::exists(d + "/fast_gicp/relative.txt")) {
     GTEST_SKIP() << "reference data absent: " << d << " (small_gicp/, fast_gicp/) not found";
   }
-  const auto source = read_cloud_file(d + "/small_gicp/source.ply"),
-             target = read_cloud_file(d + "/small_gicp/target.ply");
-  const Eigen::Isometry3d ref_small = read_matrix_file(d + "/small_gicp/T_target_source.txt");
-  const Eigen::Isometry3d ref_fast = read_matrix_file(d + "/fast_gicp/relative.txt");
+  const auto source = io::read_cloud_xyz(d + "/small_gicp/source.ply"),
+             target = io::read_cloud_xyz(d + "/small_gicp/target.ply");
+  const Eigen::Isometry3d ref_small = io::read_transform_file(d + "/small_gicp/T_target_source.txt");
+  const Eigen::Isometry3d ref_fast = io::read_transform_file(d + "/fast_gicp/relative.txt");
   // fast_gicp's copy of the pair is the same two sweeps (PCD): its clouds register to the same answer.
-  const auto fast_source = read_cloud_file(d + "/fast_gicp/251371071.pcd"),
-             fast_target = read_cloud_file(d + "/fast_gicp/251370668.pcd");
+  const auto fast_source = io::read_cloud_xyz(d + "/fast_gicp/251371071.pcd"),
+             fast_target = io::read_cloud_xyz(d + "/fast_gicp/251370668.pcd");
   ASSERT_EQ(fast_source.size(), source.size());
-  const Eigen::Isometry3d T = align(source, target, PairMethod::kGicp);
-  const Eigen::Isometry3d T_fast_copy = align(fast_source, fast_target, PairMethod::kGicp);
+  const Eigen::Isometry3d T = align(source, target, RegistrationMethod::kGicp);
+  const Eigen::Isometry3d T_fast_copy = align(fast_source, fast_target, RegistrationMethod::kGicp);
   auto report = [](const char* what, const Eigen::Isometry3d& e) {
     const double deg = geometry::rotation_angle(e.rotation()) * 180 / M_PI;
     std::printf("%s: %.4f m, %.4f deg\n", what, e.translation().norm(), deg);
@@ -256,78 +257,6 @@ TEST(Registration, RealSweepPairAgreesWithTheGicpReferences) {
 
 namespace cdc::odometry {
 namespace {
-
-class CloudFiles : public cdc::test::TempDirTest {
- protected:
-  CloudFiles() : TempDirTest("cloud_files") {}
-  std::string write(const std::string& name, const std::string& header, const std::vector<float>& values) {
-    const std::string path = (dir_ / name).string();
-    std::ofstream out(path, std::ios::binary);
-    out << header;
-    out.write(reinterpret_cast<const char*>(values.data()),
-              static_cast<std::streamsize>(values.size() * sizeof(float)));
-    return path;
-  }
-  std::string error_of(const std::string& path) {
-    try {
-      read_cloud_file(path);
-    } catch (const std::exception& e) {
-      return e.what();
-    }
-    return "";
-  }
-};
-
-TEST_F(CloudFiles, ReadsKittiPcdAndPlyAndNamesWhatIsWrong) {
-  const std::vector<float> two = {1, 2, 3, 9, 4, 5, 6, 9};  // x y z i, twice
-  const auto bin = read_cloud_file(write("a.bin", "", two));
-  ASSERT_EQ(bin.size(), 2u);
-  EXPECT_EQ(bin[1], Eigen::Vector3d(4, 5, 6));
-  // PCD with intensity first: x, y, z found by name.
-  const auto pcd = read_cloud_file(
-      write("a.pcd",
-            "VERSION 0.7\nFIELDS intensity x y z\nSIZE 4 4 4 4\nTYPE F F F F\nCOUNT 1 1 1 1\nWIDTH 2\nHEIGHT 1\n"
-            "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 2\nDATA binary\n",
-            {9, 1, 2, 3, 9, 4, 5, 6}));
-  ASSERT_EQ(pcd.size(), 2u);
-  EXPECT_EQ(pcd[0], Eigen::Vector3d(1, 2, 3));
-  const auto ply = read_cloud_file(write(
-      "a.ply",
-      "ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
-      "property float scalar_intensity\nend_header\n",
-      two));
-  ASSERT_EQ(ply.size(), 2u);
-  EXPECT_EQ(ply[1], Eigen::Vector3d(4, 5, 6));
-  EXPECT_NE(error_of(write("b.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 5\nDATA binary\n", {1, 2, 3}))
-                .find("truncated"),
-            std::string::npos);
-  EXPECT_NE(
-      error_of(write("c.pcd", "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nPOINTS 1\nDATA ascii\n", {})).find("binary only"),
-      std::string::npos);
-  EXPECT_NE(
-      error_of(write("d.pcd", "FIELDS x y\nSIZE 4 4\nTYPE F F\nPOINTS 1\nDATA binary\n", {1, 2})).find("no x, y and z"),
-      std::string::npos);
-  EXPECT_NE(error_of(write("b.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n", {}))
-                .find("ascii"),
-            std::string::npos);
-  EXPECT_NE(error_of(write("c.bin", "", {1, 2, 3})).find("multiple of 16"), std::string::npos);
-  EXPECT_NE(error_of(write("a.xyz", "", {})).find("unknown point cloud format"), std::string::npos);
-  EXPECT_NE(error_of((dir_ / "missing.pcd").string()).find("cannot be read"), std::string::npos);
-}
-
-TEST_F(CloudFiles, MatrixFilesMustHoldARigidTransform) {
-  const std::string good = (dir_ / "T.txt").string();
-  std::ofstream(good) << "0 -1 0 1\n1 0 0 2\n0 0 1 3\n0 0 0 1\n";
-  const Eigen::Isometry3d T = read_matrix_file(good);
-  EXPECT_NEAR((T.translation() - Eigen::Vector3d(1, 2, 3)).norm(), 0, 1e-12);
-  EXPECT_NEAR(geometry::rotation_angle(T.rotation()), M_PI / 2, 1e-9);
-  const std::string scaled = (dir_ / "S.txt").string();
-  std::ofstream(scaled) << "2 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
-  EXPECT_THROW(read_matrix_file(scaled), std::runtime_error);
-  const std::string short_file = (dir_ / "short.txt").string();
-  std::ofstream(short_file) << "1 0 0 0\n0 1 0 0\n";
-  EXPECT_THROW(read_matrix_file(short_file), std::runtime_error);
-}
 
 // A winding, climbing drive for the IMU (spline through 0.1 s controls).
 sim::SplineTrajectory imu_drive() {

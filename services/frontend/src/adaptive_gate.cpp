@@ -8,7 +8,7 @@
 
 namespace cdc::frontend {
 
-odometry::RegistrationParams with_gate(odometry::RegistrationParams base, double gate_m, double kernel_divisor) {
+odometry::RegistrationSettings with_gate(odometry::RegistrationSettings base, double gate_m, double kernel_divisor) {
   base.max_correspondence_m = gate_m;
   base.kernel_m = gate_m / kernel_divisor;
   return base;
@@ -16,7 +16,7 @@ odometry::RegistrationParams with_gate(odometry::RegistrationParams base, double
 
 AdaptiveGate::AdaptiveGate(const FrontendParams& params) : p_(params) {}
 
-odometry::RegistrationParams AdaptiveGate::params() const {
+odometry::RegistrationSettings AdaptiveGate::params() const {
   if (errors_.size() < kMinHistory) return with_gate(p_.registration, p_.initial_gate_m, p_.kernel_divisor);
   const double ms = std::accumulate(errors_.begin(), errors_.end(), 0.0, [](double a, double e) { return a + e * e; }) /
                     static_cast<double>(errors_.size());

@@ -1,9 +1,11 @@
 // cdc-register: registers one saved sweep onto another with the front-end's point-to-plane
-// registration or generalized ICP (common/odometry/pair_registration.hpp) and prints T_target_source; with a reference
-// transform it prints how far the result is from it.
+// registration or generalized ICP (common/odometry/registration.hpp) and prints T_target_source; with a
+// reference transform it prints how far the result is from it.
 #include "cdc/base/tool.hpp"
 #include "cdc/geometry/se3.hpp"
-#include "cdc/odometry/pair_registration.hpp"
+#include "cdc/io/cloud.hpp"
+#include "cdc/io/transform_file.hpp"
+#include "cdc/odometry/registration.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -21,17 +23,18 @@ namespace {
 
 struct Options {
   std::string source, target, reference, method = "point-to-plane";
-  odometry::PairRegistrationParams p;
+  // Each method's settings; the options set the method's own.
+  odometry::RegistrationSettings point_to_plane, gicp = odometry::RegistrationSettings::gicp();
   std::vector<std::string> scores;
   bool json = false;
 };
 
 void add_options(CLI::App& app, Options& o) {
-  odometry::PairRegistrationParams& p = o.p;
+  odometry::RegistrationSettings &p = o.point_to_plane, &g = o.gicp;
   app.add_option("source", o.source, "the sweep to move")->required()->check(CLI::ExistingFile);
   app.add_option("target", o.target, "the sweep it is registered onto")->required()->check(CLI::ExistingFile);
   app.add_option("--reference", o.reference, "reference T_target_source (4x4, 16 numbers)")->check(CLI::ExistingFile);
-  app.add_option("--source-voxel", p.source_voxel_m, "downsampling of the source [m]")
+  app.add_option("--source-voxel", p.voxel_m, "downsampling of the source [m]")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   app.add_option("--target-voxel", p.target_voxel_m, "downsampling of the target [m]")
@@ -40,19 +43,19 @@ void add_options(CLI::App& app, Options& o) {
   app.add_option("--map-voxel", p.map_voxel_m, "voxel of the target map [m]")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  app.add_option("--normal-neighbours", p.normal_neighbours, "points per source normal")
+  app.add_option("--normal-neighbours", p.neighbours, "points per source normal")
       ->capture_default_str()
       ->check(CLI::Range(3, 100));
   app.add_option("--method", o.method, "point-to-plane (the front-end's) or gicp (generalized ICP, plane-to-plane)")
       ->capture_default_str()
       ->check(CLI::IsMember({"point-to-plane", "gicp"}));
-  app.add_option("--gicp-voxel", p.gicp_voxel_m, "gicp: downsampling of both clouds [m]")
+  app.add_option("--gicp-voxel", g.voxel_m, "gicp: downsampling of both clouds [m]")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
-  app.add_option("--gicp-neighbours", p.gicp_neighbours, "gicp: points per covariance")
+  app.add_option("--gicp-neighbours", g.neighbours, "gicp: points per covariance")
       ->capture_default_str()
       ->check(CLI::Range(5, 100));
-  app.add_option("--gicp-max-correspondence", p.gicp_max_correspondence_m, "gicp: correspondence distance [m]")
+  app.add_option("--gicp-max-correspondence", g.max_correspondence_m, "gicp: correspondence distance [m]")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
   app.add_option(
@@ -75,31 +78,34 @@ nlohmann::json score_of(const std::string& name, const odometry::AlignmentScore&
 // The registration, its distance to the reference and the scores, as one JSON object; throws on
 // unreadable files and on sweeps too small to register.
 nlohmann::json register_sweeps(const Options& o) {
-  const auto src = odometry::read_cloud_file(o.source), tgt = odometry::read_cloud_file(o.target);
+  const auto src = io::read_cloud_xyz(o.source), tgt = io::read_cloud_xyz(o.target);
   if (src.size() < 100 || tgt.size() < 100) {
     throw std::runtime_error("too few points (" + std::to_string(src.size()) + " in the source, " +
                              std::to_string(tgt.size()) + " in the target)");
   }
-  const odometry::RegistrationOutput r = odometry::register_pair(src, tgt, Eigen::Isometry3d::Identity(), o.p);
+  const odometry::RegistrationResult r = odometry::register_clouds(src, tgt, Eigen::Isometry3d::Identity(),
+                                                                   o.method == "gicp" ? o.gicp : o.point_to_plane);
   nlohmann::json out{{"source_points", src.size()},
                      {"target_points", tgt.size()},
                      {"correspondences", r.correspondences},
+                     {"iterations", r.iterations},
                      {"rmse_m", r.rmse},
-                     {"converged", r.converged}};
+                     {"converged", r.converged},
+                     {"warnings", r.warnings}};
   std::vector<double> m;
   for (int i = 0; i < 4; ++i) {
-    for (int j = 0; j < 4; ++j) m.push_back(r.T_map_sensor.matrix()(i, j));
+    for (int j = 0; j < 4; ++j) m.push_back(r.T_target_source.matrix()(i, j));
   }
   out["T_target_source"] = m;
   if (!o.reference.empty()) {
-    const Eigen::Isometry3d e = odometry::read_matrix_file(o.reference).inverse() * r.T_map_sensor;
+    const Eigen::Isometry3d e = io::read_transform_file(o.reference).inverse() * r.T_target_source;
     out["from_reference"] = {{"translation_m", e.translation().norm()},
                              {"rotation_deg", geometry::rotation_angle(e.rotation()) * 180 / M_PI}};
   }
   if (!o.scores.empty()) {
-    out["scores"].push_back(score_of("result", odometry::score_alignment(src, tgt, r.T_map_sensor)));
+    out["scores"].push_back(score_of("result", odometry::score_alignment(src, tgt, r.T_target_source)));
     for (const std::string& f : o.scores)
-      out["scores"].push_back(score_of(f, odometry::score_alignment(src, tgt, odometry::read_matrix_file(f))));
+      out["scores"].push_back(score_of(f, odometry::score_alignment(src, tgt, io::read_transform_file(f))));
   }
   return out;
 }
@@ -111,6 +117,7 @@ void print_text(const nlohmann::json& out) {
   std::printf("%zu source / %zu target points, %d correspondences, rmse %.4f m%s\n", out["source_points"].get<size_t>(),
               out["target_points"].get<size_t>(), out["correspondences"].get<int>(), out["rmse_m"].get<double>(),
               out["converged"].get<bool>() ? "" : ", NOT converged");
+  for (const auto& w : out["warnings"]) std::printf("warning: %s\n", w.get<std::string>().c_str());
   if (out.contains("from_reference")) {
     std::printf("from the reference: %.4f m, %.4f deg\n", out["from_reference"]["translation_m"].get<double>(),
                 out["from_reference"]["rotation_deg"].get<double>());
@@ -128,14 +135,13 @@ void print_text(const nlohmann::json& out) {
 
 int main(int argc, char** argv) {
   CLI::App app{
-      "cdc-register: registers SOURCE onto TARGET (KITTI .bin, binary .pcd or binary little-endian .ply) from the\n"
+      "cdc-register: registers SOURCE onto TARGET (KITTI .bin, .pcd or .ply) from the\n"
       "identity, with the front-end's point-to-plane registration (coarse to fine) or generalized ICP, and prints\n"
       "T_target_source (4x4, row by row). --reference FILE (16 numbers) also prints the difference to a reference\n"
       "transform; --score FILE... scores the result and the given transforms by how well they align the two sweeps."};
   Options o;
   add_options(app, o);
   CLI11_PARSE(app, argc, argv);
-  o.p.method = o.method == "gicp" ? odometry::PairMethod::kGicp : odometry::PairMethod::kPointToPlane;
   return base::run_tool(
       "cdc-register",
       [&] {

@@ -1,6 +1,7 @@
 #include "cdc/frontend/deskewing.hpp"
 
 #include "cdc/geometry/se3.hpp"
+#include "cdc/odometry/normals.hpp"
 #include "cdc/odometry/voxel_map.hpp"
 
 #include <algorithm>

@@ -76,12 +76,12 @@ Eigen::Isometry3d FrontendCore::locate(const SweepIn& in, const Prediction& pred
   out.fit = r.fit;
   out.recovered = r.recovered;
   if (!r.reg.converged) return guess;
-  gate_.record(guess, r.reg.T_map_sensor);
-  return r.reg.T_map_sensor;
+  gate_.record(guess, r.reg.T_target_source);
+  return r.reg.T_target_source;
 }
 
 void FrontendCore::complete_first_sweep(const SweepIn& in, const RegistrationContext& ctx, Sweep& sweep, Candidate& c) {
-  const Eigen::Isometry3d D = T_last_.inverse() * c.reg.T_map_sensor;
+  const Eigen::Isometry3d D = T_last_.inverse() * c.reg.T_target_source;
   map_ = odometry::VoxelMap(p_.map);
   const DeskewImu imu = predictor_.deskew_imu(imu_, nullptr);
   const Sweep first = deskewer_.prepare(first_stamp_, first_points_,
@@ -89,7 +89,7 @@ void FrontendCore::complete_first_sweep(const SweepIn& in, const RegistrationCon
   keyframes_.redeskew_held(first.cloud);
   add_to_map(first.cloud, T_last_);
   sweep = deskewer_.prepare(in.stamp_ns, *in.points, Deskewer::motion_over(D, in.t_max, in.dt), imu);
-  c.reg = registration_.register_from(sweep, ctx, c.reg.T_map_sensor).reg;
+  c.reg = registration_.register_from(sweep, ctx, c.reg.T_target_source).reg;
   first_points_.clear();
   first_points_.shrink_to_fit();
 }

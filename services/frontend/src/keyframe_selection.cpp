@@ -9,7 +9,7 @@ namespace cdc::frontend {
 
 KeyframeSelector::KeyframeSelector(const FrontendParams& params) : p_(params) {}
 
-void KeyframeSelector::add_registration(const odometry::RegistrationOutput& reg) {
+void KeyframeSelector::add_registration(const odometry::RegistrationResult& reg) {
   if (reg.correspondences <= 0) return;
   const Matrix6d info_step = reg.hessian * p_.keyframe_information_scale;
   const Eigen::LDLT<Matrix6d> ldlt(info_step);

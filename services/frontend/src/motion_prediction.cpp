@@ -53,7 +53,7 @@ void MotionPredictor::record_motion(const Eigen::Isometry3d& delta, double dt) {
 }
 
 void MotionPredictor::update_window(int64_t stamp_ns, const Eigen::Isometry3d& T,
-                                    const odometry::RegistrationOutput& reg,
+                                    const odometry::RegistrationResult& reg,
                                     std::unique_ptr<odometry::ImuPreintegration> pre, const ImuBuffer& imu,
                                     FrontendStats& stats) {
   if (!p_.imu_window || imu.empty()) return;

@@ -16,8 +16,8 @@ bool plausible_registration(const Eigen::Isometry3d& prediction, const Eigen::Is
 RegistrationRecovery::RegistrationRecovery(const FrontendParams& params) : p_(params) {}
 
 odometry::FitQuality RegistrationRecovery::fit_of(const Sweep& sweep, const odometry::VoxelMap& map,
-                                                  const odometry::RegistrationOutput& reg) const {
-  return odometry::evaluate_fit(sweep.points, sweep.normals, map, reg.T_map_sensor, p_.recovery.fit_distance_m,
+                                                  const odometry::RegistrationResult& reg) const {
+  return odometry::evaluate_fit(sweep.points, sweep.normals, map, reg.T_target_source, p_.recovery.fit_distance_m,
                                 p_.recovery.fit_inlier_m);
 }
 
@@ -29,7 +29,7 @@ double RegistrationRecovery::recent_fit() const {
 }
 
 bool RegistrationRecovery::poor(const Eigen::Isometry3d& guess, const Candidate& c) const {
-  if (!c.reg.converged || !plausible_registration(guess, c.reg.T_map_sensor, p_)) return true;
+  if (!c.reg.converged || !plausible_registration(guess, c.reg.T_target_source, p_)) return true;
   return c.fit.inlier_fraction < p_.recovery.poor_fit_ratio * recent_fit();
 }
 
@@ -39,7 +39,7 @@ bool RegistrationRecovery::poor(const Eigen::Isometry3d& guess, const Candidate&
 RegistrationRecovery::Outcome RegistrationRecovery::recover(const Eigen::Isometry3d& guess,
                                                             const RegistrationContext& ctx, Sweep& sweep,
                                                             Candidate& c) {
-  const bool have = c.reg.converged && plausible_registration(guess, c.reg.T_map_sensor, p_);
+  const bool have = c.reg.converged && plausible_registration(guess, c.reg.T_target_source, p_);
   Search search;
   search.best = have ? c.fit.inlier_fraction + p_.recovery.min_gain : -1.0;
   const double median = recent_fit();
@@ -64,14 +64,14 @@ bool RegistrationRecovery::attempt(const Eigen::Isometry3d& start, const Registr
     local = ctx.redeskew(start);
     sw = &local;
   }
-  odometry::RegistrationOutput r = coarse_to_fine(*sw, ctx, start);
+  odometry::RegistrationResult r = coarse_to_fine(*sw, ctx, start);
   if (!r.converged) return false;
-  r = odometry::register_to_map(sw->points, sw->normals, ctx.map, r.T_map_sensor, ctx.params);
+  r = odometry::register_to_map(sw->points, sw->normals, ctx.map, r.T_target_source, ctx.params);
   if (ctx.redeskew && r.converged) {
-    local = ctx.redeskew(r.T_map_sensor);
-    r = odometry::register_to_map(local.points, local.normals, ctx.map, r.T_map_sensor, ctx.params);
+    local = ctx.redeskew(r.T_target_source);
+    r = odometry::register_to_map(local.points, local.normals, ctx.map, r.T_target_source, ctx.params);
   }
-  if (!r.converged || !plausible_registration(start, r.T_map_sensor, p_)) return false;
+  if (!r.converged || !plausible_registration(start, r.T_target_source, p_)) return false;
   const odometry::FitQuality f = fit_of(*sw, ctx.map, r);
   if (f.inlier_fraction <= search.best) return false;
   search.best = f.inlier_fraction;
@@ -83,14 +83,14 @@ bool RegistrationRecovery::attempt(const Eigen::Isometry3d& start, const Registr
 
 // Coarse to fine: the wide gates reach a sweep the prediction left far off; the adaptive gate,
 // registered with after them, fits it as the registration from the prediction does.
-odometry::RegistrationOutput RegistrationRecovery::coarse_to_fine(const Sweep& sweep, const RegistrationContext& ctx,
+odometry::RegistrationResult RegistrationRecovery::coarse_to_fine(const Sweep& sweep, const RegistrationContext& ctx,
                                                                   const Eigen::Isometry3d& start) const {
-  odometry::RegistrationOutput r;
-  r.T_map_sensor = start;
+  odometry::RegistrationResult r;
+  r.T_target_source = start;
   r.converged = true;
   for (const double gate : p_.recovery.gates_m) {
     if (gate <= ctx.params.max_correspondence_m || !r.converged) break;
-    r = odometry::register_to_map(sweep.points, sweep.normals, ctx.map, r.T_map_sensor,
+    r = odometry::register_to_map(sweep.points, sweep.normals, ctx.map, r.T_target_source,
                                   with_gate(ctx.params, gate, p_.kernel_divisor));
   }
   return r;

@@ -15,8 +15,8 @@ ScanToMapRegistration::Result ScanToMapRegistration::complete(const Eigen::Isome
   if (ctx.redeskew && c.reg.converged) {
     // Deskew again with the motion just estimated (the prediction's error leaves a residual
     // distortion), and refine.
-    sweep = ctx.redeskew(c.reg.T_map_sensor);
-    c.reg = odometry::register_to_map(sweep.points, sweep.normals, ctx.map, c.reg.T_map_sensor, ctx.params);
+    sweep = ctx.redeskew(c.reg.T_target_source);
+    c.reg = odometry::register_to_map(sweep.points, sweep.normals, ctx.map, c.reg.T_target_source, ctx.params);
   }
   c.fit = recovery_.fit_of(sweep, ctx.map, c.reg);
   Result out;
@@ -34,7 +34,7 @@ ScanToMapRegistration::Result ScanToMapRegistration::complete(const Eigen::Isome
   out.fit = c.fit;
   // A registration that lands further from where it started than the widest gate (or turns more
   // than max_jump_rad) has slid into a wrong minimum, not followed the robot.
-  if (out.reg.converged && !plausible_registration(c.start, out.reg.T_map_sensor, p_)) {
+  if (out.reg.converged && !plausible_registration(c.start, out.reg.T_target_source, p_)) {
     out.reg.converged = false;
     ++stats.registration_rejected;
   }

@@ -38,7 +38,7 @@ TEST(AdaptiveGate, FollowsThreeTimesTheRmsOfThePredictionsErrors) {
   record(gate, 5, 0.1, 0.0);
   record(gate, 5, 0.1, 0.02);  // 0.1 m + 10 m/rad * 0.02 rad = 0.3
   const double rms = std::sqrt((5 * 0.01 + 5 * 0.09) / 10.0);
-  const odometry::RegistrationParams rp = gate.params();
+  const odometry::RegistrationSettings rp = gate.params();
   EXPECT_NEAR(rp.max_correspondence_m, 3.0 * rms, 1e-9);
   EXPECT_NEAR(rp.kernel_m, 3.0 * rms / 9.0, 1e-9);
   EXPECT_EQ(rp.max_iterations, FrontendParams{}.registration.max_iterations) << "the rest as configured";
@@ -62,9 +62,9 @@ TEST(AdaptiveGate, RemembersTheLastHundredErrors) {
 }
 
 TEST(AdaptiveGate, AGateBringsItsKernel) {
-  odometry::RegistrationParams base;
+  odometry::RegistrationSettings base;
   base.max_iterations = 7;
-  const odometry::RegistrationParams rp = with_gate(base, 1.8, 9.0);
+  const odometry::RegistrationSettings rp = with_gate(base, 1.8, 9.0);
   EXPECT_DOUBLE_EQ(rp.max_correspondence_m, 1.8);
   EXPECT_DOUBLE_EQ(rp.kernel_m, 0.2);
   EXPECT_EQ(rp.max_iterations, 7);

@@ -44,13 +44,13 @@ TEST(KeyframeSelection, TheInformationIsTheInverseOfTheRegistrationsCovariances)
   FrontendParams p;
   KeyframeSelector kf(p);
   kf.select(0, at(0.0), kCloud, false);
-  odometry::RegistrationOutput reg;
+  odometry::RegistrationResult reg;
   reg.correspondences = 500;
   reg.hessian = Matrix6d::Identity() * 50.0;
   reg.hessian(5, 5) = 5.0;  // a weaker yaw
   kf.add_registration(reg);
   kf.add_registration(reg);
-  odometry::RegistrationOutput none = reg;
+  odometry::RegistrationResult none = reg;
   none.correspondences = 0;
   none.hessian = Matrix6d::Identity();
   kf.add_registration(none);  // no correspondences: adds nothing

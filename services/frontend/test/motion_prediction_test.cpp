@@ -23,8 +23,8 @@ Eigen::Isometry3d forward_and_turn(double metres, double yaw) {
 }
 
 // A registration as the window takes it: converged, a centimetre and a few millidegrees.
-odometry::RegistrationOutput registered() {
-  odometry::RegistrationOutput reg;
+odometry::RegistrationResult registered() {
+  odometry::RegistrationResult reg;
   reg.converged = true;
   reg.correspondences = 1000;
   reg.hessian.diagonal() << 500, 500, 500, 5e4, 5e4, 5e4;

@@ -85,8 +85,8 @@ TEST(ScanToMap, RegistersASweepFromANearbyGuess) {
   const ScanToMapRegistration::Result r = s.register_at(truth, truth * turn_and_step(2, 0.15), s.wide(), stats);
   ASSERT_TRUE(r.reg.converged);
   // From 15 cm and 2 deg off: within 6 cm (along the road, which the scene constrains least) and 0.1 deg.
-  EXPECT_LT(metres(r.reg.T_map_sensor, truth), 0.06);
-  EXPECT_LT(degrees(r.reg.T_map_sensor, truth), 0.1);
+  EXPECT_LT(metres(r.reg.T_target_source, truth), 0.06);
+  EXPECT_LT(degrees(r.reg.T_target_source, truth), 0.1);
   EXPECT_GT(r.fit.inlier_fraction, 0.8);
   EXPECT_FALSE(r.recovered);
   EXPECT_EQ(stats.registration_failures + stats.recovery_attempts, 0u);
@@ -149,9 +149,9 @@ TEST(RegistrationRecovery, ARegistrationIsPoorAgainstTheRecentFits) {
   EXPECT_TRUE(rec.poor(Eigen::Isometry3d::Identity(), c));
   c.fit.inlier_fraction = 0.7;
   EXPECT_FALSE(rec.poor(Eigen::Isometry3d::Identity(), c));
-  c.reg.T_map_sensor = turn_and_step(0, 3.0);
+  c.reg.T_target_source = turn_and_step(0, 3.0);
   EXPECT_TRUE(rec.poor(Eigen::Isometry3d::Identity(), c)) << "slid 3 m";
-  c.reg.T_map_sensor.setIdentity();
+  c.reg.T_target_source.setIdentity();
   c.reg.converged = false;
   EXPECT_TRUE(rec.poor(Eigen::Isometry3d::Identity(), c)) << "failed";
 }
@@ -180,8 +180,8 @@ struct Missed {
     return ctx;
   }
   void remember_truth(RegistrationRecovery& rec) const {
-    odometry::RegistrationOutput at_truth;
-    at_truth.T_map_sensor = truth;
+    odometry::RegistrationResult at_truth;
+    at_truth.T_target_source = truth;
     const double f = rec.fit_of(sweep, s.map, at_truth).inlier_fraction;
     for (int k = 0; k < 5; ++k) rec.remember_fit(f);
   }
@@ -190,8 +190,8 @@ struct Missed {
     const RegistrationContext ctx = context();
     c = ScanToMapRegistration(s.p).register_from(sweep, ctx, guess);
     c.fit = rec.fit_of(sweep, s.map, c.reg);
-    std::printf("from the prediction: %.2f m %.1f deg off, fit %.2f\n", metres(c.reg.T_map_sensor, truth),
-                degrees(c.reg.T_map_sensor, truth), c.fit.inlier_fraction);
+    std::printf("from the prediction: %.2f m %.1f deg off, fit %.2f\n", metres(c.reg.T_target_source, truth),
+                degrees(c.reg.T_target_source, truth), c.fit.inlier_fraction);
     EXPECT_TRUE(rec.poor(guess, c)) << "the turn this test needs: the prediction alone loses it";
     return rec.recover(guess, ctx, sweep, c);
   }
@@ -211,7 +211,7 @@ void expect_recovered(Missed& m, bool from_global) {
   const RegistrationRecovery::Outcome o = m.recover(rec, c);
   EXPECT_TRUE(o.recovered);
   EXPECT_EQ(o.global, from_global);
-  m.expect_found(c.reg.T_map_sensor);
+  m.expect_found(c.reg.T_target_source);
 }
 
 TEST(RegistrationRecovery, ATurnThePredictionOvershotIsRecoveredFromTheLastPose) {
@@ -238,7 +238,7 @@ TEST(ScanToMap, APoorRegistrationIsRecoveredAndCounted) {
   EXPECT_EQ(stats.recoveries, 1u);
   EXPECT_EQ(stats.registration_failures, 0u);
   ASSERT_TRUE(r.reg.converged);
-  m.expect_found(r.reg.T_map_sensor);
+  m.expect_found(r.reg.T_target_source);
 }
 
 }  // namespace

@@ -41,7 +41,7 @@ Eigen::Vector3d CloudStore::up(const KeyframeId& id) const {
 }
 
 void CloudStore::set_cloud(const KeyframeId& id, const std::vector<Eigen::Vector3f>& cloud) {
-  clouds_[id] = lidar::voxel_downsample(cloud, voxel_m_);
+  clouds_[id] = odometry::voxel_centroids(cloud, voxel_m_);
   drop_prepared(id);
 }
 
@@ -50,7 +50,7 @@ void CloudStore::drop_prepared(const KeyframeId& id) {
                   prepared_.end());
 }
 
-std::shared_ptr<const lidar::PreparedCloud> CloudStore::prepared(const KeyframeId& id) {
+std::shared_ptr<const odometry::PreparedCloud> CloudStore::prepared(const KeyframeId& id) {
   const auto held = clouds_.find(id);
   if (held == clouds_.end()) return nullptr;
   const auto it = std::find_if(prepared_.begin(), prepared_.end(), [&](const auto& e) { return e.first == id; });
@@ -61,7 +61,7 @@ std::shared_ptr<const lidar::PreparedCloud> CloudStore::prepared(const KeyframeI
     prepared_.push_front(entry);
     return entry.second;
   }
-  auto ready = std::make_shared<const lidar::PreparedCloud>(held->second, registration_);
+  auto ready = std::make_shared<const odometry::PreparedCloud>(held->second, registration_);
   ++stats_.prepared;
   if (prepared_size_ > 0) {
     prepared_.emplace_front(id, ready);

@@ -12,7 +12,7 @@ std::optional<Verifier::Outcome> Verifier::verify(const VerificationJob& job, Cl
   // verified in a burst.
   const auto target = clouds.prepared(job.candidate);
   const auto source = clouds.prepared(job.query);
-  const lidar::RegistrationResult r = lidar::register_clouds(*source, *target, job.guess, p_.registration);
+  const odometry::RegistrationResult r = odometry::register_gicp(*source, *target, job.guess, p_.registration);
   const auto [robot_a, kf_a] = job.candidate;
   const auto [robot_b, kf_b] = job.query;
   Outcome out;
@@ -37,7 +37,7 @@ std::optional<Verifier::Outcome> Verifier::verify(const VerificationJob& job, Cl
   return out;
 }
 
-bool Verifier::passes(const lidar::RegistrationResult& r) {
+bool Verifier::passes(const odometry::RegistrationResult& r) {
   ++stats_.verified;
   if (r.converged && r.fitness <= p_.max_fitness && r.overlap >= p_.min_overlap) {
     return true;

@@ -4,6 +4,8 @@
 
 #include "cdc/io/error.hpp"
 
+#include <Eigen/Core>
+
 #include <cstdint>
 #include <filesystem>
 #include <vector>
@@ -41,5 +43,7 @@ void write_point_meta(const std::filesystem::path& path, const std::vector<Cloud
 // ROS PointCloud2). Throws FormatError naming the file.
 Sweep read_cloud_file(const std::filesystem::path& path);
 bool is_cloud_file(const std::filesystem::path& path);  // .bin, .pcd or .ply
+// x, y, z of a cloud file's points (read_cloud_file), for registering saved sweeps.
+std::vector<Eigen::Vector3d> read_cloud_xyz(const std::filesystem::path& path);
 
 }  // namespace cdc::io

@@ -61,5 +61,7 @@ std::vector<Eigen::Vector3d> voxel_filter(const std::vector<Eigen::Vector3d>& po
 std::vector<size_t> voxel_filter_indices(const std::vector<Eigen::Vector3d>& points, double voxel_m);
 // The centroid of each occupied voxel (smoother than keeping one point: the quantisation averages out).
 std::vector<Eigen::Vector3d> voxel_centroids(const std::vector<Eigen::Vector3d>& points, double voxel_m);
+// The same on single-precision points (loop closure keeps its clouds so); voxel_m 0: the points as given.
+std::vector<Eigen::Vector3f> voxel_centroids(const std::vector<Eigen::Vector3f>& points, double voxel_m);
 
 }  // namespace cdc::odometry

@@ -15,14 +15,14 @@
 namespace cdc::frontend {
 
 // `base` with the correspondence gate `gate_m` and the kernel that goes with it.
-odometry::RegistrationParams with_gate(odometry::RegistrationParams base, double gate_m, double kernel_divisor);
+odometry::RegistrationSettings with_gate(odometry::RegistrationSettings base, double gate_m, double kernel_divisor);
 
 class AdaptiveGate {
  public:
   explicit AdaptiveGate(const FrontendParams& params);
 
   // The registration's parameters with the gate the recent errors give.
-  odometry::RegistrationParams params() const;
+  odometry::RegistrationSettings params() const;
   // A sweep predicted at `prediction` registered at `registered`.
   void record(const Eigen::Isometry3d& prediction, const Eigen::Isometry3d& registered);
   size_t history() const noexcept { return errors_.size(); }

@@ -55,7 +55,7 @@ struct FrontendParams {
   // for their normals (k nearest neighbours) and everything after (0: not reduced).
   double normal_voxel_m = 0.2;
   odometry::VoxelMapParams map;
-  odometry::RegistrationParams registration;
+  odometry::RegistrationSettings registration;
   double initial_gate_m = 2.0;  // correspondence gate until the motion model has history
   double min_gate_m = 0.3, max_gate_m = 2.0;
   double max_jump_rad = 0.35;   // a registration this far (or max_gate_m) from its start is rejected
@@ -143,7 +143,7 @@ struct ScanOut {
   Eigen::Vector3d linear_velocity = Eigen::Vector3d::Zero();      // odometry frame [m/s]
   Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();     // sensor frame [rad/s]
   std::optional<KeyframeOut> keyframe;
-  odometry::RegistrationOutput registration;
+  odometry::RegistrationResult registration;
   odometry::FitQuality fit;    // of the registration taken (recovery.fit_*)
   bool recovered = false;      // the registration taken came from recovery
   double fusion_lambda = 1.0;  // eq. 12 for this scan (1: no limit)

@@ -25,7 +25,7 @@ class KeyframeSelector {
   explicit KeyframeSelector(const FrontendParams& params);
 
   // A sweep's registration, adding its uncertainty to the relative odometry since the last keyframe.
-  void add_registration(const odometry::RegistrationOutput& reg);
+  void add_registration(const odometry::RegistrationResult& reg);
   // The keyframe this sweep (at T_odom, its deskewed cloud) gives, if any: the held first keyframe
   // goes out with the sweep after it, which cuts none. `hold`: a new keyframe is held back.
   std::optional<KeyframeOut> select(int64_t stamp_ns, const Eigen::Isometry3d& T_odom,

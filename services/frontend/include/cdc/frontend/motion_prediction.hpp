@@ -38,7 +38,7 @@ class MotionPredictor {
   // A sweep's pose into the window, with the registration's information (a sweep whose
   // registration failed gets a weak one, so the IMU carries it) and the IMU since the previous
   // sweep (`pre`, none where it does not cover). Nothing without IMU samples or with the window off.
-  void update_window(int64_t stamp_ns, const Eigen::Isometry3d& T, const odometry::RegistrationOutput& reg,
+  void update_window(int64_t stamp_ns, const Eigen::Isometry3d& T, const odometry::RegistrationResult& reg,
                      std::unique_ptr<odometry::ImuPreintegration> pre, const ImuBuffer& imu, FrontendStats& stats);
   // What deskewing takes from the IMU with the window's biases; `start`: the IMU's state at the
   // sweep's start, for the IMU's whole motion.

@@ -27,7 +27,7 @@ bool plausible_registration(const Eigen::Isometry3d& prediction, const Eigen::Is
 
 // A registration of a sweep, how well it fits the map and the guess it started from.
 struct Candidate {
-  odometry::RegistrationOutput reg;
+  odometry::RegistrationResult reg;
   odometry::FitQuality fit;
   Eigen::Isometry3d start = Eigen::Isometry3d::Identity();
 };
@@ -37,7 +37,7 @@ struct Candidate {
 // a registration implies, how (the sweep deskewed for a registered pose; empty: never again).
 struct RegistrationContext {
   const odometry::VoxelMap& map;
-  odometry::RegistrationParams params;
+  odometry::RegistrationSettings params;
   Eigen::Isometry3d T_last = Eigen::Isometry3d::Identity();
   std::function<Sweep(const Eigen::Isometry3d& T_map_sensor)> redeskew;
 };
@@ -47,7 +47,7 @@ class RegistrationRecovery {
   explicit RegistrationRecovery(const FrontendParams& params);
 
   odometry::FitQuality fit_of(const Sweep& sweep, const odometry::VoxelMap& map,
-                              const odometry::RegistrationOutput& reg) const;
+                              const odometry::RegistrationResult& reg) const;
   // The median fit of the recent registrations; 0 while there are fewer than recovery.min_history.
   double recent_fit() const;
   // Whether a registration from `guess` needs recovery.
@@ -77,7 +77,7 @@ class RegistrationRecovery {
   bool attempt(const Eigen::Isometry3d& start, const RegistrationContext& ctx, Search& search, Sweep& sweep,
                Candidate& c) const;
   // Registration from `start` through the wide gates down to the adaptive one.
-  odometry::RegistrationOutput coarse_to_fine(const Sweep& sweep, const RegistrationContext& ctx,
+  odometry::RegistrationResult coarse_to_fine(const Sweep& sweep, const RegistrationContext& ctx,
                                               const Eigen::Isometry3d& start) const;
   // The global registration of `sweep` onto the previous sweep, put on the previous pose.
   std::optional<Eigen::Isometry3d> global_guess(const Sweep& sweep, const Eigen::Isometry3d& T_last);

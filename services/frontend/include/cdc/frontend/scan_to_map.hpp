@@ -22,7 +22,7 @@ class ScanToMapRegistration {
   Candidate register_from(const Sweep& sweep, const RegistrationContext& ctx, const Eigen::Isometry3d& guess) const;
 
   struct Result {
-    odometry::RegistrationOutput reg;  // not converged: failed, or rejected as implausible
+    odometry::RegistrationResult reg;  // not converged: failed, or rejected as implausible
     odometry::FitQuality fit;
     bool recovered = false;  // taken from recovery
   };

@@ -5,8 +5,8 @@
 // verifications of one query, or against one requested cloud, come in bursts.
 #pragma once
 
-#include "cdc/lidar/registration.hpp"
 #include "cdc/loop_closure/loop_types.hpp"
+#include "cdc/odometry/registration.hpp"
 
 #include <Eigen/Core>
 
@@ -42,7 +42,7 @@ class CloudStore {
   // Up in a local keyframe's frame; +z for others.
   Eigen::Vector3d up(const KeyframeId& id) const;
   // A held cloud ready for registration (made ready now unless it is among the prepared_clouds kept).
-  std::shared_ptr<const lidar::PreparedCloud> prepared(const KeyframeId& id);
+  std::shared_ptr<const odometry::PreparedCloud> prepared(const KeyframeId& id);
 
   const CloudStoreStats& stats() const noexcept { return stats_; }
 
@@ -52,13 +52,13 @@ class CloudStore {
 
   double voxel_m_;
   size_t cache_size_, prepared_size_;
-  lidar::RegistrationParams registration_;  // for preparing the (already downsampled) clouds
+  odometry::RegistrationSettings registration_;  // for preparing the (already downsampled) clouds
   std::map<KeyframeId, std::vector<Eigen::Vector3f>> clouds_;
   std::set<KeyframeId> local_;
   std::map<KeyframeId, Eigen::Vector3d> up_;
   std::deque<KeyframeId> received_;  // peers' clouds held, oldest first
   // Clouds ready for registration, most recently used first.
-  std::deque<std::pair<KeyframeId, std::shared_ptr<const lidar::PreparedCloud>>> prepared_;
+  std::deque<std::pair<KeyframeId, std::shared_ptr<const odometry::PreparedCloud>>> prepared_;
   CloudStoreStats stats_;
 };
 

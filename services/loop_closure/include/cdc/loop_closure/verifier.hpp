@@ -34,7 +34,7 @@ class Verifier {
 
  private:
   // Counts the failure under its first reason; true when the registration passed.
-  bool passes(const lidar::RegistrationResult& r);
+  bool passes(const odometry::RegistrationResult& r);
 
   LoopParams p_;
   VerificationStats stats_;

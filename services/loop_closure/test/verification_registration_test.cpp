@@ -1,12 +1,29 @@
-#include "cdc/lidar/registration.hpp"
+// Verification's registration (verification_registration(): GICP, judged by fitness and overlap)
+// recovers known transforms, gives information in the pose graph's frames, and is the same on
+// prepared clouds as on plain ones.
+#include "cdc/loop_closure/loop_types.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <random>
 
-namespace cdc::lidar {
+namespace cdc::loops {
 namespace {
+
+using odometry::RegistrationResult;
+
+std::vector<Eigen::Vector3d> to_double(const std::vector<Eigen::Vector3f>& pts) {
+  std::vector<Eigen::Vector3d> out;
+  for (const auto& p : pts) out.push_back(p.cast<double>());
+  return out;
+}
+
+// Two plain clouds registered as verification registers them.
+RegistrationResult register_clouds(const std::vector<Eigen::Vector3f>& source,
+                                   const std::vector<Eigen::Vector3f>& target, const Eigen::Isometry3d& guess) {
+  return odometry::register_clouds(to_double(source), to_double(target), guess, verification_registration());
+}
 
 std::vector<Eigen::Vector3f> scene(uint32_t seed) {
   std::mt19937 rng(seed);
@@ -48,7 +65,7 @@ TEST_P(RegistrationRecovers, AKnownTransformForwardAndInverse) {
         Eigen::AngleAxisd(Eigen::AngleAxisd(want.rotation()).angle() * (want.rotation()(1, 0) >= 0 ? 1 : -1),
                           Eigen::Vector3d::UnitZ())
             .toRotationMatrix();  // yaw known (Scan Context)
-    const RegistrationResult r = register_clouds(s, t, guess, RegistrationParams{});
+    const RegistrationResult r = register_clouds(s, t, guess);
     ASSERT_TRUE(r.converged);
     EXPECT_LT((r.T_target_source.translation() - want.translation()).norm(), 0.05) << (inverse ? "inverse" : "forward");
     EXPECT_LT(Eigen::AngleAxisd(r.T_target_source.rotation().transpose() * want.rotation()).angle(), 0.005);
@@ -78,7 +95,7 @@ TEST(Registration, InformationIsInTheGraphsResidualFrames) {
   for (const auto& p : target) source.push_back(T.inverse().cast<float>() * p);
   Eigen::Isometry3d guess = T;
   guess.translation() += Eigen::Vector3d(0.1, -0.1, 0);
-  const RegistrationResult r = register_clouds(source, target, guess, RegistrationParams{});
+  const RegistrationResult r = register_clouds(source, target, guess);
   ASSERT_TRUE(r.converged);
   const Eigen::Matrix3d info_t = r.information.topLeftCorner<3, 3>();
   EXPECT_LT(info_t(0, 0), 0.2 * info_t(1, 1)) << "weak along the corridor (target x)\n" << info_t;
@@ -88,15 +105,15 @@ TEST(Registration, InformationIsInTheGraphsResidualFrames) {
 // A prepared cloud registered several times, as source and as target, gives exactly what the
 // plain overload gives on the same points (loop verification reuses them across a burst).
 TEST(Registration, PreparedCloudsGiveTheSameResultsAsFreshOnes) {
-  const RegistrationParams params;
+  const odometry::RegistrationSettings params = verification_registration();
   const auto a = scene(21), b = scene(22);
   std::vector<Eigen::Vector3f> c;
   Eigen::Isometry3f shift = Eigen::Isometry3f::Identity();
   shift.translation() = Eigen::Vector3f(0.7f, -0.4f, 0.05f);
   shift.linear() = Eigen::AngleAxisf(0.08f, Eigen::Vector3f::UnitZ()).toRotationMatrix();
   for (const auto& p : a) c.push_back(shift * p);
-  const PreparedCloud pa(a, params), pb(b, params), pc(c, params);
-  EXPECT_EQ(pa.size(), voxel_downsample(a, params.voxel_m).size());
+  const odometry::PreparedCloud pa(a, params), pb(b, params), pc(c, params);
+  EXPECT_EQ(pa.size(), odometry::voxel_centroids(a, params.voxel_m).size());
   const Eigen::Isometry3d guess = Eigen::Isometry3d::Identity();
   auto same = [](const RegistrationResult& x, const RegistrationResult& y) {
     EXPECT_EQ(x.converged, y.converged);
@@ -106,42 +123,31 @@ TEST(Registration, PreparedCloudsGiveTheSameResultsAsFreshOnes) {
     EXPECT_TRUE(x.information == y.information);
   };
   for (int round = 0; round < 2; ++round) {
-    same(register_clouds(pc, pa, guess, params), register_clouds(c, a, guess, params));
-    same(register_clouds(pa, pc, guess, params), register_clouds(a, c, guess, params));
-    same(register_clouds(pb, pa, guess, params), register_clouds(b, a, guess, params));
+    same(odometry::register_gicp(pc, pa, guess, params), register_clouds(c, a, guess));
+    same(odometry::register_gicp(pa, pc, guess, params), register_clouds(a, c, guess));
+    same(odometry::register_gicp(pb, pa, guess, params), register_clouds(b, a, guess));
   }
-  const RegistrationResult r = register_clouds(pc, pa, guess, params);
+  const RegistrationResult r = odometry::register_gicp(pc, pa, guess, params);
   EXPECT_TRUE(r.converged);
   EXPECT_GT(r.overlap, 0.9);
 }
 
 TEST(Registration, DifferentPlacesDoNotOverlap) {
-  const RegistrationResult r = register_clouds(scene(1), scene(2), Eigen::Isometry3d::Identity(), RegistrationParams{});
+  const RegistrationResult r = register_clouds(scene(1), scene(2), Eigen::Isometry3d::Identity());
   EXPECT_LT(r.overlap, 0.6);  // the ground matches, the structure does not
 }
 
 }  // namespace
-}  // namespace cdc::lidar
+}  // namespace cdc::loops
 
+#include "cdc/io/cloud.hpp"
 #include "cdc/io/kitti.hpp"
 
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 
-namespace cdc::lidar {
+namespace cdc::loops {
 namespace {
-
-std::vector<Eigen::Vector3f> load_kitti_bin(const std::string& path) {
-  std::ifstream in(path, std::ios::binary | std::ios::ate);
-  const auto bytes = static_cast<size_t>(in.tellg());
-  in.seekg(0);
-  std::vector<float> f(bytes / 4);
-  in.read(reinterpret_cast<char*>(f.data()), static_cast<std::streamsize>(bytes));
-  std::vector<Eigen::Vector3f> pts;
-  for (size_t i = 0; i + 3 < f.size(); i += 4) pts.emplace_back(f[i], f[i + 1], f[i + 2]);
-  return pts;
-}
 
 TEST(Registration, RealKittiPairsAgreeWithGroundTruth) {
   const char* env = std::getenv("CDC_DATA_DIR");
@@ -155,9 +161,9 @@ TEST(Registration, RealKittiPairsAgreeWithGroundTruth) {
     std::snprintf(pa, sizeof pa, "%06d.bin", a);
     std::snprintf(pb, sizeof pb, "%06d.bin", b);
     const Eigen::Isometry3d gt = seq[static_cast<size_t>(a)].pose.inverse() * seq[static_cast<size_t>(b)].pose;
-    const RegistrationResult r =
-        register_clouds(load_kitti_bin(d + "scans/seq00/" + pb), load_kitti_bin(d + "scans/seq00/" + pa),
-                        Eigen::Isometry3d::Identity(), RegistrationParams{});
+    const RegistrationResult r = odometry::register_clouds(io::read_cloud_xyz(d + "scans/seq00/" + pb),
+                                                           io::read_cloud_xyz(d + "scans/seq00/" + pa),
+                                                           Eigen::Isometry3d::Identity(), verification_registration());
     const Eigen::Isometry3d e = gt.inverse() * r.T_target_source;
     const double deg = Eigen::AngleAxisd(e.rotation()).angle() * 180 / M_PI;
     std::printf("KITTI 00 %d-%d: %.4f m, %.4f deg from ground truth\n", a, b, e.translation().norm(), deg);
@@ -167,4 +173,4 @@ TEST(Registration, RealKittiPairsAgreeWithGroundTruth) {
 }
 
 }  // namespace
-}  // namespace cdc::lidar
+}  // namespace cdc::loops
