@@ -1,4 +1,5 @@
 // cdc-eval: compares estimated trajectories with ground truth (TUM or KITTI files).
+#include "cdc/base/cli.hpp"
 #include "cdc/base/tool.hpp"
 #include "cdc/eval/evaluation.hpp"
 
@@ -64,36 +65,22 @@ struct Options {
 };
 
 void add_options(CLI::App& app, Options& o) {
-  app.add_option("--gt", o.gt_path, "ground-truth trajectory file")->required()->check(CLI::ExistingFile);
-  app.add_option("--est", o.est_paths, "estimated trajectory file (repeat for several)")
-      ->required()
-      ->check(CLI::ExistingFile);
+  cdc::base::add_input(app, "--gt", o.gt_path, "ground-truth trajectory file");
+  cdc::base::add_input(app, "--est", o.est_paths, "estimated trajectory file (repeat for several)");
   app.add_option("--name", o.names, "display name per --est (default: file name)");
-  app.add_option("--format", o.format, "file format of all inputs")
-      ->check(CLI::IsMember({"auto", "tum", "kitti"}))
-      ->capture_default_str();
+  cdc::base::add_setting(app, "--format", o.format, "file format of all inputs",
+                         CLI::IsMember({"auto", "tum", "kitti"}));
   app.add_option("--gt-times", o.gt_times, "KITTI times file (seconds per line) for --gt")->check(CLI::ExistingFile);
   app.add_option("--est-times", o.est_times, "KITTI times file per --est")->check(CLI::ExistingFile);
-  app.add_option("--period", o.period_s, "KITTI pose period when no times file [s]")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
-  app.add_option("--max-dt", o.max_dt_s, "association tolerance between stamps [s]")
-      ->check(CLI::NonNegativeNumber)
-      ->capture_default_str();
-  app.add_option("--align", o.align, "alignment before ATE")
-      ->check(CLI::IsMember({"none", "se3", "sim3"}))
-      ->capture_default_str();
-  app.add_option("--rpe-frames", o.rpe_delta_frames, "RPE frame delta")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
-  app.add_option("--rpe-distance", o.rpe_delta_m, "RPE distance delta [m]")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
+  cdc::base::add_setting(app, "--period", o.period_s, "KITTI pose period when no times file [s]", CLI::PositiveNumber);
+  cdc::base::add_setting(app, "--max-dt", o.max_dt_s, "association tolerance between stamps [s]",
+                         CLI::NonNegativeNumber);
+  cdc::base::add_setting(app, "--align", o.align, "alignment before ATE", CLI::IsMember({"none", "se3", "sim3"}));
+  cdc::base::add_setting(app, "--rpe-frames", o.rpe_delta_frames, "RPE frame delta", CLI::PositiveNumber);
+  cdc::base::add_setting(app, "--rpe-distance", o.rpe_delta_m, "RPE distance delta [m]", CLI::PositiveNumber);
   app.add_option("--json", o.json_path, "write the figures as JSON to this file ('-' for stdout)");
   app.add_option("--svg", o.svg_path, "write a top-view SVG plot to this file");
-  app.add_option("--plane", o.plane, "plot plane")
-      ->check(CLI::IsMember({"auto", "xy", "xz", "yz"}))
-      ->capture_default_str();
+  cdc::base::add_setting(app, "--plane", o.plane, "plot plane", CLI::IsMember({"auto", "xy", "xz", "yz"}));
   app.add_option("--title", o.title, "plot title");
 }
 

@@ -1,4 +1,5 @@
 // cdc-pgo: solve a pose graph from g2o files, centralized or distributed over robots.
+#include "cdc/base/cli.hpp"
 #include "cdc/base/tool.hpp"
 #include "cdc/graph/distributed.hpp"
 #include "cdc/graph/g2o.hpp"
@@ -34,47 +35,36 @@ struct Options {
 };
 
 void add_options(CLI::App& app, Options& o) {
-  app.add_option("input", o.input, "a .g2o file, or a folder of per-robot .g2o files")
-      ->required()
-      ->check(CLI::ExistingPath);
-  app.add_option("--init", o.init,
-                 "initial values: chordal (rotation relaxation), odometry (chained), file (VERTEX lines)")
-      ->check(CLI::IsMember({"chordal", "odometry", "file"}))
-      ->capture_default_str();
+  cdc::base::add_input(app, "input", o.input, "a .g2o file, or a folder of per-robot .g2o files", CLI::ExistingPath);
+  cdc::base::add_setting(app, "--init", o.init,
+                         "initial values: chordal (rotation relaxation), odometry (chained), file (VERTEX lines)",
+                         CLI::IsMember({"chordal", "odometry", "file"}));
   app.add_flag("--sesync-weights", o.sesync_weights,
                "optimise SE-Sync's isotropic chordal objective instead of the full-information cost");
   app.add_flag("--share-loops", o.share_loops,
                "divide each loop closure's information by the most loops either of its keyframes takes part in"
                " (as the optimiser services do; --out then writes the divided information)");
-  app.add_option("--loop-tilt-scale", o.tilt_scale,
-                 "scale each loop closure's roll/pitch information by this factor in its keyframe's level frame"
-                 " (world z up, from the estimate read), as the loop-closure service does for robots whose odometry"
-                 " holds its tilt with gravity; for graphs whose loops were not levelled")
-      ->check(CLI::Range(0.0, 1.0))
-      ->capture_default_str();
-  app.add_option("--max-iterations", o.max_iterations, "solver iteration limit")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
-  app.add_option("--tolerance", o.tolerance, "relative cost-change tolerance at which the solver stops")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
-  app.add_option("--trust-region", o.trust_region, "initial trust-region radius (1 / initial LM damping)")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
-  app.add_option("--sparse-backend", o.backend, "sparse Cholesky library")
-      ->check(CLI::IsMember({"suitesparse", "eigen", "cxsparse"}))
-      ->capture_default_str();
+  cdc::base::add_setting(
+      app, "--loop-tilt-scale", o.tilt_scale,
+      "scale each loop closure's roll/pitch information by this factor in its keyframe's level frame"
+      " (world z up, from the estimate read), as the loop-closure service does for robots whose odometry"
+      " holds its tilt with gravity; for graphs whose loops were not levelled",
+      CLI::Range(0.0, 1.0));
+  cdc::base::add_setting(app, "--max-iterations", o.max_iterations, "solver iteration limit", CLI::PositiveNumber);
+  cdc::base::add_setting(app, "--tolerance", o.tolerance, "relative cost-change tolerance at which the solver stops",
+                         CLI::PositiveNumber);
+  cdc::base::add_setting(app, "--trust-region", o.trust_region, "initial trust-region radius (1 / initial LM damping)",
+                         CLI::PositiveNumber);
+  cdc::base::add_setting(app, "--sparse-backend", o.backend, "sparse Cholesky library",
+                         CLI::IsMember({"suitesparse", "eigen", "cxsparse"}));
   app.add_option("--out", o.out_path, "write the optimised graph to this .g2o file");
   app.add_flag("--json", o.json, "print one JSON line instead of text");
   app.add_flag("--distributed", o.distributed,
                "also run the distributed algorithm (robots = top byte of the keys; exchanges separator poses only)"
                " and compare it with the centralized solution");
-  app.add_option("--over-relaxation", o.over_relaxation, "distributed: over-relaxation factor gamma (1 = Gauss-Seidel)")
-      ->check(CLI::Range(0.1, 1.99))
-      ->capture_default_str();
-  app.add_option("--max-rounds", o.max_rounds, "distributed: round limit")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
+  cdc::base::add_setting(app, "--over-relaxation", o.over_relaxation,
+                         "distributed: over-relaxation factor gamma (1 = Gauss-Seidel)", CLI::Range(0.1, 1.99));
+  cdc::base::add_setting(app, "--max-rounds", o.max_rounds, "distributed: round limit", CLI::PositiveNumber);
   app.add_flag("--verbose", o.verbose, "print the solver's full report to stderr");
 }
 

@@ -102,8 +102,14 @@ def point_cloud2(sec, nsec, frame, fields, point_step, points, cdr_big=False, da
         data += rec
     c = Cdr(cdr_big)
     header(c, sec, nsec, frame)
+    cloud_body(c, len(points), fields, point_step, data, data_big)
+    return c.message()
+
+
+def cloud_body(c, width, fields, point_step, data, data_big=False, is_dense=False):
+    """A PointCloud2 after its header: one row of `width` points laid out by `fields`, then `data`."""
     c.u32(1)  # height
-    c.u32(len(points))  # width
+    c.u32(width)
     c.u32(len(fields))
     for name, off, dt in fields:
         c.string(name)
@@ -112,11 +118,10 @@ def point_cloud2(sec, nsec, frame, fields, point_step, points, cdr_big=False, da
         c.u32(1)
     c.u8(1 if data_big else 0)
     c.u32(point_step)
-    c.u32(point_step * len(points))
+    c.u32(point_step * width)
     c.u32(len(data))
     c.raw(bytes(data))
-    c.u8(0)  # is_dense
-    return c.message()
+    c.u8(1 if is_dense else 0)
 
 
 def cloud_stamp(k):

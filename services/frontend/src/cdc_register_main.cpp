@@ -1,6 +1,7 @@
 // cdc-register: registers one saved sweep onto another with the front-end's point-to-plane
 // registration or generalized ICP (common/odometry/registration.hpp) and prints T_target_source; with a
 // reference transform it prints how far the result is from it.
+#include "cdc/base/cli.hpp"
 #include "cdc/base/tool.hpp"
 #include "cdc/geometry/se3.hpp"
 #include "cdc/io/cloud.hpp"
@@ -31,33 +32,20 @@ struct Options {
 
 void add_options(CLI::App& app, Options& o) {
   odometry::RegistrationSettings &p = o.point_to_plane, &g = o.gicp;
-  app.add_option("source", o.source, "the sweep to move")->required()->check(CLI::ExistingFile);
-  app.add_option("target", o.target, "the sweep it is registered onto")->required()->check(CLI::ExistingFile);
+  base::add_input(app, "source", o.source, "the sweep to move");
+  base::add_input(app, "target", o.target, "the sweep it is registered onto");
   app.add_option("--reference", o.reference, "reference T_target_source (4x4, 16 numbers)")->check(CLI::ExistingFile);
-  app.add_option("--source-voxel", p.voxel_m, "downsampling of the source [m]")
-      ->capture_default_str()
-      ->check(CLI::PositiveNumber);
-  app.add_option("--target-voxel", p.target_voxel_m, "downsampling of the target [m]")
-      ->capture_default_str()
-      ->check(CLI::PositiveNumber);
-  app.add_option("--map-voxel", p.map_voxel_m, "voxel of the target map [m]")
-      ->capture_default_str()
-      ->check(CLI::PositiveNumber);
-  app.add_option("--normal-neighbours", p.neighbours, "points per source normal")
-      ->capture_default_str()
-      ->check(CLI::Range(3, 100));
-  app.add_option("--method", o.method, "point-to-plane (the front-end's) or gicp (generalized ICP, plane-to-plane)")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"point-to-plane", "gicp"}));
-  app.add_option("--gicp-voxel", g.voxel_m, "gicp: downsampling of both clouds [m]")
-      ->capture_default_str()
-      ->check(CLI::PositiveNumber);
-  app.add_option("--gicp-neighbours", g.neighbours, "gicp: points per covariance")
-      ->capture_default_str()
-      ->check(CLI::Range(5, 100));
-  app.add_option("--gicp-max-correspondence", g.max_correspondence_m, "gicp: correspondence distance [m]")
-      ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+  base::add_setting(app, "--source-voxel", p.voxel_m, "downsampling of the source [m]", CLI::PositiveNumber);
+  base::add_setting(app, "--target-voxel", p.target_voxel_m, "downsampling of the target [m]", CLI::PositiveNumber);
+  base::add_setting(app, "--map-voxel", p.map_voxel_m, "voxel of the target map [m]", CLI::PositiveNumber);
+  base::add_setting(app, "--normal-neighbours", p.neighbours, "points per source normal", CLI::Range(3, 100));
+  base::add_setting(app, "--method", o.method,
+                    "point-to-plane (the front-end's) or gicp (generalized ICP, plane-to-plane)",
+                    CLI::IsMember({"point-to-plane", "gicp"}));
+  base::add_setting(app, "--gicp-voxel", g.voxel_m, "gicp: downsampling of both clouds [m]", CLI::PositiveNumber);
+  base::add_setting(app, "--gicp-neighbours", g.neighbours, "gicp: points per covariance", CLI::Range(5, 100));
+  base::add_setting(app, "--gicp-max-correspondence", g.max_correspondence_m, "gicp: correspondence distance [m]",
+                    CLI::PositiveNumber);
   app.add_option(
          "--score", o.scores,
          "also score these transforms (4x4 files) and the result: point-to-plane RMS of the matched source points "

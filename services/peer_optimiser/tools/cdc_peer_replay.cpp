@@ -5,6 +5,7 @@
 // them. Every robot steps at once, as the nodes do. Reports per robot the ATE of the odometry, of the
 // keyframes where the corrections had placed them when they were made (the real-time view), and of
 // the final estimate; and the joint cost of the distributed estimate against the centralized optimum.
+#include "cdc/base/cli.hpp"
 #include "cdc/base/tool.hpp"
 #include "cdc/geometry/metrics.hpp"
 #include "cdc/geometry/trajectory.hpp"
@@ -115,55 +116,42 @@ struct ReplayOptions {
 
 // What to replay.
 void add_run_options(CLI::App& app, ReplayOptions& o) {
-  app.add_option("GRAPH", o.graph_paths,
-                 "g2o graph(s) holding every robot's keyframes and loops: a run's global_graph.g2o, or its "
-                 "robot_N/peer_graph.g2o files together (merged; a factor in several is kept once)")
-      ->required()
-      ->check(CLI::ExistingFile);
-  app.add_option("--run", o.run_dir, "the run's folder: robot_N/keyframes.tum gives each keyframe's stamp")
-      ->required()
-      ->check(CLI::ExistingDirectory);
-  app.add_option("--truth", o.truth_dir, "the dataset's folder: robot_N/groundtruth.tum")
-      ->required()
-      ->check(CLI::ExistingDirectory);
-  app.add_option("--robots", o.robots, "robots in the graph")->capture_default_str()->check(CLI::Range(1, 64));
+  base::add_input(app, "GRAPH", o.graph_paths,
+                  "g2o graph(s) holding every robot's keyframes and loops: a run's global_graph.g2o, or its "
+                  "robot_N/peer_graph.g2o files together (merged; a factor in several is kept once)");
+  base::add_input(app, "--run", o.run_dir, "the run's folder: robot_N/keyframes.tum gives each keyframe's stamp",
+                  CLI::ExistingDirectory);
+  base::add_input(app, "--truth", o.truth_dir, "the dataset's folder: robot_N/groundtruth.tum", CLI::ExistingDirectory);
+  base::add_setting(app, "--robots", o.robots, "robots in the graph", CLI::Range(1, 64));
 }
 
 // When loops arrive, and how long the replay goes on.
 void add_timing_options(CLI::App& app, ReplayOptions& o) {
-  app.add_option("--loop-latency", o.latency_s, "seconds from a loop's later keyframe to its arrival")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
-  app.add_option("--jitter", o.jitter_s, "a uniform extra loop latency up to this many seconds (seeded)")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+  base::add_setting(app, "--loop-latency", o.latency_s, "seconds from a loop's later keyframe to its arrival",
+                    CLI::NonNegativeNumber);
+  base::add_setting(app, "--jitter", o.jitter_s, "a uniform extra loop latency up to this many seconds (seeded)",
+                    CLI::NonNegativeNumber);
   app.add_option("--seed", o.seed, "seed of the jitter")->capture_default_str();
-  app.add_option("--tail", o.tail_s, "seconds of rounds after the last keyframe")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
+  base::add_setting(app, "--tail", o.tail_s, "seconds of rounds after the last keyframe", CLI::NonNegativeNumber);
 }
 
 // The keys of peer_optimiser.yaml the replay takes.
 void add_peer_options(CLI::App& app, ReplayOptions& o) {
-  app.add_option("--round-ms", o.round_ms, "distributed round period (peer_optimiser.yaml's round_period_ms)")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 100000));
-  app.add_option("--iterations", o.base.distributed_iterations, "solver iterations per round (distributed_iterations)")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 1000));
-  app.add_option("--relaxation", o.base.relaxation, "fraction of each round's step taken (distributed_relaxation)")
-      ->capture_default_str()
-      ->check(CLI::Range(1e-3, 1.0));
-  app.add_option(
-         "--separator-min-change", o.base.separator_min_change_m,
-         "a separator pose is sent again once it moved this far [m] (separator_min_change_m; the angle scales with it)")
-      ->capture_default_str()
-      ->check(CLI::NonNegativeNumber);
-  app.add_option("--separator-refresh", o.refresh_s,
-                 "every this many seconds a peer gets all its separator poses (separator_refresh_ms / 1000); it gets "
-                 "them too whenever its link comes back up, as a peer's reader matched anew does")
-      ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+  base::add_setting(app, "--round-ms", o.round_ms, "distributed round period (peer_optimiser.yaml's round_period_ms)",
+                    CLI::Range(1, 100000));
+  base::add_setting(app, "--iterations", o.base.distributed_iterations,
+                    "solver iterations per round (distributed_iterations)", CLI::Range(1, 1000));
+  base::add_setting(app, "--relaxation", o.base.relaxation,
+                    "fraction of each round's step taken (distributed_relaxation)", CLI::Range(1e-3, 1.0));
+  base::add_setting(
+      app, "--separator-min-change", o.base.separator_min_change_m,
+      "a separator pose is sent again once it moved this far [m] (separator_min_change_m; the angle scales with it)",
+      CLI::NonNegativeNumber);
+  base::add_setting(
+      app, "--separator-refresh", o.refresh_s,
+      "every this many seconds a peer gets all its separator poses (separator_refresh_ms / 1000); it gets "
+      "them too whenever its link comes back up, as a peer's reader matched anew does",
+      CLI::PositiveNumber);
 }
 
 // The parsed periods into the peers' configuration.

@@ -97,20 +97,7 @@ def ros2_messages(sweeps, imu):
     for stamp, n, data in sweeps:
         c = r2.Cdr()
         r2.header(c, *split(stamp), "lidar")
-        c.u32(1)
-        c.u32(n)
-        c.u32(len(FIELDS))
-        for name, off, dt in FIELDS:
-            c.string(name)
-            c.u32(off)
-            c.u8(dt)
-            c.u32(1)
-        c.u8(0)
-        c.u32(POINT_STEP)
-        c.u32(POINT_STEP * n)
-        c.u32(len(data))
-        c.raw(data)
-        c.u8(1)
+        r2.cloud_body(c, n, FIELDS, POINT_STEP, data, is_dense=True)
         out.append(("/points", "sensor_msgs/msg/PointCloud2", stamp, c.message()))
     for t, a, g in imu:
         c = r2.Cdr()
