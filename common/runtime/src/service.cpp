@@ -5,17 +5,39 @@
 
 #include <spdlog/spdlog.h>
 
+#include <cctype>
 #include <utility>
 
 namespace cdc::runtime {
+
+namespace {
+
+// "topic|reason" with every run of digits in the reason folded to one '#': refusals that differ only by
+// ids, counts or positions share a log gate.
+std::string gate_key(std::string_view topic, const std::string& reason) {
+  std::string key(topic);
+  key += '|';
+  for (size_t i = 0; i < reason.size(); ++i) {
+    if (std::isdigit(static_cast<unsigned char>(reason[i])) == 0) {
+      key += reason[i];
+    } else if (i == 0 || std::isdigit(static_cast<unsigned char>(reason[i - 1])) == 0) {
+      key += '#';
+    }
+  }
+  return key;
+}
+
+}  // namespace
 
 bool Boundary::refuse(std::string_view topic, const dds::Validation& v, bool* logged) {
   if (!rejected_.record(topic, v)) return false;
   const auto now = std::chrono::steady_clock::now();
   const std::lock_guard<std::mutex> lock(log_mutex_);
-  auto gate = log_gates_.find(topic);
+  std::string key = gate_key(topic, v.reason());
+  if (log_gates_.size() >= kMaxLogGates && !log_gates_.count(key)) key = std::string(topic) + '|';
+  auto gate = log_gates_.find(key);
   const bool first = gate == log_gates_.end();
-  if (first) gate = log_gates_.emplace(std::string(topic), LogGate{now, 0}).first;
+  if (first) gate = log_gates_.emplace(std::move(key), LogGate{now, 0}).first;
   const bool log = first || now - gate->second.last >= kLogPeriod;
   if (logged != nullptr) *logged = log;
   if (!log) {

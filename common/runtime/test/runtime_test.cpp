@@ -137,6 +137,20 @@ TEST(Boundary, EveryRefusalIsCountedAndAFloodIsLoggedOncePerPeriod) {
   EXPECT_EQ(boundary.rejected().total(), 1001u);
 }
 
+// Within one log period a refusal for another reason is logged at once; the same reason with other
+// numbers (ids, counts) is not.
+TEST(Boundary, EachKindOfReasonHasItsOwnLogPeriod) {
+  Boundary boundary(dds::ValidationLimits{});
+  bool logged = false;
+  EXPECT_TRUE(boundary.refuse("scan", dds::Validation::fail("point 500: non-finite value"), &logged));
+  EXPECT_TRUE(logged);
+  EXPECT_TRUE(boundary.refuse("scan", dds::Validation::fail("point 7: non-finite value"), &logged));
+  EXPECT_FALSE(logged) << "the same kind of reason within the period";
+  EXPECT_TRUE(boundary.refuse("scan", dds::Validation::fail("empty sweep"), &logged));
+  EXPECT_TRUE(logged) << "another kind of reason is named at once";
+  EXPECT_EQ(boundary.rejected().count("scan"), 3u);
+}
+
 TEST(Options, SharedOptionsParseAndRobotIsChecked) {
   ServiceSpec spec{"cdc-test", "a test service", "see nowhere", kRobotService};
   ServiceOptions o;

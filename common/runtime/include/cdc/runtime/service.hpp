@@ -20,15 +20,18 @@
 namespace cdc::runtime {
 
 // Validation at a node's boundary: a refused sample is counted by topic and logged with its reason,
-// at most one line per topic per log period (a flood of bad samples is not a flood of log lines: the
-// next line says how many went unlogged).
+// at most one line per topic and kind of reason (the reason with its numbers left out) per log period:
+// a flood of bad samples is not a flood of log lines (the next line says how many went unlogged), and
+// a sample refused for another reason is still named at once. At most kMaxLogGates kinds are told
+// apart; past that, refusals share one gate per topic.
 class Boundary {
  public:
   static constexpr std::chrono::milliseconds kLogPeriod{1000};
+  static constexpr size_t kMaxLogGates = 256;
 
   explicit Boundary(dds::ValidationLimits limits) : limits_(std::move(limits)) {}
   const dds::ValidationLimits& limits() const noexcept { return limits_; }
-  // Counts v when it refuses a sample of `topic`, and logs it unless the topic's log line is due later;
+  // Counts v when it refuses a sample of `topic`, and logs it unless its kind's log line is due later;
   // true when it refused. Returns whether it logged in *logged when given.
   bool refuse(std::string_view topic, const dds::Validation& v, bool* logged = nullptr);
   // The sample passes dds::validate.
