@@ -4,6 +4,7 @@
 #include "cdc/io/kitti.hpp"
 #include "temp_dir.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <unistd.h>
@@ -149,6 +150,33 @@ TEST(Dataset, ReaderNamesWhatIsWrong) {
   } catch (const FormatError& e) {
     EXPECT_NE(std::string(e.what()).find("imu.csv:3"), std::string::npos) << e.what();
   }
+  fs::remove_all(root);
+}
+
+// times.txt and velodyne/ must agree: a reader never takes part of a robot's sweeps without a word. And no IMU or
+// calibration value may be NaN or infinite.
+TEST(Dataset, TimesThatDisagreeWithTheSweepsAndValuesThatAreNotFiniteAreRefused) {
+  const fs::path root = temp_dir("count");
+  fs::create_directories(root / "robot_0" / "velodyne");
+  for (const char* n : {"000000.bin", "000001.bin", "000002.bin"}) {
+    write_kitti_bin(root / "robot_0" / "velodyne" / n, make_sweep(2, 0, false).points);
+  }
+  std::ofstream(root / "robot_0" / "times.txt") << "0.0\n0.1\n";
+  try {
+    list_dataset_scans(root.string());
+    FAIL() << "two times for three sweeps were accepted";
+  } catch (const FormatError& e) {
+    EXPECT_NE(std::string(e.what()).find("times.txt: lists 2 sweeps but"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("velodyne holds 3"), std::string::npos) << e.what();
+  }
+  std::ofstream(root / "robot_0" / "times.txt") << "0.0\n0.1\n0.2\n";
+  EXPECT_EQ(list_dataset_scans(root.string()).size(), 3u);
+  std::ofstream(root / "robot_0" / "imu.csv") << "t,ax,ay,az,gx,gy,gz\n0.0,1,2,3,4,5,6\n0.1,1,nan,3,4,5,6\n";
+  EXPECT_THAT([&] { read_dataset_imu(root / "robot_0" / "imu.csv"); },
+              ::testing::ThrowsMessage<FormatError>(::testing::HasSubstr("imu.csv:3: a value is not a finite number")));
+  std::ofstream(root / "robot_0" / "calib.yaml") << "T_lidar_imu: {position: [0, inf, 0], orientation: [0, 0, 0, 1]}\n";
+  EXPECT_THAT([&] { read_dataset_calib(root / "robot_0" / "calib.yaml"); },
+              ::testing::ThrowsMessage<FormatError>(::testing::HasSubstr("calib.yaml:1: T_lidar_imu holds a value")));
   fs::remove_all(root);
 }
 
