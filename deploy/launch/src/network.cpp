@@ -223,18 +223,35 @@ void NetnsNetwork::set_drop(uint32_t src, uint32_t dst, double p) {
   }
 }
 
+// The rules of one of the node's chains with their counters (iptables -n -v -x -L), in order; empty when
+// the chain cannot be listed.
+std::vector<NetnsNetwork::RuleCount> NetnsNetwork::list_chain(uint32_t node, const char* chain) const {
+  std::vector<RuleCount> out;
+  const CommandResult r =
+      run_command({"ip", "netns", "exec", netns_.at(node), "iptables", "-w", "-n", "-v", "-x", "-L", chain});
+  if (r.status != 0) return out;
+  std::istringstream in(r.output);
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream f(line);
+    std::string pkts, bytes, prot, opt, iface_in, iface_out;
+    RuleCount rule;
+    if (!(f >> pkts >> bytes >> rule.target >> prot >> opt >> iface_in >> iface_out >> rule.src >> rule.dst)) continue;
+    if (pkts.find_first_not_of("0123456789") != std::string::npos) continue;  // the column headings
+    rule.packets = std::stoull(pkts);
+    rule.bytes = std::stoull(bytes);
+    rule.line = line;
+    out.push_back(std::move(rule));
+  }
+  return out;
+}
+
 // Packets dropped by the fault rules now in the node's two fault chains.
 uint64_t NetnsNetwork::fault_chain_drops(uint32_t node) const {
   uint64_t sum = 0;
   for (const char* chain : {"CDC_FAULT_IN", "CDC_FAULT_OUT"}) {
-    const CommandResult r =
-        run_command({"ip", "netns", "exec", netns_.at(node), "iptables", "-w", "-n", "-v", "-x", "-L", chain});
-    std::istringstream in(r.status == 0 ? r.output : "");
-    std::string line;
-    while (std::getline(in, line)) {
-      std::istringstream f(line);
-      std::string pkts, bytes, target;
-      if (f >> pkts >> bytes >> target && target == "DROP") sum += std::stoull(pkts);
+    for (const RuleCount& rule : list_chain(node, chain)) {
+      if (rule.target == "DROP") sum += rule.packets;
     }
   }
   return sum;
@@ -260,26 +277,16 @@ std::map<std::pair<uint32_t, uint32_t>, LinkBytes> NetnsNetwork::counters() cons
   for (uint32_t node : nodes_) {
     if (!is_robot(node)) continue;
     for (const char* chain : {"CDC_ACCT_IN", "CDC_ACCT_OUT"}) {
-      const CommandResult r =
-          run_command({"ip", "netns", "exec", netns_.at(node), "iptables", "-w", "-n", "-v", "-x", "-L", chain});
-      if (r.status != 0) continue;
-      std::istringstream in(r.output);
-      std::string line;
-      while (std::getline(in, line)) {
-        std::istringstream f(line);
-        std::string pkts, bytes, target, prot, opt, iface_in, iface_out, src, dst;
-        if (!(f >> pkts >> bytes >> target >> prot >> opt >> iface_in >> iface_out >> src >> dst)) continue;
-        if (target != "RETURN") continue;
-        const bool incoming = std::string(chain) == "CDC_ACCT_IN";
-        auto it = by_address.find(incoming ? src : dst);
+      const bool incoming = std::string(chain) == "CDC_ACCT_IN";
+      for (const RuleCount& rule : list_chain(node, chain)) {
+        if (rule.target != "RETURN") continue;
+        auto it = by_address.find(incoming ? rule.src : rule.dst);
         if (it == by_address.end()) continue;
         LinkBytes& lb = out[{node, it->second}];
-        const bool meta = line.find("/* meta */") != std::string::npos;
-        const uint64_t b = std::stoull(bytes);
-        if (meta) {
-          (incoming ? lb.meta_received : lb.meta_sent) = b;
+        if (rule.line.find("/* meta */") != std::string::npos) {
+          (incoming ? lb.meta_received : lb.meta_sent) = rule.bytes;
         } else {
-          (incoming ? lb.received : lb.sent) = b;
+          (incoming ? lb.received : lb.sent) = rule.bytes;
         }
       }
     }

@@ -66,6 +66,11 @@ class NetnsNetwork {
   void add_robot_rules(uint32_t node);
   void drop_rule(uint32_t src, uint32_t dst, const std::string& probability, const char* op) const;
   uint64_t fault_chain_drops(uint32_t node) const;
+  struct RuleCount {
+    uint64_t packets = 0, bytes = 0;
+    std::string target, src, dst, line;
+  };
+  std::vector<RuleCount> list_chain(uint32_t node, const char* chain) const;
   std::string tag_;
   std::vector<uint32_t> nodes_;
   std::string hub_;
