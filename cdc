@@ -20,7 +20,7 @@ commands:
 
 options:
   --preset NAME     CMake preset: dev, release, asan, ci (default: ci for test, dev for build)
-  -L LABEL          test: run only tests with this ctest label (unit, slow, integration, dds, data, format)
+  -L LABEL          test: run only tests with this ctest label (unit, slow, integration, dds, data, format, fuzz)
   -R REGEX          test: run only tests whose name matches
   --out DIR         demo: results folder
   --network MODE    demo: auto (default), netns or loopback

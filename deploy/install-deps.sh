@@ -17,6 +17,8 @@ PACKAGES=(
   zlib1g-dev
   # recordings: ROS 2 bags (sqlite3, MCAP chunks in zstd/lz4), ROS 1 bag chunks (bz2/lz4), pcap
   libsqlite3-dev libzstd-dev liblz4-dev libbz2-dev libpcap-dev
+  # fuzzing (tests/fuzz): clang and its libFuzzer/sanitizer runtimes (libclang_rt.fuzzer)
+  clang libclang-rt-dev
   # tests and benchmarks (python3-rosbag writes ROS 1 test bags with an independent implementation)
   libgtest-dev libgmock-dev libbenchmark-dev python3-rosbag
   # network namespaces and fault injection used by tests

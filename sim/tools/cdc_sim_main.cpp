@@ -1,5 +1,6 @@
 // cdc-sim: the swarm simulator's command-line tool.
 #include "cdc/base/tool.hpp"
+#include "cdc/config/cli_range.hpp"
 #include "cdc/config/reader.hpp"
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/shutdown.hpp"
@@ -101,17 +102,24 @@ int main(int argc, char** argv) {
   CLI::App* gen = app.add_subcommand("generate", "write a dataset from a scenario file");
   gen->add_option("--scenario", scenario_path, "scenario YAML (see sim/scenarios)")->required();
   gen->add_option("--out", out_dir, "output folder")->required();
-  gen->add_option("--max-scans", max_scans, "scans per robot (0: all)")->capture_default_str();
+  gen->add_option("--max-scans", max_scans, "scans per robot (0: all)")
+      ->capture_default_str()
+      ->check(cdc::config::cli_range(0, 1e6));
   gen->add_option("--data", data_dir, "reference data folder (CDC_DATA_DIR)")->capture_default_str();
   cdc::sim::PlayOptions po;
   int domain = -1;
   std::string dataset_dir;
   auto play_options = [&](CLI::App* c) {
-    c->add_option("--rate", po.rate, "1: real time, 2: twice as fast, 0: as fast as possible")->capture_default_str();
+    c->add_option("--rate", po.rate, "1: real time, 2: twice as fast, 0: as fast as possible")
+        ->capture_default_str()
+        ->check(cdc::config::cli_range(0, 1000));
     c->add_flag("--lockstep", po.lockstep, "wait for each robot's consumer (cdc/sim/progress) before its next scan");
-    c->add_option("--lockstep-timeout", po.lockstep_timeout_s, "[s]")->capture_default_str();
-    c->add_option("--wait-readers", po.wait_readers, "LiDAR readers to wait for before starting");
-    c->add_option("--max-scans", po.max_scans, "scans per robot (0: all)");
+    c->add_option("--lockstep-timeout", po.lockstep_timeout_s, "[s]")
+        ->capture_default_str()
+        ->check(cdc::config::cli_range(0.01, 3600));
+    c->add_option("--wait-readers", po.wait_readers, "LiDAR readers to wait for before starting")
+        ->check(cdc::config::cli_range(0, 1000));
+    c->add_option("--max-scans", po.max_scans, "scans per robot (0: all)")->check(cdc::config::cli_range(0, 1e6));
     c->add_option("--clock-file", po.clock_file,
                   "after each sweep write '<stamp ns> <sweeps played>' here (atomically), for a launcher");
     c->add_option("--domain", domain, "DDS domain id (default: CDC_DDS_DOMAIN or 0)")->check(CLI::Range(0, 232));
@@ -127,7 +135,7 @@ int main(int argc, char** argv) {
   radio->add_option("--data", data_dir, "reference data folder (CDC_DATA_DIR)")->capture_default_str();
   int sweeps = 100;
   CLI::App* b = app.add_subcommand("bench", "sweeps per second for the VLP-16 and HDL-64E presets on one core");
-  b->add_option("--sweeps", sweeps, "sweeps per preset")->check(CLI::PositiveNumber)->capture_default_str();
+  b->add_option("--sweeps", sweeps, "sweeps per preset")->check(cdc::config::cli_range(1, 1e6))->capture_default_str();
   CLI11_PARSE(app, argc, argv);
   return cdc::base::run_tool(
       "cdc-sim",
@@ -146,6 +154,7 @@ int main(int argc, char** argv) {
         cdc::sim::GenerateOptions go;
         go.data_dir = data_dir;
         go.max_scans = max_scans;
+        go.stop = [] { return cdc::dds::ShutdownSignal::requested(); };
         if (radio->parsed()) {
           nlohmann::json j = nlohmann::json::array();
           for (const auto& p : cdc::sim::scenario_radio_periods(sc, go)) {
@@ -161,5 +170,12 @@ int main(int argc, char** argv) {
                     std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
         return 0;
       },
-      [](const std::exception& e) { return dynamic_cast<const cdc::config::ConfigError*>(&e) != nullptr ? 2 : 1; });
+      [](const std::exception& e) {
+        if (dynamic_cast<const cdc::sim::Stopped*>(&e) != nullptr) {
+          const int signal = cdc::dds::ShutdownSignal::signal_number();
+          std::cerr << "cdc-sim: signal " << signal << ": nothing complete written\n";
+          return 128 + signal;
+        }
+        return dynamic_cast<const cdc::config::ConfigError*>(&e) != nullptr ? 2 : 1;
+      });
 }

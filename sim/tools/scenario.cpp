@@ -6,6 +6,7 @@
 #include "cdc/io/kitti.hpp"
 #include "cdc/sim/trajectory.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -17,6 +18,12 @@
 
 namespace cdc::sim {
 namespace fs = std::filesystem;
+
+namespace {
+// The longest mission and the longest span a scenario may ask for: two hours of every robot's sensors is
+// already tens of GB of sweeps, and the trajectories and the radio timeline grow with it.
+constexpr double kMaxDurationS = 7200;
+}  // namespace
 
 LidarModel scenario_lidar(const Scenario& s, int robot) {
   LidarModel model = s.lidar == "hdl64" ? LidarModel::hdl64() : LidarModel::vlp16();
@@ -45,75 +52,86 @@ LidarModel scenario_lidar(const Scenario& s, int robot) {
   return model;
 }
 
+namespace {
+
+// The radio timeline holds one sample per pair of nodes per 0.1 s of the mission: a limit on their number keeps
+// a scenario within memory (a sample is 48 bytes). The span is the mission's, or duration_s when shorter;
+// KITTI sequences are bounded by their data.
+void check_timeline_size(config::Reader& r, const Scenario& s) {
+  constexpr double kMaxLinkSamples = 2e7;
+  double span = s.source == "procedural" ? s.mission.duration_s : 0;
+  if (s.duration_s > 0) span = span > 0 ? std::min(span, s.duration_s) : s.duration_s;
+  const double nodes = s.robots + 1.0;
+  const double samples = nodes * (nodes - 1) / 2 * (span / 0.1);
+  if (samples > kMaxLinkSamples) {
+    char text[200];
+    std::snprintf(text, sizeof text,
+                  "%d robots over %.0f s make a radio timeline of %.3g link samples, more than the %.0g allowed "
+                  "(fewer robots or a shorter duration_s)",
+                  s.robots, span, samples, kMaxLinkSamples);
+    r.error(text);
+  }
+}
+
+}  // namespace
+
 Scenario load_scenario(const std::string& path) {
   Scenario s;
   if (!fs::exists(path)) {
     throw config::ConfigError(path + ": scenario file not found");
   }
   config::Reader r(path);
-  auto pos = [](const double& v) { return v > 0; };
   r.get<std::string>("name", s.name);
-  r.get<uint64_t>("seed", s.seed);
+  r.get<uint64_t>("seed", s.seed);  // every uint64 is a seed
   r.get<std::string>(
       "trajectories.source", s.source, [](const std::string& v) { return v == "kitti" || v == "procedural"; },
       "kitti or procedural");
   r.get<std::string>("trajectories.sequence", s.kitti_sequence);
   r.get<std::string>("trajectories.calib_key", s.calib_key);
-  r.get<int>(
-      "trajectories.robots", s.robots, [](const int& v) { return v >= 1 && v <= 64; }, "1..64");
-  r.get<double>(
-      "trajectories.overlap", s.overlap, [](const double& v) { return v >= 0 && v < 1; }, "[0, 1)");
-  r.get<double>(
-      "trajectories.time_shift_s", s.time_shift_s, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get_in("trajectories.robots", s.robots, 1, 64);
+  r.get_in("trajectories.overlap", s.overlap, 0.0, 0.9);
+  r.get_in("trajectories.time_shift_s", s.time_shift_s, 0.0, kMaxDurationS);
   std::string pattern = "rays";
   r.get<std::string>(
       "trajectories.pattern", pattern, [](const std::string& v) { return parse_pattern(v).has_value(); },
       "rays, loops or crossing");
   s.mission.pattern = parse_pattern(pattern).value_or(MissionPattern::kRays);
-  r.get<double>("trajectories.speed_mps", s.mission.speed_mps, pos, "> 0");
-  r.get<double>("trajectories.size_m", s.mission.size_m, pos, "> 0");
-  r.get<double>("trajectories.duration_s", s.mission.duration_s, pos, "> 0");
+  r.get_in("trajectories.speed_mps", s.mission.speed_mps, 0.1, 50.0);
+  r.get_in("trajectories.size_m", s.mission.size_m, 1.0, 1e5);
+  r.get_in("trajectories.duration_s", s.mission.duration_s, 1.0, kMaxDurationS);
   s.mission.robots = s.robots;
   r.get<std::string>(
       "lidar", s.lidar, [](const std::string& v) { return v == "vlp16" || v == "hdl64"; }, "vlp16 or hdl64");
-  r.get<double>(
-      "lidar_elevation_error_deg", s.lidar_elevation_error_deg, [](const double& v) { return v >= 0 && v <= 2; },
-      "0..2 (degrees, sigma)");
-  r.get<double>(
-      "lidar_elevation_bias_deg", s.lidar_elevation_bias_deg, [](const double& v) { return v >= -1 && v <= 1; },
-      "-1..1 (degrees)");
-  r.get<double>(
-      "lidar_azimuth_error_deg", s.lidar_azimuth_error_deg, [](const double& v) { return v >= 0 && v <= 2; },
-      "0..2 (degrees, sigma)");
-  r.get<double>(
-      "lidar_range_offset_m", s.lidar_range_offset_m, [](const double& v) { return v >= 0 && v <= 0.2; },
-      "0..0.2 (metres, sigma)");
+  r.get_in("lidar_elevation_error_deg", s.lidar_elevation_error_deg, 0.0, 2.0);  // a sigma
+  r.get_in("lidar_elevation_bias_deg", s.lidar_elevation_bias_deg, -1.0, 1.0);
+  r.get_in("lidar_azimuth_error_deg", s.lidar_azimuth_error_deg, 0.0, 2.0);  // a sigma
+  r.get_in("lidar_range_offset_m", s.lidar_range_offset_m, 0.0, 0.2);        // a sigma
   r.get<bool>("lidar_per_robot", s.lidar_per_robot);
-  r.get<double>(
-      "imu_rate_hz", s.imu_rate_hz, [](const double& v) { return v >= 100 && v <= 400; }, "100..400");
-  r.get<double>(
-      "duration_s", s.duration_s, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get_in("imu_rate_hz", s.imu_rate_hz, 100.0, 400.0);
+  r.get_in("duration_s", s.duration_s, 0.0, kMaxDurationS);
   r.get<int>(
-      "radio.central_robot", s.central_robot, [](const int& v) { return v >= -1; }, "-1 or a robot id");
+      "radio.central_robot", s.central_robot, [](const int& v) { return v >= -1 && v <= 63; }, "-1 or a robot id");
   std::vector<double> cp{0, 0, 0};
   r.get<std::vector<double>>(
-      "radio.central_position", cp, [](const std::vector<double>& v) { return v.size() == 3; }, "[x, y, z]");
+      "radio.central_position", cp,
+      [](const std::vector<double>& v) {
+        return v.size() == 3 && std::all_of(v.begin(), v.end(), [](double x) { return std::abs(x) <= 1e7; });
+      },
+      "[x, y, z], each in [-1e7, 1e7]");
   s.central_position = Eigen::Vector3d(cp[0], cp[1], cp[2]);
-  r.get<uint32_t>("radio.central_id", s.central_id);
-  r.get<double>("radio.central_range_m", s.central_range_m, pos, "> 0");
-  r.get<double>("radio.robot_range_m", s.robot_range_m, pos, "> 0");
-  r.get<double>(
-      "radio.loss_start_fraction", s.radio.loss_start_fraction, [](const double& v) { return v > 0 && v <= 1; },
-      "(0, 1]");
-  r.get<double>(
-      "radio.max_loss", s.radio.max_loss, [](const double& v) { return v >= 0 && v <= 1; }, "[0, 1]");
-  r.get<double>("world.clearance_m", s.world.clearance_m, pos, "> 0");
-  r.get<double>("world.spacing_m", s.world.spacing_m, pos, "> 0");
+  r.get_in("radio.central_id", s.central_id, 0u, 254u);
+  r.get_in("radio.central_range_m", s.central_range_m, 1.0, 1e6);
+  r.get_in("radio.robot_range_m", s.robot_range_m, 1.0, 1e6);
+  r.get_in("radio.loss_start_fraction", s.radio.loss_start_fraction, 0.01, 1.0);
+  r.get_in("radio.max_loss", s.radio.max_loss, 0.0, 1.0);
+  r.get_in("world.clearance_m", s.world.clearance_m, 0.1, 100.0);
+  r.get_in("world.spacing_m", s.world.spacing_m, 1.0, 1000.0);
   s.world.seed = s.seed;
   if (s.central_robot >= s.robots) {
     r.error("radio.central_robot " + std::to_string(s.central_robot) + " is not one of the " +
             std::to_string(s.robots) + " robots");
   }
+  check_timeline_size(r, s);
   if (s.central_id < static_cast<uint32_t>(s.robots)) {
     r.error("radio.central_id " + std::to_string(s.central_id) + " collides with a robot id");
   }
@@ -187,7 +205,9 @@ std::vector<OutOfRangePeriod> scenario_radio_periods(const Scenario& s, const Ge
     }
     t1 = std::max(t1, e);
   }
-  return out_of_range_periods(radio_timeline(radio_nodes(s, splines), t0, t1, s.radio));
+  RadioOptions radio = s.radio;
+  radio.stop = g.stop;
+  return out_of_range_periods(radio_timeline(radio_nodes(s, splines), t0, t1, radio));
 }
 
 GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_path, const std::string& out_dir,
@@ -227,6 +247,7 @@ GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_
       if (g.max_scans > 0 && k >= g.max_scans) {
         break;
       }
+      if (g.stop && g.stop()) throw Stopped();
       io::Sweep out;
       out.has_time = out.has_ring = out.has_intensity = true;
       for (const auto& p : sweep(
@@ -256,7 +277,9 @@ GenerateSummary generate_dataset(const Scenario& s, const std::string& scenario_
   }
 
   // Radio: robots and the central node.
-  const auto timeline = radio_timeline(radio_nodes(s, splines), t_start_all, t_end_all, s.radio);
+  RadioOptions radio = s.radio;
+  radio.stop = g.stop;
+  const auto timeline = radio_timeline(radio_nodes(s, splines), t_start_all, t_end_all, radio);
   std::string periods = "a,b,start,end\n";
   for (const auto& p : out_of_range_periods(timeline)) {
     char line[96];

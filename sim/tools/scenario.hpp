@@ -8,6 +8,7 @@
 
 #include <Eigen/Geometry>
 
+#include <functional>
 #include <string>
 
 namespace cdc::sim {
@@ -48,8 +49,9 @@ Scenario load_scenario(const std::string& path);
 LidarModel scenario_lidar(const Scenario& s, int robot = 0);
 
 struct GenerateOptions {
-  std::string data_dir;  // reference data (KITTI poses and calibration)
-  size_t max_scans = 0;  // per robot; 0: all
+  std::string data_dir;        // reference data (KITTI poses and calibration)
+  size_t max_scans = 0;        // per robot; 0: all
+  std::function<bool()> stop;  // asked between sweeps and radio steps when set: true throws Stopped
 };
 
 struct GenerateSummary {

@@ -101,6 +101,7 @@ class SwarmEndToEnd : public ::testing::Test {
     if (!skip_.empty()) GTEST_SKIP() << skip_;
   }
 
+  // GTEST_SKIP returns from this function only: callers return when IsSkipped().
   void require_netns() {
     if (!netns_skip_.empty()) GTEST_SKIP() << netns_skip_;
   }
@@ -129,6 +130,7 @@ class SwarmEndToEnd : public ::testing::Test {
 
 TEST_F(SwarmEndToEnd, ThreeRobotsSwitchOnLivelinessLapsesAndStayAccurate) {
   require_netns();
+  if (IsSkipped()) return;
   const fs::path run = work_ / "run";
   const json r = run_to_report(run, "netns");
   EXPECT_EQ(r["network"], "netns");
@@ -265,6 +267,7 @@ TEST_F(SwarmEndToEnd, LoopbackCutsRobotsWithDeafMuteAndTheySwitchOnLivelinessLap
 // started and deletes every namespace (with its links and rules).
 TEST_F(SwarmEndToEnd, CtrlCAtAnyPointLeavesNoProcessAndNoNamespace) {
   require_netns();
+  if (IsSkipped()) return;
   const fs::path run_a = work_ / "interrupt-startup";
   {
     ChildProcess p = launch(run_a, (work_ / "interrupt-startup.log").string());

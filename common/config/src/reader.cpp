@@ -1,5 +1,6 @@
 #include "cdc/config/reader.hpp"
 
+#include <cstdio>
 #include <filesystem>
 #include <sstream>
 
@@ -49,6 +50,12 @@ void Reader::collect_keys(const YAML::Node& node, const std::string& prefix, std
       out.push_back(k);
     }
   }
+}
+
+std::string Reader::range_text(double lo, double hi) {
+  char text[80];
+  std::snprintf(text, sizeof text, "in [%.10g, %.10g]", lo, hi);
+  return text;
 }
 
 void Reader::finish() {

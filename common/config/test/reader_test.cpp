@@ -1,4 +1,5 @@
 #include "cdc/config/reader.hpp"
+#include "cdc/config/cli_range.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -6,6 +7,7 @@
 #include <unistd.h>
 #include <filesystem>
 #include <fstream>
+#include <vector>
 
 namespace cdc::config {
 namespace {
@@ -61,6 +63,69 @@ TEST(ConfigReader, MissingFileAndSyntaxErrorsAreReported) {
   std::filesystem::remove(p);
   Reader none("");
   EXPECT_NO_THROW(none.finish());
+}
+
+// YAML spells infinity and NaN as .inf and .nan: no number a program reads may be either, and a range names
+// itself in the error.
+TEST(ConfigReader, NonFiniteNumbersAndValuesOutOfRangeAreRefused) {
+  const std::string p = write("finite", "a: .inf\nb: .nan\nc: -.inf\nd: 1e12\ne: 5\nf: [1, .nan, 3]\ng: 7\n");
+  Reader r(p);
+  double a = 1, b = 2, c = 3, d = 4, e = 0;
+  std::vector<double> f{0, 0, 0};
+  int g = 1;
+  r.get<double>("a", a);
+  r.get<double>("b", b);
+  r.get<double>("c", c);
+  r.get_in("d", d, 0.0, 1000.0);
+  r.get_in("e", e, 0.0, 10.0);
+  r.get<std::vector<double>>("f", f);
+  r.get_in("g", g, 1, 5);
+  try {
+    r.finish();
+    FAIL();
+  } catch (const ConfigError& err) {
+    const std::string m = err.what();
+    EXPECT_THAT(m, ::testing::HasSubstr("a: .inf is not a finite number"));
+    EXPECT_THAT(m, ::testing::HasSubstr("b: .nan is not a finite number"));
+    EXPECT_THAT(m, ::testing::HasSubstr("c: -.inf is not a finite number"));
+    EXPECT_THAT(m, ::testing::HasSubstr("d: 1e12 is invalid (expected in [0, 1000])"));
+    EXPECT_THAT(m, ::testing::HasSubstr("is not a finite number"));
+    EXPECT_THAT(m, ::testing::HasSubstr("g: 7 is invalid (expected in [1, 5])"));
+    EXPECT_THAT(m, ::testing::Not(::testing::HasSubstr("e:")));
+  }
+  EXPECT_EQ(a, 1);
+  EXPECT_EQ(d, 4);
+  EXPECT_EQ(e, 5);  // in range: read
+  EXPECT_EQ(g, 1);
+  std::filesystem::remove(p);
+}
+
+// The command-line check: NaN, infinities, text and values outside the range are refused naming the option;
+// "-1" for an unsigned option is refused rather than read as its largest value.
+TEST(CliRange, RefusesWhatIsNotAFiniteNumberInRange) {
+  const auto parse = [](const std::vector<std::string>& args) -> std::string {
+    CLI::App app{"t"};
+    double rate = 1;
+    size_t scans = 0;
+    app.add_option("--rate", rate)->check(cli_range(0, 1000));
+    app.add_option("--max-scans", scans)->check(cli_range(0, 1e6));
+    std::vector<std::string> argv(args.rbegin(), args.rend());
+    try {
+      app.parse(argv);
+    } catch (const CLI::ParseError& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  EXPECT_EQ(parse({"--rate", "2.5"}), "accepted");
+  EXPECT_EQ(parse({"--max-scans", "0"}), "accepted");
+  EXPECT_THAT(parse({"--rate", "nan"}),
+              ::testing::HasSubstr("--rate: 'nan' is not a finite number (expected in [0, 1000])"));
+  EXPECT_THAT(parse({"--rate", "inf"}), ::testing::HasSubstr("'inf' is not a finite number"));
+  EXPECT_THAT(parse({"--rate", "-1"}),
+              ::testing::HasSubstr("--rate: -1 is outside the allowed range (expected in [0, 1000])"));
+  EXPECT_THAT(parse({"--rate", "fast"}), ::testing::HasSubstr("'fast' is not a finite number"));
+  EXPECT_THAT(parse({"--max-scans", "-1"}), ::testing::HasSubstr("--max-scans: -1 is outside the allowed range"));
 }
 
 }  // namespace

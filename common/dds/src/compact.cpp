@@ -130,7 +130,8 @@ PackedCloud pack_points(const std::vector<Eigen::Vector3f>& points, float resolu
     prev = codes[i];
     for (size_t k = 0; k < kPlanes; ++k) raw[k * codes.size() + i] = static_cast<uint8_t>(d >> (8 * k));
   }
-  pc.bytes = deflate_bytes(raw.data(), raw.size());
+  // No points pack to no bytes, which is what unpack_points takes for a count of 0.
+  if (!codes.empty()) pc.bytes = deflate_bytes(raw.data(), raw.size());
   return pc;
 }
 

@@ -1,6 +1,7 @@
 #include "cdc/dds/participant.hpp"
 
 #include "cdc/dds/error.hpp"
+#include "cdc/dds/traffic.hpp"
 
 #include <cstdlib>
 #include <string>
@@ -36,6 +37,7 @@ uint32_t domain_from_env(uint32_t fallback) {
 
 Participant::Participant(const ParticipantOptions& options)
     : domain_id_(options.domain_id), config_(resolve_config(options.config)) {
+  watch_undecodable_samples();
   // The configuration is always passed explicitly: a domain created here uses exactly it.
   const dds_entity_t domain = dds_create_domain(domain_id_, config_.c_str());
   if (domain > 0) {

@@ -2,6 +2,8 @@
 
 #include <dds/ddsi/ddsi_cdrstream.h>
 
+#include <charconv>
+#include <cstdio>
 #include <cstring>
 #include <memory>
 #include <mutex>
@@ -167,6 +169,50 @@ TopicCounters& topic_counters(uint32_t domain, const std::string& topic) {
   auto& slot = r.topics[{domain, topic}];
   if (!slot) slot = std::make_unique<TopicCounters>();
   return *slot;
+}
+
+bool count_undecodable_message(uint32_t domain, std::string_view message) {
+  // "data(application, vendor 1.16): <guid> #<seq>: deserialization <topic>/<type> failed (<reason>)"; topic
+  // names hold slashes, type names ("cdc::msg::Loop") do not.
+  constexpr std::string_view kWhat = ": deserialization ", kFailed = " failed";
+  if (message.rfind("data(application", 0) != 0) return false;
+  const size_t at = message.find(kWhat);
+  if (at == std::string_view::npos) return false;
+  const size_t start = at + kWhat.size();
+  const size_t end = message.find(kFailed, start);
+  if (end == std::string_view::npos) return false;
+  const size_t slash = message.substr(start, end - start).rfind('/');
+  if (slash == std::string_view::npos || slash == 0) return false;
+  topic_counters(domain, std::string(message.substr(start, slash))).undecodable.fetch_add(1);
+  return true;
+}
+
+namespace {
+
+// The domain a message comes from, as its header ("<time> [<domain>] <thread>: ") names it: Cyclone's log data
+// gives 0 for every domain.
+uint32_t domain_of(const dds_log_data_t* data) {
+  const std::string_view header(data->message - data->hdrsize, data->hdrsize);
+  const size_t open = header.find('['), close = header.find(']');
+  uint32_t domain = 0;
+  if (open == std::string_view::npos || close == std::string_view::npos || close <= open + 1) return data->domid;
+  const auto [end, ec] = std::from_chars(header.data() + open + 1, header.data() + close, domain);
+  return ec == std::errc() && end == header.data() + close ? domain : data->domid;
+}
+
+void undecodable_log_sink(void*, const dds_log_data_t* data) {
+  count_undecodable_message(domain_of(data), std::string_view(data->message, data->size));
+  // What Cyclone's default sink does: the header, then the message.
+  std::fwrite(data->message - data->hdrsize, 1, data->hdrsize + data->size, stderr);
+  if (data->size == 0 || data->message[data->size - 1] != '\n') std::fputc('\n', stderr);
+  std::fflush(stderr);
+}
+
+}  // namespace
+
+void watch_undecodable_samples() {
+  static std::once_flag once;
+  std::call_once(once, [] { dds_set_log_sink(undecodable_log_sink, nullptr); });
 }
 
 std::map<std::pair<uint32_t, std::string>, TopicTotals> topic_traffic() {

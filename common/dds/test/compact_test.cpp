@@ -151,8 +151,23 @@ TEST(Compact, EmptyCloudAndBadArguments) {
   EXPECT_EQ(unpack_points(nullptr, 0, 0, 0.01f, back), "");
   EXPECT_TRUE(back.empty());
   EXPECT_EQ(empty.count, 0u);
-  EXPECT_THAT(unpack_points(empty.bytes.data(), empty.bytes.size(), 0, 0.01f, back), HasSubstr("for 0 points"));
+  const std::vector<uint8_t> stray = deflate_bytes(nullptr, 0);
+  EXPECT_THAT(unpack_points(stray.data(), stray.size(), 0, 0.01f, back), HasSubstr("for 0 points"));
   EXPECT_THAT(unpack_points(empty.bytes.data(), empty.bytes.size(), 4, -1.0f, back), HasSubstr("resolution_m"));
+}
+
+// Found by the compact fuzz harness: a cloud with no points in range (a reply for an empty keyframe) must
+// pack to what its receiver accepts, not to a zlib stream that unpack_points refuses for 0 points.
+TEST(Compact, CloudWithNoPointsInRangeRoundTrips) {
+  for (const std::vector<Eigen::Vector3f>& pts : {std::vector<Eigen::Vector3f>{}, {{1000, 0, 0}, {0, 0, -400}}}) {
+    const PackedCloud pc = pack_points(pts, 0.01f);
+    EXPECT_EQ(pc.count, 0u);
+    EXPECT_EQ(pc.dropped, pts.size());
+    EXPECT_TRUE(pc.bytes.empty());
+    std::vector<Eigen::Vector3f> back{{1, 2, 3}};
+    EXPECT_EQ(unpack_points(pc.bytes.data(), pc.bytes.size(), pc.count, pc.resolution_m, back), "");
+    EXPECT_TRUE(back.empty());
+  }
 }
 
 }  // namespace

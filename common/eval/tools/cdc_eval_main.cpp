@@ -1,6 +1,7 @@
 // cdc-eval: compares estimated trajectories with ground truth (TUM or KITTI files).
 #include "cdc/base/cli.hpp"
 #include "cdc/base/tool.hpp"
+#include "cdc/config/cli_range.hpp"
 #include "cdc/eval/evaluation.hpp"
 
 #include <CLI/CLI.hpp>
@@ -72,12 +73,14 @@ void add_options(CLI::App& app, Options& o) {
                          CLI::IsMember({"auto", "tum", "kitti"}));
   app.add_option("--gt-times", o.gt_times, "KITTI times file (seconds per line) for --gt")->check(CLI::ExistingFile);
   app.add_option("--est-times", o.est_times, "KITTI times file per --est")->check(CLI::ExistingFile);
-  cdc::base::add_setting(app, "--period", o.period_s, "KITTI pose period when no times file [s]", CLI::PositiveNumber);
+  cdc::base::add_setting(app, "--period", o.period_s, "KITTI pose period when no times file [s]",
+                         cdc::config::cli_range(0.001, 10));
   cdc::base::add_setting(app, "--max-dt", o.max_dt_s, "association tolerance between stamps [s]",
-                         CLI::NonNegativeNumber);
+                         cdc::config::cli_range(0, 10));
   cdc::base::add_setting(app, "--align", o.align, "alignment before ATE", CLI::IsMember({"none", "se3", "sim3"}));
-  cdc::base::add_setting(app, "--rpe-frames", o.rpe_delta_frames, "RPE frame delta", CLI::PositiveNumber);
-  cdc::base::add_setting(app, "--rpe-distance", o.rpe_delta_m, "RPE distance delta [m]", CLI::PositiveNumber);
+  cdc::base::add_setting(app, "--rpe-frames", o.rpe_delta_frames, "RPE frame delta", cdc::config::cli_range(1, 1e6));
+  cdc::base::add_setting(app, "--rpe-distance", o.rpe_delta_m, "RPE distance delta [m]",
+                         cdc::config::cli_range(0.001, 1e6));
   app.add_option("--json", o.json_path, "write the figures as JSON to this file ('-' for stdout)");
   app.add_option("--svg", o.svg_path, "write a top-view SVG plot to this file");
   cdc::base::add_setting(app, "--plane", o.plane, "plot plane", CLI::IsMember({"auto", "xy", "xz", "yz"}));

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
+#include <map>
 #include <set>
 #include <sstream>
 #include <utility>
@@ -15,11 +16,15 @@
 namespace cdc::graph {
 namespace {
 
+// GTSAM symbols name robots a..z; a cdc key of robot 0..25 is read from and written as such a symbol.
+constexpr uint64_t kSymbolRobots = 26;
+
 struct LineReader {
   const std::string& path;
   size_t line;
   std::istringstream in;
-  bool* symbols = nullptr;  // set when an id carries a robot letter in its top byte
+  bool* symbols = nullptr;    // set when an id carries a robot letter in its top byte
+  bool* low_plain = nullptr;  // set when an id's top byte is below 26: read as such, a cdc key of robot 0..25
 
   [[noreturn]] void fail(const std::string& msg) const {
     throw G2oError(path + ":" + std::to_string(line) + ": " + msg);
@@ -52,6 +57,9 @@ struct LineReader {
     }
     if (symbols != nullptr && (v >> 56) >= 'a' && (v >> 56) <= 'z') {
       *symbols = true;
+    }
+    if (low_plain != nullptr && (v >> 56) < kSymbolRobots) {
+      *low_plain = true;
     }
     return v;
   }
@@ -94,6 +102,12 @@ Eigen::Isometry3d planar(double x, double y, double theta) {
   return T;
 }
 
+// Two readings of one pose agree to the precision a g2o file carries.
+bool same_pose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  const double scale = 1.0 + a.translation().norm();
+  return (a.matrix() - b.matrix()).cwiseAbs().maxCoeff() <= 1e-6 * scale;
+}
+
 void check_information(LineReader& r, const Matrix6d& info) {
   Eigen::SelfAdjointEigenSolver<Matrix6d> es(info);
   if (es.eigenvalues().minCoeff() <= 0.0) {
@@ -103,10 +117,30 @@ void check_information(LineReader& r, const Matrix6d& info) {
 }
 
 // Where a file's records go: the graph, and the edges already read from other robots' files
-// (null: a single file).
+// (null: a single file); the vertices declared by this file (id -> line and pose) and by every file so far.
 struct Target {
   PoseGraph& graph;
   std::set<std::pair<Key, Key>>* seen_edges;
+  std::set<Key>& declared;
+  G2oReadReport& report;
+  std::map<Key, std::pair<size_t, Eigen::Isometry3d>> in_file;
+
+  void add_vertex(const LineReader& r, uint64_t raw, const Eigen::Isometry3d& T) {
+    const Key k = from_g2o_key(raw);
+    const auto [it, fresh] = in_file.emplace(k, std::make_pair(r.line, T));
+    if (!fresh) {
+      if (!same_pose(it->second.second, T)) {
+        r.fail("vertex " + std::to_string(raw) + " declared again with a different pose (first on line " +
+               std::to_string(it->second.first) + ")");
+      }
+      return;
+    }
+    if (declared.insert(k).second) {
+      graph.poses[k] = T;
+    } else if (!same_pose(graph.poses[k], T)) {
+      ++report.conflicting_vertices;  // another file's estimate of the same pose: the first file's is kept
+    }
+  }
 
   void add_edge(Key a, Key b, const Eigen::Isometry3d& T, const Matrix6d& info) {
     if (seen_edges != nullptr && !seen_edges->insert({a, b}).second) {
@@ -129,20 +163,20 @@ void check_edge_ends(LineReader& r, Key a, Key b) {
   }
 }
 
-void read_vertex_se3(LineReader& r, PoseGraph& graph) {
-  const Key k = from_g2o_key(r.id("vertex id"));
+void read_vertex_se3(LineReader& r, Target& target) {
+  const uint64_t id = r.id("vertex id");
   const Eigen::Isometry3d T = read_se3(r, "x", "y", "z");
   r.expect_end();
-  graph.poses[k] = T;
+  target.add_vertex(r, id, T);
 }
 
-void read_vertex_se2(LineReader& r, PoseGraph& graph) {
-  const Key k = from_g2o_key(r.id("vertex id"));
+void read_vertex_se2(LineReader& r, Target& target) {
+  const uint64_t id = r.id("vertex id");
   const double x = r.number("x");
   const double y = r.number("y");
   const double th = r.number("theta");
   r.expect_end();
-  graph.poses[k] = planar(x, y, th);
+  target.add_vertex(r, id, planar(x, y, th));
 }
 
 // EDGE_SE3:QUAT: the measurement and the upper triangle of the 6x6 information, row by row.
@@ -191,11 +225,11 @@ void read_edge_se2(LineReader& r, Target& target) {
 // The dimension a record speaks of: none (FIX), 2 or 3.
 int read_record(const std::string& tag, LineReader& r, Target& target) {
   if (tag == "VERTEX_SE3:QUAT") {
-    read_vertex_se3(r, target.graph);
+    read_vertex_se3(r, target);
     return 3;
   }
   if (tag == "VERTEX_SE2") {
-    read_vertex_se2(r, target.graph);
+    read_vertex_se2(r, target);
     return 2;
   }
   if (tag == "EDGE_SE3:QUAT") {
@@ -213,19 +247,20 @@ int read_record(const std::string& tag, LineReader& r, Target& target) {
 }
 
 void parse_into(const std::string& path, PoseGraph& graph, std::set<std::pair<Key, Key>>* seen_edges,
-                const G2oReadOptions& options) {
+                std::set<Key>& declared, G2oReadReport& report, const G2oReadOptions& options) {
   std::ifstream file(path);
   if (!file) {
     throw G2oError(path + ": cannot open file");
   }
-  Target target{graph, seen_edges};
+  Target target{graph, seen_edges, declared, report, {}};
   std::string text;
   size_t n = 0;
-  bool saw_2d = false, saw_3d = false;
+  bool saw_2d = false, saw_3d = false, low_plain = false;
   while (std::getline(file, text)) {
     ++n;
     LineReader r{path, n, std::istringstream(text)};
     r.symbols = &graph.symbol_keys;
+    r.low_plain = &low_plain;
     std::string tag;
     if (!(r.in >> tag) || tag[0] == '#') {
       continue;
@@ -246,16 +281,51 @@ void parse_into(const std::string& path, PoseGraph& graph, std::set<std::pair<Ke
   if (saw_2d && saw_3d) {
     throw G2oError(path + ": mixes 2D and 3D records");
   }
+  if (low_plain && graph.symbol_keys) {
+    throw G2oError(path +
+                   ": mixes GTSAM symbol ids (a..z in the top byte) with plain ids whose top byte is below 26, " +
+                   "which the symbols' keys would collide with");
+  }
   if (saw_2d) {
     graph.dimension = 2;
   }
 }
 
+// Once every file is read: where vertices were declared, every edge's ends must be among them; where none
+// were, every pose is implicit. Fills the report.
+void check_vertices(const std::string& where, const PoseGraph& graph, const std::set<Key>& declared,
+                    G2oReadReport& report) {
+  report.vertices = declared.size();
+  std::set<Key> named;
+  for (const Factor& f : graph.factors) {
+    named.insert(f.a);
+    named.insert(f.b);
+  }
+  if (declared.empty()) {
+    report.implicit_vertices = named.size();
+    return;
+  }
+  size_t missing = 0;
+  Key example = 0;
+  for (const Key k : named) {
+    if (declared.count(k) == 0 && missing++ == 0) example = k;
+  }
+  if (missing > 0) {
+    throw G2oError(where + ": edges name " + std::to_string(missing) + " vertices no VERTEX line declares (" +
+                   std::to_string(to_g2o_key(graph, example)) + " the first); where a graph declares vertices, it " +
+                   "must declare every vertex its edges use");
+  }
+}
+
+void finish_report(const G2oReadOptions& options, const G2oReadReport& report) {
+  if (options.report != nullptr) *options.report = report;
+}
+
 }  // namespace
 
 uint64_t to_g2o_key(const PoseGraph& graph, Key key) {
-  if (!graph.symbol_keys) {
-    return key;
+  if (!graph.symbol_keys || robot_of(key) >= kSymbolRobots) {
+    return key;  // a plain id (its top byte names no robot a..z) is written as it was read
   }
   return (uint64_t{'a' + robot_of(key)} << 56) | index_of(key);
 }
@@ -270,10 +340,14 @@ Key from_g2o_key(uint64_t raw) {
 
 PoseGraph read_g2o(const std::string& path, const G2oReadOptions& options) {
   PoseGraph g;
-  parse_into(path, g, nullptr, options);
+  std::set<Key> declared;
+  G2oReadReport report;
+  parse_into(path, g, nullptr, declared, report, options);
   if (g.factors.empty() && g.poses.empty()) {
     throw G2oError(path + ": no vertices or edges");
   }
+  check_vertices(path, g, declared, report);
+  finish_report(options, report);
   return g;
 }
 
@@ -294,9 +368,13 @@ PoseGraph read_g2o_folder(const std::string& folder, const G2oReadOptions& optio
   std::sort(files.begin(), files.end());
   PoseGraph g;
   std::set<std::pair<Key, Key>> seen;
+  std::set<Key> declared;
+  G2oReadReport report;
   for (const auto& f : files) {
-    parse_into(f.string(), g, &seen, options);
+    parse_into(f.string(), g, &seen, declared, report, options);
   }
+  check_vertices(folder, g, declared, report);
+  finish_report(options, report);
   return g;
 }
 

@@ -116,14 +116,16 @@ Oriented orient(const Factor& f) {
   return {f.b, f.a, T.inverse(), A * cov * A.transpose()};
 }
 
+// Whether a robot's odometry reaches the key (a robot no odometry factor names has no chain at all).
+bool reaches(const std::map<uint32_t, Chain>& chains, Key key) {
+  const auto it = chains.find(robot_of(key));
+  return it != chains.end() && it->second.pose.count(index_of(key)) != 0;
+}
+
 double cycle_distance_with(const std::map<uint32_t, Chain>& chains, const Factor& fk, const Factor& fl) {
   const Oriented k = orient(fk), l = orient(fl);
   // A loop end that the odometry does not reach cannot be checked: inconsistent with everything.
-  auto reaches = [&](Key key) {
-    const auto it = chains.find(robot_of(key));
-    return it != chains.end() && it->second.pose.count(index_of(key)) != 0;
-  };
-  if (!reaches(k.low) || !reaches(k.high) || !reaches(l.low) || !reaches(l.high)) {
+  if (!reaches(chains, k.low) || !reaches(chains, k.high) || !reaches(chains, l.low) || !reaches(chains, l.high)) {
     return std::numeric_limits<double>::infinity();
   }
   const Chain& A = chains.at(robot_of(k.low));
@@ -180,10 +182,13 @@ OutlierDecision Pcm::decide(const PoseGraph& g) const {
   std::map<std::pair<uint32_t, uint32_t>, std::vector<size_t>> pairs;
   for (size_t f = 0; f < g.factors.size(); ++f) {
     const Factor& fa = g.factors[f];
-    if (fa.kind == FactorKind::kLoop && fa.inter_robot()) {
-      const uint32_t a = robot_of(fa.a), b = robot_of(fa.b);
-      pairs[{std::min(a, b), std::max(a, b)}].push_back(f);
+    if (fa.kind != FactorKind::kLoop || !fa.inter_robot()) continue;
+    if (!reaches(chains, fa.a) || !reaches(chains, fa.b)) {
+      out.rejected.push_back(f);  // an end no odometry reaches (a robot with no trajectory): nothing checks it
+      continue;
     }
+    const uint32_t a = robot_of(fa.a), b = robot_of(fa.b);
+    pairs[{std::min(a, b), std::max(a, b)}].push_back(f);
   }
   for (const auto& [pair, loops] : pairs) {
     const size_t n = loops.size();

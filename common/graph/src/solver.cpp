@@ -156,6 +156,9 @@ ceres::Solver::Options ceres_options(const SolverOptions& options) {
 
 void record_summary(const ceres::Solver::Summary& summary, bool full_report, SolveResult& result) {
   result.converged = summary.termination_type == ceres::CONVERGENCE;
+  // A cost that overflowed "converges" (its relative change is NaN): no solution either.
+  result.failed =
+      summary.termination_type == ceres::FAILURE || !summary.IsSolutionUsable() || !std::isfinite(summary.final_cost);
   result.iterations = static_cast<int>(summary.iterations.size()) - 1;
   result.time_s = summary.total_time_in_seconds;
   result.message = summary.message;

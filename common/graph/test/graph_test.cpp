@@ -399,5 +399,53 @@ TEST_F(G2oFiles, ErrorsNameFileAndLine) {
   EXPECT_THROW(read_g2o(path("none.g2o")), G2oError);
 }
 
+// A graph that declares vertices declares each once and every vertex its edges use; one that declares none is
+// legitimate and its poses are counted as implicit.
+TEST_F(G2oFiles, VerticesAreDeclaredOnceAndForEveryEdgeOrNotAtAll) {
+  const std::string v = "VERTEX_SE3:QUAT ", q = " 0 0 0 1", e = "EDGE_SE3:QUAT ";
+  const std::string info = " 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n";
+  std::ofstream(path("dup.g2o")) << v << "0 0 0 0" << q << "\n"
+                                 << v << "1 1 0 0" << q << "\n"
+                                 << v << "1 2 0 0" << q << "\n"
+                                 << e << "0 1 1 0 0" << q << info;
+  EXPECT_THAT([&] { read_g2o(path("dup.g2o")); },
+              ::testing::ThrowsMessage<G2oError>(
+                  ::testing::HasSubstr("dup.g2o:3: vertex 1 declared again with a different pose (first on line 2)")));
+  std::ofstream(path("same.g2o")) << v << "0 0 0 0" << q << "\n"
+                                  << v << "1 1 0 0" << q << "\n"
+                                  << v << "1 1 0 0" << q << "\n"
+                                  << e << "0 1 1 0 0" << q << info;
+  EXPECT_EQ(read_g2o(path("same.g2o")).poses.size(), 2u);  // the same pose twice: harmless
+  std::ofstream(path("undeclared.g2o")) << v << "0 0 0 0" << q << "\n"
+                                        << v << "1 1 0 0" << q << "\n"
+                                        << e << "0 1 1 0 0" << q << info << e << "1 2 1 0 0" << q << info;
+  EXPECT_THAT([&] { read_g2o(path("undeclared.g2o")); },
+              ::testing::ThrowsMessage<G2oError>(
+                  ::testing::HasSubstr("edges name 1 vertices no VERTEX line declares (2 the first)")));
+  std::ofstream(path("edges.g2o")) << e << "0 1 1 0 0" << q << info << e << "1 2 1 0 0" << q << info;
+  G2oReadReport report;
+  G2oReadOptions options;
+  options.report = &report;
+  const PoseGraph g = read_g2o(path("edges.g2o"), options);
+  EXPECT_EQ(g.factors.size(), 2u);
+  EXPECT_EQ(report.vertices, 0u);
+  EXPECT_EQ(report.implicit_vertices, 3u);
+}
+
+// Ids whose top byte names no robot a..z go back to a file as they came, even beside GTSAM symbols.
+TEST_F(G2oFiles, IdsOutsideTheSymbolLettersAreWrittenBackAsRead) {
+  const uint64_t a0 = uint64_t{'a'} << 56, big = (uint64_t{'A'} << 56) | 3;
+  std::ofstream(path("mixed.g2o")) << "VERTEX_SE3:QUAT " << a0 << " 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT " << big
+                                   << " 1 0 0 0 0 0 1\nEDGE_SE3:QUAT " << a0 << ' ' << big
+                                   << " 1 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n";
+  const PoseGraph g = read_g2o(path("mixed.g2o"));
+  ASSERT_TRUE(g.symbol_keys);
+  EXPECT_EQ(to_g2o_key(g, g.factors[0].a), a0);
+  EXPECT_EQ(to_g2o_key(g, g.factors[0].b), big);
+  std::ofstream(path("collide.g2o")) << "VERTEX_SE3:QUAT " << a0 << " 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 5 1 0 0 0 0 0 1\n";
+  EXPECT_THAT([&] { read_g2o(path("collide.g2o")); },
+              ::testing::ThrowsMessage<G2oError>(::testing::HasSubstr("mixes GTSAM symbol ids")));
+}
+
 }  // namespace
 }  // namespace cdc::graph

@@ -179,6 +179,24 @@ TEST(Pcm, TrueLoopsFarAlongAChainOfSlightlyNonOrthonormalOdometryStayConsistent)
   EXPECT_EQ(Pcm().decide(g).accepted, loops);
 }
 
+// A loop to a robot no odometry describes (a robot that does not exist in the graph) cannot be checked against
+// anything: it is rejected, even alone.
+TEST(Pcm, ALoopToARobotWithoutTrajectoryIsRejected) {
+  PoseGraph g;
+  const Matrix6d info = Matrix6d::Identity();
+  for (uint64_t i = 0; i < 3; ++i) {
+    g.add_between(make_key(0, i), make_key(0, i + 1), pose(1, 0, 0), info);
+    g.add_between(make_key(1, i), make_key(1, i + 1), pose(1, 0, 0), info);
+  }
+  g.add_between(make_key(0, 0), make_key(1, 0), pose(0, 0, 0), info);
+  g.add_between(make_key(0, 2), make_key(1, 2), pose(0, 0, 0), info);
+  const size_t ghost = g.factors.size();
+  g.add_between(make_key(0, 1), make_key(16, 7), pose(0, 0, 0), info);
+  const OutlierDecision d = Pcm().decide(g);
+  EXPECT_EQ(d.accepted, (std::vector<size_t>{ghost - 2, ghost - 1}));
+  EXPECT_EQ(d.rejected, std::vector<size_t>{ghost});
+}
+
 class PcmData : public ::testing::Test {
  protected:
   std::string folder(const std::string& name) {

@@ -1,6 +1,7 @@
 // cdc-pgo: solve a pose graph from g2o files, centralized or distributed over robots.
 #include "cdc/base/cli.hpp"
 #include "cdc/base/tool.hpp"
+#include "cdc/config/cli_range.hpp"
 #include "cdc/graph/distributed.hpp"
 #include "cdc/graph/g2o.hpp"
 #include "cdc/graph/initialise.hpp"
@@ -49,12 +50,13 @@ void add_options(CLI::App& app, Options& o) {
       "scale each loop closure's roll/pitch information by this factor in its keyframe's level frame"
       " (world z up, from the estimate read), as the loop-closure service does for robots whose odometry"
       " holds its tilt with gravity; for graphs whose loops were not levelled",
-      CLI::Range(0.0, 1.0));
-  cdc::base::add_setting(app, "--max-iterations", o.max_iterations, "solver iteration limit", CLI::PositiveNumber);
+      cdc::config::cli_range(0, 1));
+  cdc::base::add_setting(app, "--max-iterations", o.max_iterations, "solver iteration limit",
+                         cdc::config::cli_range(1, 1e6));
   cdc::base::add_setting(app, "--tolerance", o.tolerance, "relative cost-change tolerance at which the solver stops",
-                         CLI::PositiveNumber);
+                         cdc::config::cli_range(1e-16, 1));
   cdc::base::add_setting(app, "--trust-region", o.trust_region, "initial trust-region radius (1 / initial LM damping)",
-                         CLI::PositiveNumber);
+                         cdc::config::cli_range(1e-12, 1e16));
   cdc::base::add_setting(app, "--sparse-backend", o.backend, "sparse Cholesky library",
                          CLI::IsMember({"suitesparse", "eigen", "cxsparse"}));
   app.add_option("--out", o.out_path, "write the optimised graph to this .g2o file");
@@ -63,15 +65,33 @@ void add_options(CLI::App& app, Options& o) {
                "also run the distributed algorithm (robots = top byte of the keys; exchanges separator poses only)"
                " and compare it with the centralized solution");
   cdc::base::add_setting(app, "--over-relaxation", o.over_relaxation,
-                         "distributed: over-relaxation factor gamma (1 = Gauss-Seidel)", CLI::Range(0.1, 1.99));
-  cdc::base::add_setting(app, "--max-rounds", o.max_rounds, "distributed: round limit", CLI::PositiveNumber);
+                         "distributed: over-relaxation factor gamma (1 = Gauss-Seidel)",
+                         cdc::config::cli_range(0.1, 1.99));
+  cdc::base::add_setting(app, "--max-rounds", o.max_rounds, "distributed: round limit", cdc::config::cli_range(1, 1e6));
   app.add_flag("--verbose", o.verbose, "print the solver's full report to stderr");
 }
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-graph::PoseGraph read_graph(const std::string& input) {
-  return std::filesystem::is_directory(input) ? graph::read_g2o_folder(input) : graph::read_g2o(input);
+graph::PoseGraph read_graph(const std::string& input, graph::G2oReadReport* report = nullptr) {
+  graph::G2oReadOptions options;
+  options.report = report;
+  return std::filesystem::is_directory(input) ? graph::read_g2o_folder(input, options)
+                                              : graph::read_g2o(input, options);
+}
+
+// Says what the read found about vertices that are not plainly declared once.
+void note_vertices(const std::string& input, const graph::G2oReadReport& r) {
+  if (r.implicit_vertices > 0) {
+    std::fprintf(stderr, "cdc-pgo: %s declares no VERTEX lines: all %zu poses are initialised from the edges\n",
+                 input.c_str(), r.implicit_vertices);
+  }
+  if (r.conflicting_vertices > 0) {
+    std::fprintf(stderr,
+                 "cdc-pgo: %s: %zu vertices are declared by several files with different poses; the first "
+                 "file's are used\n",
+                 input.c_str(), r.conflicting_vertices);
+  }
 }
 
 bool has_missing_vertices(const graph::PoseGraph& g) {
@@ -185,12 +205,14 @@ struct Summary {
   double init_s = 0, total_s = 0;
   double full = 0, sesync = 0;  // the centralized solution's costs
   nlohmann::json distributed;   // empty without --distributed
+  graph::G2oReadReport read;    // what the read found about the vertices
 };
 
 void print_json(const Options& o, const graph::PoseGraph& g, const Summary& s) {
   nlohmann::json j{{"file", o.input},
                    {"poses", g.poses.size()},
                    {"factors", g.factors.size()},
+                   {"implicit_vertices", s.read.implicit_vertices},
                    {"init", o.init},
                    {"objective", o.sesync_weights ? "sesync" : "full_information"},
                    {"iterations", s.solve.iterations},
@@ -234,12 +256,15 @@ void print_text(const Options& o, const graph::PoseGraph& g, const Summary& s) {
 // Reads, initialises and solves the graph (and the distributed algorithm when asked), writes --out
 // and prints the figures.
 void run(const Options& o) {
-  graph::PoseGraph g = read_graph(o.input);
+  graph::G2oReadReport read;
+  graph::PoseGraph g = read_graph(o.input, &read);
+  note_vertices(o.input, read);
   if (o.share_loops) {
     graph::share_loop_information(g);
   }
   graph::level_loop_information(g, o.tilt_scale);
   Summary s;
+  s.read = read;
   const auto t0 = Clock::now();
   initialise(g, o);
   s.init_s = seconds_since(t0);
@@ -247,6 +272,9 @@ void run(const Options& o) {
   s.solve = graph::solve(g, opts);
   if (o.verbose) {
     print_report(s.solve);
+  }
+  if (s.solve.failed) {
+    throw std::runtime_error(o.input + ": the solver failed (" + s.solve.message + "); nothing written");
   }
   s.total_s = seconds_since(t0);
   s.full = graph::full_information_cost(g);

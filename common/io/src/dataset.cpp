@@ -98,6 +98,10 @@ std::vector<DatasetImu> read_dataset_imu(const fs::path& p) {
     if (std::sscanf(line.c_str(), "%lf,%lf,%lf,%lf,%lf,%lf,%lf", &t, a, a + 1, a + 2, g, g + 1, g + 2) != 7) {
       throw FormatError(p.string() + ":" + std::to_string(n) + ": expected t,ax,ay,az,gx,gy,gz");
     }
+    const double values[7] = {t, a[0], a[1], a[2], g[0], g[1], g[2]};
+    if (!std::all_of(std::begin(values), std::end(values), [](double v) { return std::isfinite(v); })) {
+      throw FormatError(p.string() + ":" + std::to_string(n) + ": a value is not a finite number");
+    }
     out.push_back({static_cast<int64_t>(std::llround(t * 1e9)), Eigen::Vector3d(a[0], a[1], a[2]),
                    Eigen::Vector3d(g[0], g[1], g[2])});
     if (out.size() > 1 && out.back().stamp_ns <= out[out.size() - 2].stamp_ns) {
@@ -126,6 +130,11 @@ Eigen::Isometry3d read_dataset_calib(const fs::path& p) {
       throw FormatError(p.string() + ":" + std::to_string(n) +
                         ": T_lidar_imu needs position: [x, y, z] and orientation: [x, y, z, w]");
     }
+    if (!std::all_of(t, t + 3, [](double v) { return std::isfinite(v); }) ||
+        !std::all_of(q, q + 4, [](double v) { return std::isfinite(v); })) {
+      throw FormatError(p.string() + ":" + std::to_string(n) +
+                        ": T_lidar_imu holds a value that is not a finite number");
+    }
     const Eigen::Quaterniond quat(q[3], q[0], q[1], q[2]);
     if (std::abs(quat.norm() - 1.0) > 1e-3)
       throw FormatError(p.string() + ":" + std::to_string(n) + ": orientation is not a unit quaternion");
@@ -135,6 +144,25 @@ Eigen::Isometry3d read_dataset_calib(const fs::path& p) {
   }
   throw FormatError(p.string() + ": no T_lidar_imu");
 }
+
+namespace {
+
+// times.txt has one line per sweep: a folder holding more sweeps than lines (or fewer) is refused, so that a
+// reader never plays part of a robot's sweeps without a word.
+void check_sweep_count(const fs::path& robot_dir, size_t times) {
+  size_t sweeps = 0;
+  if (fs::is_directory(robot_dir / "velodyne")) {
+    for (const auto& e : fs::directory_iterator(robot_dir / "velodyne")) {
+      if (e.path().extension() == ".bin") ++sweeps;
+    }
+  }
+  if (sweeps != times) {
+    throw FormatError((robot_dir / "times.txt").string() + ": lists " + std::to_string(times) + " sweeps but " +
+                      (robot_dir / "velodyne").string() + " holds " + std::to_string(sweeps));
+  }
+}
+
+}  // namespace
 
 std::vector<DatasetScan> list_dataset_scans(const std::string& dir, size_t max_scans,
                                             std::map<uint32_t, geometry::Trajectory>* groundtruth) {
@@ -159,6 +187,7 @@ std::vector<DatasetScan> list_dataset_scans(const std::string& dir, size_t max_s
       if (k < gt.size()) s.truth = gt[k].pose;
       scans.push_back(std::move(s));
     }
+    check_sweep_count(rd, times.size());  // after the loop: a sweep it found missing is named there
     if (groundtruth != nullptr) (*groundtruth)[r] = gt;
   }
   std::stable_sort(scans.begin(), scans.end(),

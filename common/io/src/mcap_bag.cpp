@@ -246,7 +246,8 @@ class McapBag final : public BagReader {
 
   std::vector<BagTopic> topics() const override {
     std::vector<BagTopic> out;
-    for (const auto& [id, ch] : channels_) {
+    for (const auto& entry : channels_) {
+      const auto& ch = entry.second;  // a named reference: clang 14 cannot capture a structured binding
       auto it = std::find_if(out.begin(), out.end(), [&](const BagTopic& t) {
         return t.name == ch.topic && t.type == ch.type && t.encoding == ch.encoding;
       });

@@ -293,11 +293,14 @@ struct CalibrationFile {
       if (!fallback) throw FormatError(file + ": " + where + ": missing key '" + key + "'");
       return *fallback;
     }
+    double x = 0;
     try {
-      return v.as<double>();
+      x = v.as<double>();
     } catch (const YAML::Exception&) {
       throw FormatError(file + ": " + where + ": '" + key + "' is not a number");
     }
+    if (!std::isfinite(x)) throw FormatError(file + ": " + where + ": '" + key + "' is not a finite number");
+    return x;
   }
 
   // One entry of `lasers` (all but its laser_id).

@@ -736,6 +736,10 @@ TEST(VelodyneCalibration, BadFilesNameTheFileAndTheEntry) {
   EXPECT_NE(m.find("broken.yaml"), std::string::npos) << m;
   m = message(t.dir() / "absent.yaml");
   EXPECT_NE(m.find("absent.yaml"), std::string::npos) << m;
+  text = calibration_yaml(16);
+  text.replace(text.find("dist_correction: 0.0"), 20, "dist_correction: .nan");
+  m = message(t.file("notfinite.yaml", text));
+  EXPECT_NE(m.find("notfinite.yaml: lasers[0]: 'dist_correction' is not a finite number"), std::string::npos) << m;
 }
 
 // ---------------------------------------------------------------------------------------------

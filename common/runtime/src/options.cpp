@@ -1,5 +1,6 @@
 #include "cdc/runtime/options.hpp"
 
+#include "cdc/config/cli_range.hpp"
 #include "cdc/config/reader.hpp"
 #include "cdc/dds/robot_domains.hpp"
 #include "cdc/dds/shutdown.hpp"
@@ -35,15 +36,16 @@ void ServiceOptions::check_robot(uint32_t robots) const {
 
 void add_shared_options(CLI::App& app, const ServiceSpec& spec, ServiceOptions& o) {
   if ((spec.shared & kRobotOption) != 0u) {
-    app.add_option("--robot", o.robot, "this robot's id")->required()->check(CLI::Range(0, 254));
+    app.add_option("--robot", o.robot, "this robot's id")->required()->check(cdc::config::cli_range(0, 254));
   }
   app.add_option("--config", o.config, "YAML configuration (" + spec.config_help + ")")->check(CLI::ExistingFile);
   app.add_option("--dds-config", o.dds_config, "Cyclone DDS configuration (file://...); default: CYCLONEDDS_URI");
-  app.add_option("--domain", o.domain, "DDS domain id (default: CDC_DDS_DOMAIN or 0)")->check(CLI::Range(0, 232));
+  app.add_option("--domain", o.domain, "DDS domain id (default: CDC_DDS_DOMAIN or 0)")
+      ->check(cdc::config::cli_range(0, 232));
   if ((spec.shared & kLocalDomainOption) != 0u) {
     app.add_option("--local-domain", o.local_domain,
                    "the robot's own DDS domain, for what never crosses the radio; default: none, all on --domain")
-        ->check(CLI::Range(0, 232));
+        ->check(cdc::config::cli_range(0, 232));
     app.add_option("--local-dds-config", o.local_dds_config,
                    "Cyclone DDS configuration of the local domain (default: as --dds-config)");
   }

@@ -1,6 +1,7 @@
 // cdc-launch: starts a whole simulated swarm (the simulator's player, every robot's services, the
 // central node) from a swarm file, emulates the radio on real DDS traffic, shows progress, stops
 // everything cleanly (also on Ctrl-C) and writes the run's results and report.
+#include "cdc/config/cli_range.hpp"
 #include "network.hpp"
 #include "process.hpp"
 #include "rendezvous.hpp"
@@ -768,14 +769,17 @@ int main(int argc, char** argv) {
   app.add_option("--root", o.root, "project root (relative paths of the swarm file)")->capture_default_str();
   app.add_option("--network", o.network, "override the swarm file: auto, netns or loopback")
       ->check(CLI::IsMember({"auto", "netns", "loopback"}));
-  app.add_option("--max-scans", o.max_scans, "override: sweeps per robot (0: all)")->check(CLI::NonNegativeNumber);
+  app.add_option("--max-scans", o.max_scans, "override: sweeps per robot (0: all)")
+      ->check(cdc::config::cli_range(0, 1e6));
   app.add_option("--dataset", o.dataset,
                  "override the swarm file's dataset folder (one made by cdc-import, for example)")
       ->check(CLI::ExistingDirectory);
-  app.add_option("--slam-domain", o.slam_domain, "override the SLAM DDS domain")->check(CLI::Range(0, 232));
-  app.add_option("--sim-domain", o.sim_domain, "override the simulator's DDS domain")->check(CLI::Range(0, 232));
+  app.add_option("--slam-domain", o.slam_domain, "override the SLAM DDS domain")->check(cdc::config::cli_range(0, 232));
+  app.add_option("--sim-domain", o.sim_domain, "override the simulator's DDS domain")
+      ->check(cdc::config::cli_range(0, 232));
   app.add_flag("--no-progress", o.no_progress, "no progress display");
-  app.add_option("--stop-after", o.stop_after_s, "stop as on Ctrl-C once this much sim time has passed (testing)");
+  app.add_option("--stop-after", o.stop_after_s, "stop as on Ctrl-C once this much sim time has passed (testing)")
+      ->check(cdc::config::cli_range(0, 1e6));
   CLI11_PARSE(app, argc, argv);
   return cdc::base::run_tool(
       "cdc-launch",

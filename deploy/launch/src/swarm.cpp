@@ -35,8 +35,7 @@ void read_run(config::Reader& r, SwarmConfig& c) {
   r.get<std::string>("scenario", c.scenario);
   r.get<std::string>("dataset", c.dataset);
   int max_scans = 0;
-  r.get<int>(
-      "max_scans", max_scans, [](const int& v) { return v >= 0; }, ">= 0");
+  r.get_in("max_scans", max_scans, 0, 1'000'000);
   c.max_scans = static_cast<size_t>(max_scans);
   std::string network = to_string(NetworkMode::kAuto);
   r.get<std::string>(
@@ -48,8 +47,7 @@ void read_run(config::Reader& r, SwarmConfig& c) {
 // How it runs: playback, the system variant, the end of the mission.
 void read_behaviour(config::Reader& r, SwarmConfig& c) {
   r.get<bool>("lockstep", c.lockstep);
-  r.get<double>(
-      "rate", c.rate, [](const double& v) { return v > 0; }, "> 0");
+  r.get_in("rate", c.rate, 0.01, 1000.0);
   r.get<bool>("lidar_only", c.lidar_only);
   std::string variant = to_string(Variant::kSwitching);
   r.get<std::string>(
@@ -57,11 +55,9 @@ void read_behaviour(config::Reader& r, SwarmConfig& c) {
       base::names_list(kVariantNames));
   c.variant = base::value_of(kVariantNames, variant).value_or(Variant::kSwitching);
   r.get<bool>("frontend_correction", c.frontend_correction);
-  r.get<double>(
-      "settle_s", c.settle_s, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get_in("settle_s", c.settle_s, 0.0, 3600.0);
   r.get<bool>("map", c.map);
-  r.get<double>(
-      "rendezvous_s", c.rendezvous_s, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get_in("rendezvous_s", c.rendezvous_s, 0.0, 86400.0);
 }
 
 // The emulated radio: the dataset's range periods (or none) and the faults laid over them.

@@ -2,6 +2,7 @@
 // dataset folder (scans with per-point times and rings, IMU, calibration, ground truth) or a KITTI
 // velodyne folder (*.bin, 10 Hz, optional ground-truth poses). Writes the odometry (TUM and KITTI
 // formats) and the keyframes, and reports drift and ATE when there is ground truth.
+#include "cdc/config/cli_range.hpp"
 #include "frontend_config.hpp"
 
 #include "cdc/base/tool.hpp"
@@ -85,7 +86,9 @@ struct Options {
 
 void add_options(CLI::App& app, Options& o) {
   app.add_option("dataset", o.input, "dataset folder")->required()->check(CLI::ExistingDirectory);
-  app.add_option("--robot", o.robot, "robot of a cdc-sim dataset")->capture_default_str();
+  app.add_option("--robot", o.robot, "robot of a cdc-sim dataset")
+      ->capture_default_str()
+      ->check(cdc::config::cli_range(0, 254));
   app.add_flag("--kitti", o.kitti, "DATASET is a KITTI velodyne folder");
   app.add_option("--poses", o.poses, "poses, 3x4 row-major per sweep (for --kitti)")->check(CLI::ExistingFile);
   app.add_option("--poses-frame", o.poses_frame,
@@ -101,7 +104,7 @@ void add_options(CLI::App& app, Options& o) {
       ->check(CLI::ExistingFile);
   app.add_option("--period", o.period_s, "sweep period [s] (for --kitti)")
       ->capture_default_str()
-      ->check(CLI::PositiveNumber);
+      ->check(cdc::config::cli_range(0.001, 10));
   app.add_option("--config", o.config_path,
                  "front-end configuration (services/frontend/config/frontend.yaml; default: its defaults); the flags "
                  "below override it")
@@ -117,7 +120,9 @@ void add_options(CLI::App& app, Options& o) {
   app.add_flag("--no-level", o.no_level,
                "do not level the odometry with the IMU window's gravity "
                "(roll, pitch and height then follow the map's tilt)");
-  app.add_option("--max-scans", o.max_scans, "at most this many scans (0: all)")->capture_default_str();
+  app.add_option("--max-scans", o.max_scans, "at most this many scans (0: all)")
+      ->capture_default_str()
+      ->check(cdc::config::cli_range(0, 1e6));
   app.add_option("--out", o.out_dir, "write odometry.tum, odometry.kitti, keyframes.tum and report.json here");
   app.add_flag("--json", o.json, "print the report as one JSON object");
 }

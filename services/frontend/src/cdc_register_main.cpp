@@ -3,6 +3,7 @@
 // reference transform it prints how far the result is from it.
 #include "cdc/base/cli.hpp"
 #include "cdc/base/tool.hpp"
+#include "cdc/config/cli_range.hpp"
 #include "cdc/geometry/se3.hpp"
 #include "cdc/io/cloud.hpp"
 #include "cdc/io/transform_file.hpp"
@@ -35,17 +36,19 @@ void add_options(CLI::App& app, Options& o) {
   base::add_input(app, "source", o.source, "the sweep to move");
   base::add_input(app, "target", o.target, "the sweep it is registered onto");
   app.add_option("--reference", o.reference, "reference T_target_source (4x4, 16 numbers)")->check(CLI::ExistingFile);
-  base::add_setting(app, "--source-voxel", p.voxel_m, "downsampling of the source [m]", CLI::PositiveNumber);
-  base::add_setting(app, "--target-voxel", p.target_voxel_m, "downsampling of the target [m]", CLI::PositiveNumber);
-  base::add_setting(app, "--map-voxel", p.map_voxel_m, "voxel of the target map [m]", CLI::PositiveNumber);
-  base::add_setting(app, "--normal-neighbours", p.neighbours, "points per source normal", CLI::Range(3, 100));
+  base::add_setting(app, "--source-voxel", p.voxel_m, "downsampling of the source [m]", config::cli_range(0.01, 10));
+  base::add_setting(app, "--target-voxel", p.target_voxel_m, "downsampling of the target [m]",
+                    config::cli_range(0.01, 10));
+  base::add_setting(app, "--map-voxel", p.map_voxel_m, "voxel of the target map [m]", config::cli_range(0.01, 10));
+  base::add_setting(app, "--normal-neighbours", p.neighbours, "points per source normal", config::cli_range(3, 100));
   base::add_setting(app, "--method", o.method,
                     "point-to-plane (the front-end's) or gicp (generalized ICP, plane-to-plane)",
                     CLI::IsMember({"point-to-plane", "gicp"}));
-  base::add_setting(app, "--gicp-voxel", g.voxel_m, "gicp: downsampling of both clouds [m]", CLI::PositiveNumber);
-  base::add_setting(app, "--gicp-neighbours", g.neighbours, "gicp: points per covariance", CLI::Range(5, 100));
+  base::add_setting(app, "--gicp-voxel", g.voxel_m, "gicp: downsampling of both clouds [m]",
+                    config::cli_range(0.01, 10));
+  base::add_setting(app, "--gicp-neighbours", g.neighbours, "gicp: points per covariance", config::cli_range(5, 100));
   base::add_setting(app, "--gicp-max-correspondence", g.max_correspondence_m, "gicp: correspondence distance [m]",
-                    CLI::PositiveNumber);
+                    config::cli_range(0.01, 100));
   app.add_option(
          "--score", o.scores,
          "also score these transforms (4x4 files) and the result: point-to-plane RMS of the matched source points "

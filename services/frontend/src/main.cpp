@@ -1,6 +1,7 @@
 // cdc-frontend: a robot's LiDAR(-inertial) odometry service.
 #include "frontend_node.hpp"
 
+#include "cdc/config/cli_range.hpp"
 #include "cdc/runtime/options.hpp"
 
 #include <CLI/CLI.hpp>
@@ -25,11 +26,11 @@ struct FrontendFlags {
     app.add_option("--imu-wait-ms", imu_wait_ms,
                    "a sweep waits at most this long for the IMU to reach its end (default 100; lock-step playback,\n"
                    "where the IMU always comes, can wait longer so that a busy machine never changes the result)")
-        ->check(CLI::Range(0, 60000));
+        ->check(cdc::config::cli_range(0, 60000));
     app.add_option("--sequence-wait-ms", sequence_wait_ms,
                    "the first sweep waits at most this long for the back-end's keyframe sequence, which a restarted\n"
                    "front-end continues (default 2000; without an answer a new sequence starts)")
-        ->check(CLI::Range(0, 60000));
+        ->check(cdc::config::cli_range(0, 60000));
     app.add_option("--trajectory-out", trajectory_out, "write the published odometry (TUM) here at shutdown");
   }
   void apply(cdc::frontend::FrontendNodeOptions& o, const cdc::runtime::ServiceOptions&) const {

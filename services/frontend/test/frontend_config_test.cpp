@@ -77,5 +77,24 @@ TEST(FrontendConfig, BadValuesAndUnknownKeysAreNamed) {
   std::filesystem::remove(path);
 }
 
+// Values that pass must work: each numeric key has a finite range, a crop must keep something, and the error
+// names the key, the value and the range.
+TEST(FrontendConfig, ValuesThatCannotWorkAreRefusedWithTheirRange) {
+  const std::string path = write_yaml(
+      "crop:\n  min_range_m: 50\n  max_range_m: 40\nregistration:\n  voxel_m: 1e-9\nimage_columns: 1000000000\n"
+      "fusion:\n  pos_max_m: .inf\n");
+  try {
+    load_frontend_options(path);
+    ADD_FAILURE() << "no error";
+  } catch (const config::ConfigError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("registration.voxel_m: 1e-9 is invalid (expected in [0.01, 10])"), std::string::npos) << what;
+    EXPECT_NE(what.find("image_columns: 1000000000 is invalid (expected in [100, 10000])"), std::string::npos) << what;
+    EXPECT_NE(what.find("crop.min_range_m must be below crop.max_range_m"), std::string::npos) << what;
+    EXPECT_NE(what.find("fusion.pos_max_m: .inf is not a finite number"), std::string::npos) << what;
+  }
+  std::filesystem::remove(path);
+}
+
 }  // namespace
 }  // namespace cdc::frontend

@@ -7,19 +7,14 @@ namespace cdc::map {
 MapNodeOptions load_map_options(const std::string& path) {
   MapNodeOptions o;
   config::Reader r(path);
-  auto positive = [](const double& v) { return v > 0; };
   int robots = static_cast<int>(o.robots), central = static_cast<int>(o.central_id);
-  r.get<int>(
-      "robots", robots, [](const int& v) { return v >= 1 && v <= 254; }, "1..254");
-  r.get<int>(
-      "central_id", central, [](const int& v) { return v >= 0 && v <= 254; }, "0..254");
-  r.get<double>("cloud_voxel_m", o.core.voxel_m, positive, "> 0");
-  r.get<double>("octree_resolution_m", o.core.octree_resolution_m, positive, "> 0");
-  r.get<double>("max_range_m", o.core.max_range_m, positive, "> 0");
-  r.get<double>(
-      "ray_spacing_m", o.core.ray_spacing_m, [](const double& v) { return v >= 0; }, ">= 0");
-  r.get<double>(
-      "write_period_s", o.write_period_s, [](const double& v) { return v >= 0; }, ">= 0");
+  r.get_in("robots", robots, 1, 254);
+  r.get_in("central_id", central, 0, 254);
+  r.get_in("cloud_voxel_m", o.core.voxel_m, 0.01, 10.0);
+  r.get_in("octree_resolution_m", o.core.octree_resolution_m, 0.01, 10.0);
+  r.get_in("max_range_m", o.core.max_range_m, 1.0, 1000.0);
+  r.get_in("ray_spacing_m", o.core.ray_spacing_m, 0.0, 1000.0);
+  r.get_in("write_period_s", o.write_period_s, 0.0, 86400.0);
   r.get<std::string>("log_level", o.log_level);
   r.finish();
   o.robots = static_cast<uint32_t>(robots);

@@ -65,5 +65,16 @@ TEST(PeerOptions, BadValuesAndUnknownKeysAreNamed) {
   EXPECT_EQ(error_of("central_id: 250\ntick_ms: 20\n"), "");
 }
 
+// The flap damping keys have finite ranges like every other number in the file.
+TEST(PeerOptions, FlapDampingKeysAreRanged) {
+  EXPECT_NE(error_of("flap_window_ms: -1\n").find("flap_window_ms"), std::string::npos);
+  EXPECT_NE(error_of("flap_window_ms: 3600001\n").find("flap_window_ms"), std::string::npos);
+  EXPECT_NE(error_of("max_dwell_factor: 0\n").find("max_dwell_factor"), std::string::npos);
+  EXPECT_NE(error_of("max_dwell_factor: 65\n").find("max_dwell_factor"), std::string::npos);
+  const PeerNodeOptions o = load_options(write_yaml("flap_window_ms: 0\nmax_dwell_factor: 64\n"));
+  EXPECT_EQ(o.core.rtdos.flap_window, 0ms);
+  EXPECT_EQ(o.core.rtdos.max_dwell_factor, 64u);
+}
+
 }  // namespace
 }  // namespace cdc::peer

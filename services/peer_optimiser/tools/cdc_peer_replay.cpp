@@ -7,6 +7,7 @@
 // the final estimate; and the joint cost of the distributed estimate against the centralized optimum.
 #include "cdc/base/cli.hpp"
 #include "cdc/base/tool.hpp"
+#include "cdc/config/cli_range.hpp"
 #include "cdc/geometry/metrics.hpp"
 #include "cdc/geometry/trajectory.hpp"
 #include "cdc/graph/g2o.hpp"
@@ -122,36 +123,36 @@ void add_run_options(CLI::App& app, ReplayOptions& o) {
   base::add_input(app, "--run", o.run_dir, "the run's folder: robot_N/keyframes.tum gives each keyframe's stamp",
                   CLI::ExistingDirectory);
   base::add_input(app, "--truth", o.truth_dir, "the dataset's folder: robot_N/groundtruth.tum", CLI::ExistingDirectory);
-  base::add_setting(app, "--robots", o.robots, "robots in the graph", CLI::Range(1, 64));
+  base::add_setting(app, "--robots", o.robots, "robots in the graph", config::cli_range(1, 64));
 }
 
 // When loops arrive, and how long the replay goes on.
 void add_timing_options(CLI::App& app, ReplayOptions& o) {
   base::add_setting(app, "--loop-latency", o.latency_s, "seconds from a loop's later keyframe to its arrival",
-                    CLI::NonNegativeNumber);
+                    config::cli_range(0, 3600));
   base::add_setting(app, "--jitter", o.jitter_s, "a uniform extra loop latency up to this many seconds (seeded)",
-                    CLI::NonNegativeNumber);
-  app.add_option("--seed", o.seed, "seed of the jitter")->capture_default_str();
-  base::add_setting(app, "--tail", o.tail_s, "seconds of rounds after the last keyframe", CLI::NonNegativeNumber);
+                    config::cli_range(0, 3600));
+  base::add_setting(app, "--seed", o.seed, "seed of the jitter", config::cli_range(0, 4294967295));
+  base::add_setting(app, "--tail", o.tail_s, "seconds of rounds after the last keyframe", config::cli_range(0, 1e5));
 }
 
 // The keys of peer_optimiser.yaml the replay takes.
 void add_peer_options(CLI::App& app, ReplayOptions& o) {
   base::add_setting(app, "--round-ms", o.round_ms, "distributed round period (peer_optimiser.yaml's round_period_ms)",
-                    CLI::Range(1, 100000));
+                    config::cli_range(1, 100000));
   base::add_setting(app, "--iterations", o.base.distributed_iterations,
-                    "solver iterations per round (distributed_iterations)", CLI::Range(1, 1000));
+                    "solver iterations per round (distributed_iterations)", config::cli_range(1, 1000));
   base::add_setting(app, "--relaxation", o.base.relaxation,
-                    "fraction of each round's step taken (distributed_relaxation)", CLI::Range(1e-3, 1.0));
+                    "fraction of each round's step taken (distributed_relaxation)", config::cli_range(1e-3, 1));
   base::add_setting(
       app, "--separator-min-change", o.base.separator_min_change_m,
       "a separator pose is sent again once it moved this far [m] (separator_min_change_m; the angle scales with it)",
-      CLI::NonNegativeNumber);
+      config::cli_range(0, 100));
   base::add_setting(
       app, "--separator-refresh", o.refresh_s,
       "every this many seconds a peer gets all its separator poses (separator_refresh_ms / 1000); it gets "
       "them too whenever its link comes back up, as a peer's reader matched anew does",
-      CLI::PositiveNumber);
+      config::cli_range(0.01, 3600));
 }
 
 // The parsed periods into the peers' configuration.

@@ -51,10 +51,8 @@ VelodyneDriverConfig load_driver_config(const std::string& path) {
   r.get<double>(
       "sweep.max_gap_ms", max_gap_ms, [](const double& v) { return v > 0 && v <= 10000; }, "(0, 10000]");
   c.max_gap = std::chrono::nanoseconds(static_cast<int64_t>(max_gap_ms * 1e6));
-  r.get<double>(
-      "filter.min_range_m", c.min_range_m, [](const double& v) { return v >= 0; }, ">= 0");
-  r.get<double>(
-      "filter.max_range_m", c.max_range_m, [](const double& v) { return v > 0; }, "> 0");
+  r.get_in("filter.min_range_m", c.min_range_m, 0.0, 1000.0);
+  r.get_in("filter.max_range_m", c.max_range_m, 0.1, 1000.0);
   r.get<double>(
       "filter.sector_min_deg", c.sector_min_deg, [](const double& v) { return v >= 0 && v <= 360; }, "0..360");
   r.get<double>(
@@ -63,8 +61,7 @@ VelodyneDriverConfig load_driver_config(const std::string& path) {
   r.get<int>(
       "udp.port", port, [](const int& v) { return v >= 1 && v <= 65535; }, "1..65535");
   c.port = static_cast<uint16_t>(port);
-  r.get<int>(
-      "udp.receive_buffer_bytes", c.receive_buffer_bytes, [](const int& v) { return v >= 65536; }, ">= 65536");
+  r.get_in("udp.receive_buffer_bytes", c.receive_buffer_bytes, 65536, 1 << 30);
   r.get<std::string>("log_level", c.log_level);
   if (c.min_range_m >= c.max_range_m) r.error("filter.min_range_m must be below filter.max_range_m");
   r.finish();

@@ -2,6 +2,7 @@
 // published on cdc/sensor/lidar, so that a robot needs no ROS driver.
 #include "velodyne_driver_node.hpp"
 
+#include "cdc/config/cli_range.hpp"
 #include "cdc/runtime/options.hpp"
 
 #include <spdlog/spdlog.h>
@@ -27,14 +28,15 @@ void add_options(CLI::App& app, CommandLine& c) {
   app.add_option("--model", c.model,
                  "VLP16, VLP32C, HDL32E, HDL64E (S2), HDL64E_S3, VLS128 or auto; overrides sensor.model");
   app.add_option("--bind", c.node.bind_address, "IPv4 address to listen on")->capture_default_str();
-  app.add_option("--port", c.port, "UDP data port (default: udp.port, 2368)")->check(CLI::Range(1, 65535));
+  app.add_option("--port", c.port, "UDP data port (default: udp.port, 2368)")->check(cdc::config::cli_range(1, 65535));
   app.add_option("--pcap", c.node.pcap, "replay this capture's datagrams to the data port instead of listening")
       ->check(CLI::ExistingFile);
   app.add_option("--rate", c.node.rate, "replay speed: 1 the capture's own, 2 twice as fast, 0 as fast as possible")
       ->capture_default_str()
-      ->check(CLI::Range(0.0, 1000.0));
+      ->check(cdc::config::cli_range(0, 1000));
   app.add_option("--wait-readers", c.node.wait_readers, "wait up to 30 s for this many LiDAR readers before starting")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(cdc::config::cli_range(0, 1000));
 }
 
 int run(const cdc::runtime::ServiceSpec& spec, const cdc::runtime::ServiceOptions& common, CommandLine& c) {

@@ -12,6 +12,7 @@ std::vector<LinkSample> radio_timeline(const std::vector<RadioNode>& nodes, doub
   std::vector<LinkSample> out;
   const auto steps = static_cast<int64_t>(std::floor((t1 - t0) / o.period_s + 1e-9));
   for (int64_t k = 0; k <= steps; ++k) {
+    if (o.stop && o.stop()) throw Stopped();
     const double t = t0 + static_cast<double>(k) * o.period_s;
     std::vector<Eigen::Vector3d> p;
     p.reserve(nodes.size());

@@ -173,6 +173,30 @@ TEST_F(ScenarioFiles, BadScenariosNameTheField) {
               ::testing::ThrowsMessage<std::runtime_error>(::testing::HasSubstr("no-data/kitti/poses/05.txt")));
 }
 
+// A number that passes must be one the simulator can work with: every numeric key has a finite range, and the
+// error names the key, the value and the range.
+TEST_F(ScenarioFiles, NumbersOutsideTheirRangeAreRefusedWithTheRange) {
+  const auto error_of = [&](const std::string& text) {
+    try {
+      load_scenario(write("range.yaml", text));
+    } catch (const config::ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_THAT(error_of("duration_s: 1e12\n"),
+              ::testing::HasSubstr("duration_s: 1e12 is invalid (expected in [0, 7200])"));
+  EXPECT_THAT(error_of("trajectories:\n  source: procedural\n  duration_s: 1e12\n"),
+              ::testing::HasSubstr("trajectories.duration_s: 1e12 is invalid (expected in [1, 7200])"));
+  EXPECT_THAT(error_of("radio:\n  robot_range_m: .inf\n"),
+              ::testing::HasSubstr("radio.robot_range_m: .inf is not a finite number"));
+  EXPECT_THAT(error_of("imu_rate_hz: .nan\n"), ::testing::HasSubstr("imu_rate_hz: .nan is not a finite number"));
+  EXPECT_THAT(error_of("radio:\n  central_id: 4000000000\n"),
+              ::testing::HasSubstr("radio.central_id: 4000000000 is invalid (expected in [0, 254])"));
+  EXPECT_THAT(error_of("trajectories:\n  source: procedural\n  robots: 64\n  duration_s: 7200\n"),
+              ::testing::HasSubstr("link samples, more than the 2e+07 allowed"));
+}
+
 TEST_F(ScenarioFiles, EveryShippedScenarioTakesEachRobotOutOfRangeAtLeastTwice) {
   size_t checked = 0;
   for (const auto& e : fs::directory_iterator(scenarios())) {

@@ -4,10 +4,12 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <cmath>
 #include <functional>
 #include <set>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace cdc::config {
@@ -39,6 +41,10 @@ class Reader {
       errors_.push_back(where(key) + ": cannot read '" + YAML::Dump(n) + "' as the expected type");
       return;
     }
+    if (!finite(v)) {
+      errors_.push_back(where(key) + ": " + YAML::Dump(n) + " is not a finite number");
+      return;
+    }
     if (valid && !valid(v)) {
       errors_.push_back(where(key) + ": " + YAML::Dump(n) + " is invalid" +
                         (expectation.empty() ? std::string() : " (expected " + expectation + ")"));
@@ -46,6 +52,17 @@ class Reader {
     }
     out = v;
   }
+
+  // Reads the number `key` into out when present; an error names the key, the value and the range when
+  // the value lies outside [lo, hi]. Every numeric key has such a range: a value that passes must work.
+  template <class T>
+  void get_in(const std::string& key, T& out, T lo, T hi) {
+    get<T>(
+        key, out, [lo, hi](const T& v) { return v >= lo && v <= hi; }, range_text(lo, hi));
+  }
+
+  // "in [lo, hi]" with the shortest exact spelling of both ends.
+  static std::string range_text(double lo, double hi);
 
   // Adds an error found by cross-field checks.
   void error(const std::string& message) { errors_.push_back(path_ + ": " + message); }
@@ -55,6 +72,20 @@ class Reader {
 
  private:
   YAML::Node find(const std::string& key) const;
+  // Floating-point values (alone or in a list) must be finite: YAML spells infinity and NaN as .inf and .nan.
+  template <class T>
+  static bool finite(const T& v) {
+    if constexpr (std::is_floating_point_v<T>) {
+      return std::isfinite(v);
+    } else if constexpr (std::is_same_v<T, std::vector<double>>) {
+      for (const double x : v) {
+        if (!std::isfinite(x)) return false;
+      }
+      return true;
+    } else {
+      return true;
+    }
+  }
   std::string where(const std::string& key) const { return path_ + ": " + key; }
   void collect_keys(const YAML::Node& node, const std::string& prefix, std::vector<std::string>& out) const;
 

@@ -27,7 +27,7 @@ size_t packed_bound(size_t raw);
 // axis, so coordinates must lie within +-32767 steps), interleaved into 48-bit Morton codes, sorted,
 // stored as deltas between consecutive codes in byte planes and deflated. The point order is not
 // kept (points come back in Morton order). Rounding moves a point by at most half a
-// step per axis.
+// step per axis. A cloud with no points (or none in range) packs to no bytes.
 struct PackedCloud {
   float resolution_m = 0.01f;
   uint32_t count = 0;          // points stored

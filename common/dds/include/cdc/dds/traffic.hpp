@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <string_view>
 #include <utility>
 
 namespace cdc::dds {
@@ -32,6 +33,17 @@ struct TopicTotals {
 
 // The process-wide counters of `topic` on `domain` (created on first use; the reference stays valid).
 TopicCounters& topic_counters(uint32_t domain, const std::string& topic);
+
+// A sample Cyclone receives but cannot deserialise (an enum value out of range, a sequence longer than its
+// bound or its data) is dropped before any reader sees it: no take and no status reports it, only a warning in
+// Cyclone's log naming the topic. Installs, once per process, a log sink that counts each such warning as
+// undecodable on its topic and writes every message to stderr as Cyclone's own sink does. Participant's
+// constructor calls it.
+void watch_undecodable_samples();
+
+// One message as Cyclone's log gives it (without its header): counts it when it reports a sample that could
+// not be deserialised, and says whether it did.
+bool count_undecodable_message(uint32_t domain, std::string_view message);
 
 // Every (domain, topic) this process has opened a writer or reader for, with its totals.
 std::map<std::pair<uint32_t, std::string>, TopicTotals> topic_traffic();

@@ -19,11 +19,21 @@ class G2oError : public std::runtime_error {
 // Information given to the out-of-plane directions (z, roll, pitch) of a lifted 2D edge.
 inline constexpr double kPlanarLiftInformation = 1e6;
 
+// What a read found about its vertices. A file may declare no vertex at all (manhattan, CSAIL): every pose
+// is then initialised later and counted as implicit. A file that declares vertices must declare every vertex its
+// edges name, and each id once (again only with the same pose); otherwise the read fails.
+struct G2oReadReport {
+  size_t vertices = 0;              // distinct ids declared by VERTEX lines
+  size_t implicit_vertices = 0;     // ids only edges name (files without VERTEX lines)
+  size_t conflicting_vertices = 0;  // ids several files of a folder declare with different poses: the first kept
+};
+
 struct G2oReadOptions {
   // Skip lines that cannot be parsed instead of failing; each skipped line is reported in warnings
   // ("file:line: reason"). For external data with damaged lines.
   bool skip_malformed = false;
   std::vector<std::string>* warnings = nullptr;
+  G2oReadReport* report = nullptr;  // filled when set
 };
 
 // Reads a file; poses without a VERTEX line are initialised later (see chordal_initialise or

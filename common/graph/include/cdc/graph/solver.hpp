@@ -38,6 +38,7 @@ struct SolverOptions {
 
 struct SolveResult {
   bool converged = false;
+  bool failed = false;  // Ceres gave up (a linear solver failure, a cost that is not finite): no solution
   int iterations = 0;
   double time_s = 0;
   double initial_cost = 0;  // objective before, without the 1/2 factor

@@ -38,9 +38,10 @@ void write_kitti_bin(const std::filesystem::path& path, const std::vector<CloudP
 void read_point_meta(const std::filesystem::path& path, std::vector<CloudPoint>& points);
 void write_point_meta(const std::filesystem::path& path, const std::vector<CloudPoint>& points);
 
-// A sweep from a cloud file by its extension: .bin (KITTI), .pcd or .ply (PCL's readers; the fields
-// x, y, z and, when present, intensity, ring and a per-point time under its common names, as for a
-// ROS PointCloud2). Throws FormatError naming the file.
+// A sweep from a cloud file by its extension: .bin (KITTI), .pcd (ascii, binary or binary_compressed;
+// the io library's own reader) or .ply (PCL's reader); the fields x, y, z and, when present,
+// intensity, ring and a per-point time under their common names, as for a ROS PointCloud2, others
+// skipped. Throws FormatError naming the file and, for a PCD, the line or byte offset.
 Sweep read_cloud_file(const std::filesystem::path& path);
 bool is_cloud_file(const std::filesystem::path& path);  // .bin, .pcd or .ply
 // x, y, z of a cloud file's points (read_cloud_file), for registering saved sweeps.

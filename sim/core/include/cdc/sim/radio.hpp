@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,13 @@ struct RadioOptions {
   double loss_start_fraction = 0.8;  // loss starts at this fraction of the link's range
   double max_loss = 0.3;             // loss probability at the edge of the range
   double period_s = 0.1;             // timeline resolution
+  std::function<bool()> stop;        // asked at every step when set: true abandons the work (throws Stopped)
+};
+
+// Thrown by a long computation whose stop predicate asked it to end (a signal, in the tools).
+class Stopped : public std::runtime_error {
+ public:
+  Stopped() : std::runtime_error("stopped on request") {}
 };
 
 struct LinkSample {
