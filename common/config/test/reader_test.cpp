@@ -18,6 +18,17 @@ std::string write(const std::string& name, const std::string& text) {
   return p.string();
 }
 
+// The message of the ConfigError that finish() throws; a test failure and "" when it throws none.
+std::string finish_error(Reader& r) {
+  try {
+    r.finish();
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "no error";
+  return "";
+}
+
 TEST(ConfigReader, ReadsNestedValuesAndKeepsDefaults) {
   const std::string p = write("ok", "range_m: 150\nfusion:\n  pos_max_m: 0.2\n");
   Reader r(p);
@@ -41,15 +52,10 @@ TEST(ConfigReader, ListsEveryErrorAtOnce) {
   r.get<double>(
       "range_m", range, [](const double& v) { return v > 0; }, "a positive range in metres");
   r.get<int>("dwell_ms", dwell);
-  try {
-    r.finish();
-    FAIL();
-  } catch (const ConfigError& e) {
-    const std::string m = e.what();
-    EXPECT_THAT(m, ::testing::HasSubstr("range_m: -5 is invalid (expected a positive range in metres)"));
-    EXPECT_THAT(m, ::testing::HasSubstr("dwell_ms: cannot read 'soon'"));
-    EXPECT_THAT(m, ::testing::HasSubstr("range_mm: unknown setting"));
-  }
+  const std::string m = finish_error(r);
+  EXPECT_THAT(m, ::testing::HasSubstr("range_m: -5 is invalid (expected a positive range in metres)"));
+  EXPECT_THAT(m, ::testing::HasSubstr("dwell_ms: cannot read 'soon'"));
+  EXPECT_THAT(m, ::testing::HasSubstr("range_mm: unknown setting"));
   EXPECT_DOUBLE_EQ(range, 100);  // invalid values never replace the default
   std::filesystem::remove(p);
 }
@@ -80,19 +86,14 @@ TEST(ConfigReader, NonFiniteNumbersAndValuesOutOfRangeAreRefused) {
   r.get_in("e", e, 0.0, 10.0);
   r.get<std::vector<double>>("f", f);
   r.get_in("g", g, 1, 5);
-  try {
-    r.finish();
-    FAIL();
-  } catch (const ConfigError& err) {
-    const std::string m = err.what();
-    EXPECT_THAT(m, ::testing::HasSubstr("a: .inf is not a finite number"));
-    EXPECT_THAT(m, ::testing::HasSubstr("b: .nan is not a finite number"));
-    EXPECT_THAT(m, ::testing::HasSubstr("c: -.inf is not a finite number"));
-    EXPECT_THAT(m, ::testing::HasSubstr("d: 1e12 is invalid (expected in [0, 1000])"));
-    EXPECT_THAT(m, ::testing::HasSubstr("is not a finite number"));
-    EXPECT_THAT(m, ::testing::HasSubstr("g: 7 is invalid (expected in [1, 5])"));
-    EXPECT_THAT(m, ::testing::Not(::testing::HasSubstr("e:")));
-  }
+  const std::string m = finish_error(r);
+  EXPECT_THAT(m, ::testing::HasSubstr("a: .inf is not a finite number"));
+  EXPECT_THAT(m, ::testing::HasSubstr("b: .nan is not a finite number"));
+  EXPECT_THAT(m, ::testing::HasSubstr("c: -.inf is not a finite number"));
+  EXPECT_THAT(m, ::testing::HasSubstr("d: 1e12 is invalid (expected in [0, 1000])"));
+  EXPECT_THAT(m, ::testing::HasSubstr("is not a finite number"));
+  EXPECT_THAT(m, ::testing::HasSubstr("g: 7 is invalid (expected in [1, 5])"));
+  EXPECT_THAT(m, ::testing::Not(::testing::HasSubstr("e:")));
   EXPECT_EQ(a, 1);
   EXPECT_EQ(d, 4);
   EXPECT_EQ(e, 5);  // in range: read
