@@ -4,8 +4,7 @@
 #include "cdc/velodyne_driver/velodyne_driver_core.hpp"
 
 #include "cdc/config/reader.hpp"
-#include "cdc/io/bag.hpp"
-#include "cdc/io/ros_messages.hpp"
+#include "velodyne_fixture.hpp"
 
 #include <gtest/gtest.h>
 
@@ -24,37 +23,14 @@ using namespace std::chrono_literals;
 
 constexpr uint16_t kPort = 2368;
 
-fs::path data_dir() {
-  const char* env = std::getenv("CDC_DATA_DIR");
-  return env != nullptr ? fs::path(env) : fs::path("../shared/data");
-}
-
-fs::path fixture_dir() { return data_dir() / "real" / "packets" / "velodyne"; }
-
-struct Packet {
-  std::vector<uint8_t> data;
-  int64_t stamp_ns = 0;
-};
-
-// Every packet of the VLP-16 bag, in bag order; empty when the data folder is absent.
-std::vector<Packet> vlp16_packets() {
-  std::vector<Packet> out;
-  const fs::path bag = fixture_dir() / "vlp16" / "1673400471837873222";
-  if (!fs::exists(bag)) return out;
-  auto reader = io::open_bag(bag);
-  io::BagMessage m;
-  while (reader->next(m)) {
-    if (m.type != "velodyne_msgs/msg/VelodyneScan") continue;
-    for (const io::VelodynePacketMsg& p : io::decode_velodyne_scan(m).packets)
-      out.push_back({{p.data.begin(), p.data.end()}, p.stamp_ns});
-  }
-  return out;
-}
+using test::velodyne_fixture_dir;
+using test::vlp16_packets;
+using Packet = test::VelodynePacket;
 
 VelodyneDriverConfig vlp16_config() {
   VelodyneDriverConfig c;
   c.model = io::VelodyneModel::kVLP16;
-  c.calibration = fixture_dir() / "calibration" / "VLP16.yaml";
+  c.calibration = test::vlp16_calibration();
   return c;
 }
 
@@ -65,7 +41,7 @@ std::vector<DriverSweep> drain(VelodyneDriverCore& core) {
 }
 
 #define SKIP_WITHOUT_FIXTURE(packets) \
-  if ((packets).empty()) GTEST_SKIP() << "no Velodyne fixture under " << fixture_dir() << " (set CDC_DATA_DIR)"
+  if ((packets).empty()) GTEST_SKIP() << "no Velodyne fixture under " << velodyne_fixture_dir() << " (set CDC_DATA_DIR)"
 
 TEST(VelodyneDriverCore, SameSweepsAsTheAssemblerWithImportSettings) {
   const std::vector<Packet> packets = vlp16_packets();
