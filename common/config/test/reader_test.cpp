@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <unistd.h>
+#include <array>
 #include <filesystem>
 #include <fstream>
 #include <vector>
@@ -98,6 +99,30 @@ TEST(ConfigReader, NonFiniteNumbersAndValuesOutOfRangeAreRefused) {
   EXPECT_EQ(d, 4);
   EXPECT_EQ(e, 5);  // in range: read
   EXPECT_EQ(g, 1);
+  std::filesystem::remove(p);
+}
+
+// Counts land in unsigned fields through an int, so "-1" is refused rather than wrapped; a position is
+// three numbers, each within 1e7 m of the origin.
+TEST(ConfigReader, CountsAndPositionsAreChecked) {
+  const std::string p = write("count", "a: 5\nb: -1\nc: [1, 2, 3]\nd: [1, 2]\ne: [0, 0, 1e8]\n");
+  Reader r(p);
+  uint32_t a = 1, b = 2;
+  std::array<double, 3> c{0, 0, 0}, d{0, 0, 0}, e{0, 0, 0};
+  r.get_count("a", a, 0, 10);
+  r.get_count("b", b, 0, 10);
+  r.get_position("c", c);
+  r.get_position("d", d);
+  r.get_position("e", e);
+  const std::string m = finish_error(r);
+  EXPECT_THAT(m, ::testing::HasSubstr("b: -1 is invalid (expected in [0, 10])"));
+  EXPECT_THAT(m, ::testing::HasSubstr("d: [1, 2] is invalid (expected [x, y, z], each in [-1e7, 1e7] m)"));
+  EXPECT_THAT(m, ::testing::HasSubstr("e: [0, 0, 1e8] is invalid"));
+  EXPECT_EQ(a, 5u);
+  EXPECT_EQ(b, 2u);
+  EXPECT_EQ(c, (std::array<double, 3>{1, 2, 3}));
+  EXPECT_EQ(d, (std::array<double, 3>{0, 0, 0}));
+  EXPECT_EQ(e, (std::array<double, 3>{0, 0, 0}));
   std::filesystem::remove(p);
 }
 
