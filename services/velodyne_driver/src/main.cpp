@@ -41,7 +41,7 @@ int run(const cdc::runtime::ServiceSpec& spec, const cdc::runtime::ServiceOption
   VelodyneNodeOptions& o = c.node;
   o.driver = load_driver_config(common.config);
   try {
-    if (!c.model.empty()) o.driver.model = parse_model(c.model);
+    if (!c.model.empty()) o.driver.decoder.model = parse_model(c.model);
   } catch (const std::invalid_argument& e) {
     throw cdc::runtime::UsageError(e.what());
   }

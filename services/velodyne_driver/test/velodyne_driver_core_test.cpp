@@ -29,7 +29,7 @@ using Packet = test::VelodynePacket;
 
 VelodyneDriverConfig vlp16_config() {
   VelodyneDriverConfig c;
-  c.model = io::VelodyneModel::kVLP16;
+  c.decoder.model = io::VelodyneModel::kVLP16;
   c.calibration = test::vlp16_calibration();
   return c;
 }
@@ -49,11 +49,11 @@ TEST(VelodyneDriverCore, SameSweepsAsTheAssemblerWithImportSettings) {
   const VelodyneDriverConfig config = vlp16_config();
   VelodyneDriverCore core(config);
   io::VelodyneDecoderOptions d;
-  d.model = config.model;
+  d.model = config.decoder.model;
   io::VelodyneSweepOptions so;
   so.emit_first = false;
   so.emit_incomplete = false;
-  io::VelodyneSweepAssembler assembler(io::read_velodyne_calibration(config.calibration, config.model), d, so);
+  io::VelodyneSweepAssembler assembler(io::read_velodyne_calibration(config.calibration, config.decoder.model), d, so);
   std::vector<DriverSweep> sweeps;
   std::vector<io::VelodyneSweep> reference;
   for (const Packet& p : packets) {
@@ -192,15 +192,15 @@ TEST(VelodyneDriverCore, ASilenceDropsTheSweepItInterrupts) {
 
 TEST(VelodyneDriverCore, NeedsACalibrationOrAModel) {
   VelodyneDriverConfig c;
-  c.model.reset();
+  c.decoder.model.reset();
   EXPECT_THROW(VelodyneDriverCore{c}, std::invalid_argument);
-  c.model = io::VelodyneModel::kVLP32C;
+  c.decoder.model = io::VelodyneModel::kVLP32C;
   VelodyneDriverCore built_in(c);
   EXPECT_EQ(built_in.calibration().lasers.size(), 32u);
   c.calibration = "/nonexistent/VLP32.yaml";
   EXPECT_THROW(VelodyneDriverCore{c}, io::FormatError);
   c.calibration.clear();
-  c.min_range_m = 300;
+  c.decoder.min_range = 300;
   EXPECT_THROW(VelodyneDriverCore{c}, std::invalid_argument);
 }
 
@@ -236,16 +236,16 @@ TEST(ReplayPacer, ScalesCaptureTimeByTheRate) {
 
 TEST(VelodyneDriverConfig, TheShippedFileHoldsTheDefaults) {
   const VelodyneDriverConfig d, f = load_driver_config(CDC_VELODYNE_YAML);
-  EXPECT_EQ(f.model, d.model);
+  EXPECT_EQ(f.decoder.model, d.decoder.model);
   EXPECT_TRUE(f.calibration.empty());
-  EXPECT_EQ(f.return_mode, d.return_mode);
-  EXPECT_EQ(f.rpm, d.rpm);
+  EXPECT_EQ(f.decoder.return_mode, d.decoder.return_mode);
+  EXPECT_EQ(f.decoder.rpm, d.decoder.rpm);
   EXPECT_EQ(f.scan_phase_deg, d.scan_phase_deg);
   EXPECT_EQ(f.max_gap, d.max_gap);
-  EXPECT_EQ(f.min_range_m, d.min_range_m);
-  EXPECT_EQ(f.max_range_m, d.max_range_m);
-  EXPECT_EQ(f.sector_min_deg, d.sector_min_deg);
-  EXPECT_EQ(f.sector_max_deg, d.sector_max_deg);
+  EXPECT_EQ(f.decoder.min_range, d.decoder.min_range);
+  EXPECT_EQ(f.decoder.max_range, d.decoder.max_range);
+  EXPECT_EQ(f.decoder.sector_min_deg, d.decoder.sector_min_deg);
+  EXPECT_EQ(f.decoder.sector_max_deg, d.decoder.sector_max_deg);
   EXPECT_EQ(f.port, d.port);
   EXPECT_EQ(f.receive_buffer_bytes, d.receive_buffer_bytes);
   EXPECT_EQ(f.log_level, d.log_level);
@@ -257,14 +257,14 @@ TEST(VelodyneDriverConfig, ReadsKeysAndListsEveryError) {
   std::ofstream(dir / "good.yaml") << "sensor:\n  model: vlp-32c\n  calibration: cal/VLP32.yaml\n  return_mode: dual\n"
                                       "sweep:\n  scan_phase_deg: 180\n  max_gap_ms: 20\nudp:\n  port: 2370\n";
   const VelodyneDriverConfig g = load_driver_config((dir / "good.yaml").string());
-  EXPECT_EQ(g.model, io::VelodyneModel::kVLP32C);
+  EXPECT_EQ(g.decoder.model, io::VelodyneModel::kVLP32C);
   EXPECT_EQ(g.calibration, dir / "cal" / "VLP32.yaml");
-  EXPECT_EQ(g.return_mode, io::VelodyneReturnMode::kDual);
+  EXPECT_EQ(g.decoder.return_mode, io::VelodyneReturnMode::kDual);
   EXPECT_EQ(g.scan_phase_deg, 180.0);
   EXPECT_EQ(g.max_gap, std::chrono::nanoseconds(20ms));
   EXPECT_EQ(g.port, 2370);
   std::ofstream(dir / "auto.yaml") << "sensor:\n  model: auto\n";
-  EXPECT_FALSE(load_driver_config((dir / "auto.yaml").string()).model.has_value());
+  EXPECT_FALSE(load_driver_config((dir / "auto.yaml").string()).decoder.model.has_value());
   std::ofstream(dir / "bad.yaml") << "sensor:\n  model: HDL-99\n  return_mode: both\nudp:\n  port: 70000\n"
                                      "filter:\n  min_range_m: 5\n  max_range_m: 2\nspeed: 3\n";
   try {
