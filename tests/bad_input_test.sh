@@ -12,39 +12,34 @@ fail() {
   failures=$((failures + 1))
 }
 
-# expect_error WHAT SUBSTRING COMMAND...: the command exits non-zero and its output holds SUBSTRING.
-expect_error() {
-  local what=$1 text=$2
-  shift 2
+# expect EXIT WHAT SUBSTRING COMMAND...: the command ends within 60 s, with status 0 when EXIT is "ok" and
+# non-zero when it is "error", and its output holds SUBSTRING.
+expect() {
+  local want=$1 what=$2 text=$3
+  shift 3
   local out rc
   out=$(timeout 60 "$@" 2>&1)
   rc=$?
-  if [[ $rc -eq 0 ]]; then
-    fail "$what: exit 0"
-  elif [[ $rc -eq 124 ]]; then
+  if [[ $rc -eq 124 ]]; then
     fail "$what: still running after 60 s"
-  elif [[ $out != *"$text"* ]]; then
-    fail "$what: exit $rc without '$text' in: $out"
-  else
-    echo "ok: $what (exit $rc)"
-  fi
-}
-
-# expect_ok WHAT SUBSTRING COMMAND...: the command exits 0 and its output holds SUBSTRING.
-expect_ok() {
-  local what=$1 text=$2
-  shift 2
-  local out rc
-  out=$(timeout 60 "$@" 2>&1)
-  rc=$?
-  if [[ $rc -ne 0 ]]; then
+  elif [[ $want == error && $rc -eq 0 ]]; then
+    fail "$what: exit 0"
+  elif [[ $want == ok && $rc -ne 0 ]]; then
     fail "$what: exit $rc: $out"
   elif [[ $out != *"$text"* ]]; then
-    fail "$what: no '$text' in: $out"
+    fail "$what: exit $rc without '$text' in: $out"
+  elif [[ $want == error ]]; then
+    echo "ok: $what (exit $rc)"
   else
     echo "ok: $what"
   fi
 }
+
+# expect_error WHAT SUBSTRING COMMAND...: the command exits non-zero and its output holds SUBSTRING.
+expect_error() { expect error "$@"; }
+
+# expect_ok WHAT SUBSTRING COMMAND...: the command exits 0 and its output holds SUBSTRING.
+expect_ok() { expect ok "$@"; }
 
 small_scenario() {
   printf 'name: tiny\nseed: 2\ntrajectories:\n  source: procedural\n  pattern: crossing\n  robots: %s\n' "$1"

@@ -25,28 +25,21 @@ void add_common(CLI::App* c, sim::ImportOptions& o, std::vector<double>& central
   c->add_option("--overlap", o.overlap, "fraction of each robot's piece shared with the next")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 0.9));
-  c->add_option("--time-shift", o.time_shift_s, "robot k starts k x this many seconds after robot 0")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 3600));
-  c->add_option("--max-scans", o.max_scans, "at most this many sweeps per robot (0: all)")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 1e6));
+  cdc::config::add_number_option(*c, "--time-shift", o.time_shift_s,
+                                 "robot k starts k x this many seconds after robot 0", 0, 3600);
+  cdc::config::add_number_option(*c, "--max-scans", o.max_scans, "at most this many sweeps per robot (0: all)", 0, 1e6);
   c->add_option("--central-range", o.radio.central_range_m,
                 "the central's communication range CR_0 [m]: the radio follows the poses (required with poses and "
                 "several robots)")
       ->check(cdc::config::cli_range(0.1, 1e6));
   c->add_option("--robot-range", o.radio.robot_range_m, "robot-to-robot range [m] (default: the central's)")
       ->check(cdc::config::cli_range(0.1, 1e6));
-  c->add_option("--central-robot", o.radio.central_robot,
-                "the central rides on this robot (-1: fixed, see --central-position)")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(-1, 63));
+  cdc::config::add_number_option(*c, "--central-robot", o.radio.central_robot,
+                                 "the central rides on this robot (-1: fixed, see --central-position)", -1, 63);
   c->add_option("--central-position", central_position, "fixed central position x y z [m] in the poses' world")
       ->expected(3)
       ->check(cdc::config::cli_range(-1e7, 1e7));
-  c->add_option("--central-id", o.radio.central_id, "the central node's id in the radio")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 254));
+  cdc::config::add_number_option(*c, "--central-id", o.radio.central_id, "the central node's id in the radio", 0, 254);
   c->add_option("--radio-timeline", o.radio.timeline,
                 "CSV a,b,start,end [s]: periods when nodes a and b are out of range")
       ->check(CLI::ExistingFile);
@@ -87,9 +80,7 @@ int main(int argc, char** argv) {
                    "sweep times, seconds per line (default SEQ_DIR/times.txt, else frame x period)")
       ->check(CLI::ExistingFile);
   kitti->add_flag("--allow-gaps", ko.allow_gaps, "accept missing frame numbers (else a missing sweep is an error)");
-  kitti->add_option("--period", kitti_period, "sweep period [s]")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0.001, 10));
+  cdc::config::add_number_option(*kitti, "--period", kitti_period, "sweep period [s]", 0.001, 10);
   kitti
       ->add_option("--point-times", point_times,
                    "none: the sweeps are taken as motion-compensated; azimuth: per-point times from the azimuth (a raw "
@@ -111,9 +102,7 @@ int main(int argc, char** argv) {
   sweeps->add_option("--poses-kind", so.poses_kind, "what the poses are: reference or ground_truth")
       ->check(CLI::IsMember({"reference", "ground_truth"}))
       ->capture_default_str();
-  sweeps->add_option("--period", so.period_s, "sweep period [s] without a times file")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0.001, 10));
+  cdc::config::add_number_option(*sweeps, "--period", so.period_s, "sweep period [s] without a times file", 0.001, 10);
   add_common(sweeps, o, central_position);
 
   CLI::App* bag = app.add_subcommand("bag", "a ROS 1 bag or a ROS 2 bag (db3 folder or file, MCAP), read without ROS");
@@ -131,15 +120,11 @@ int main(int argc, char** argv) {
       ->check(CLI::ExistingFile);
   bag->add_option("--model", bo.velodyne_model,
                   "VelodyneScan: VLP16, VLP32C, HDL32E, HDL64E (S2), HDL64E_S3 or VLS128 (default: from the packets)");
-  bag->add_option("--scan-phase", bo.velodyne_scan_phase_deg, "VelodyneScan: azimuth [deg] where sweeps are cut")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 360));
-  bag->add_option("--min-range", bo.min_range_m, "VelodyneScan: nearest return kept [m]")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 1000));
-  bag->add_option("--max-range", bo.max_range_m, "VelodyneScan: farthest return kept [m]")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0.1, 1000));
+  cdc::config::add_number_option(*bag, "--scan-phase", bo.velodyne_scan_phase_deg,
+                                 "VelodyneScan: azimuth [deg] where sweeps are cut", 0, 360);
+  cdc::config::add_number_option(*bag, "--min-range", bo.min_range_m, "VelodyneScan: nearest return kept [m]", 0, 1000);
+  cdc::config::add_number_option(*bag, "--max-range", bo.max_range_m, "VelodyneScan: farthest return kept [m]", 0.1,
+                                 1000);
   bag->add_option("--T-lidar-imu", T_lidar_imu, "the IMU's pose in the LiDAR frame: x y z qx qy qz qw")
       ->expected(7)
       ->check(cdc::config::cli_range(-100, 100));

@@ -102,21 +102,16 @@ int main(int argc, char** argv) {
   CLI::App* gen = app.add_subcommand("generate", "write a dataset from a scenario file");
   gen->add_option("--scenario", scenario_path, "scenario YAML (see sim/scenarios)")->required();
   gen->add_option("--out", out_dir, "output folder")->required();
-  gen->add_option("--max-scans", max_scans, "scans per robot (0: all)")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 1e6));
+  cdc::config::add_number_option(*gen, "--max-scans", max_scans, "scans per robot (0: all)", 0, 1e6);
   gen->add_option("--data", data_dir, "reference data folder (CDC_DATA_DIR)")->capture_default_str();
   cdc::sim::PlayOptions po;
   int domain = -1;
   std::string dataset_dir;
   auto play_options = [&](CLI::App* c) {
-    c->add_option("--rate", po.rate, "1: real time, 2: twice as fast, 0: as fast as possible")
-        ->capture_default_str()
-        ->check(cdc::config::cli_range(0, 1000));
+    cdc::config::add_number_option(*c, "--rate", po.rate, "1: real time, 2: twice as fast, 0: as fast as possible", 0,
+                                   1000);
     c->add_flag("--lockstep", po.lockstep, "wait for each robot's consumer (cdc/sim/progress) before its next scan");
-    c->add_option("--lockstep-timeout", po.lockstep_timeout_s, "[s]")
-        ->capture_default_str()
-        ->check(cdc::config::cli_range(0.01, 3600));
+    cdc::config::add_number_option(*c, "--lockstep-timeout", po.lockstep_timeout_s, "[s]", 0.01, 3600);
     c->add_option("--wait-readers", po.wait_readers, "LiDAR readers to wait for before starting")
         ->check(cdc::config::cli_range(0, 1000));
     c->add_option("--max-scans", po.max_scans, "scans per robot (0: all)")->check(cdc::config::cli_range(0, 1e6));
@@ -135,7 +130,7 @@ int main(int argc, char** argv) {
   radio->add_option("--data", data_dir, "reference data folder (CDC_DATA_DIR)")->capture_default_str();
   int sweeps = 100;
   CLI::App* b = app.add_subcommand("bench", "sweeps per second for the VLP-16 and HDL-64E presets on one core");
-  b->add_option("--sweeps", sweeps, "sweeps per preset")->check(cdc::config::cli_range(1, 1e6))->capture_default_str();
+  cdc::config::add_number_option(*b, "--sweeps", sweeps, "sweeps per preset", 1, 1e6);
   CLI11_PARSE(app, argc, argv);
   return cdc::base::run_tool(
       "cdc-sim",

@@ -7,6 +7,7 @@
 #include "cdc/sim/trajectory.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -111,13 +112,8 @@ Scenario load_scenario(const std::string& path) {
   r.get_in("duration_s", s.duration_s, 0.0, kMaxDurationS);
   r.get<int>(
       "radio.central_robot", s.central_robot, [](const int& v) { return v >= -1 && v <= 63; }, "-1 or a robot id");
-  std::vector<double> cp{0, 0, 0};
-  r.get<std::vector<double>>(
-      "radio.central_position", cp,
-      [](const std::vector<double>& v) {
-        return v.size() == 3 && std::all_of(v.begin(), v.end(), [](double x) { return std::abs(x) <= 1e7; });
-      },
-      "[x, y, z], each in [-1e7, 1e7]");
+  std::array<double, 3> cp{0, 0, 0};
+  r.get_position("radio.central_position", cp);
   s.central_position = Eigen::Vector3d(cp[0], cp[1], cp[2]);
   r.get_in("radio.central_id", s.central_id, 0u, 254u);
   r.get_in("radio.central_range_m", s.central_range_m, 1.0, 1e6);

@@ -11,6 +11,8 @@
 #include "peer_options.hpp"
 #include "swarm.hpp"
 
+#include <array>
+
 namespace {
 
 // Keys of every type the loaders read, nested and not, then the unknown-key check.
@@ -31,41 +33,25 @@ void generic(const std::string& path) {
   r.finish();
 }
 
+// The loaders, in selector order.
+using Loader = void (*)(const std::string& path);
+const std::array<Loader, 9> kLoaders{
+    generic,
+    [](const std::string& p) { (void)cdc::central::load_options(p); },
+    [](const std::string& p) { (void)cdc::descriptor::load_descriptor_options(p); },
+    [](const std::string& p) { (void)cdc::frontend::load_frontend_options(p); },
+    [](const std::string& p) { (void)cdc::loops::load_loop_options(p); },
+    [](const std::string& p) { (void)cdc::map::load_map_options(p); },
+    [](const std::string& p) { (void)cdc::velodyne_driver::load_driver_config(p); },
+    [](const std::string& p) { (void)cdc::peer::load_options(p); },
+    [](const std::string& p) { (void)cdc::launch::load_swarm(p, cdc::fuzz::scratch_dir().string()); },
+};
+
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const cdc::fuzz::Input in(data, size);
   const std::string path = cdc::fuzz::write_file("config.yaml", in.rest).string();
-  cdc::fuzz::refusals_pass([&] {
-    switch (in.selector % 9) {
-      case 0:
-        generic(path);
-        break;
-      case 1:
-        (void)cdc::central::load_options(path);
-        break;
-      case 2:
-        (void)cdc::descriptor::load_descriptor_options(path);
-        break;
-      case 3:
-        (void)cdc::frontend::load_frontend_options(path);
-        break;
-      case 4:
-        (void)cdc::loops::load_loop_options(path);
-        break;
-      case 5:
-        (void)cdc::map::load_map_options(path);
-        break;
-      case 6:
-        (void)cdc::velodyne_driver::load_driver_config(path);
-        break;
-      case 7:
-        (void)cdc::peer::load_options(path);
-        break;
-      default:
-        (void)cdc::launch::load_swarm(path, cdc::fuzz::scratch_dir().string());
-        break;
-    }
-  });
+  cdc::fuzz::refusals_pass([&] { kLoaders[in.selector % kLoaders.size()](path); });
   return 0;
 }

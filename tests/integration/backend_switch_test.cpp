@@ -85,15 +85,7 @@ class BackendSwarm : public ::testing::Test {
     }
   }
 
-  static void stop(test::ChildProcess& p) {
-    if (p.running()) {
-      p.signal(SIGTERM);
-      if (!p.wait(5s)) {
-        p.signal(SIGKILL);
-        p.wait(5s);
-      }
-    }
-  }
+  static void stop(test::ChildProcess& p) { p.stop(5s); }
 
   std::string write(const std::string& name, const std::string& text) {
     const std::string p = (dir_ / name).string();

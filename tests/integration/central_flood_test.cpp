@@ -12,6 +12,7 @@
 #include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/topics.hpp"
 #include "child_process.hpp"
+#include "dds_helpers.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -47,9 +48,7 @@ class CentralUnderAttack : public ::testing::Test {
            ("cdc_central_flood_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
             std::to_string(::getpid()));
     fs::create_directories(dir_);
-    dds::ParticipantOptions po;
-    po.domain_id = dds::domain_from_env(0);
-    participant_ = std::make_unique<dds::Participant>(po);
+    participant_ = std::make_unique<dds::Participant>(test::test_domain());
   }
 
   void TearDown() override {
@@ -64,12 +63,7 @@ class CentralUnderAttack : public ::testing::Test {
   // SIGTERM, then SIGKILL if it does not stop; true when it exited with status 0.
   static bool end(test::ChildProcess& p) {
     if (!p.running()) return true;
-    p.signal(SIGTERM);
-    auto st = p.wait(20s);
-    if (!st) {
-      p.signal(SIGKILL);
-      st = p.wait(5s);
-    }
+    const auto st = p.stop(20s);
     return st && WIFEXITED(*st) && WEXITSTATUS(*st) == 0;
   }
 

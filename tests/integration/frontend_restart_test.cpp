@@ -9,6 +9,7 @@
 #include "cdc/geometry/trajectory.hpp"
 #include "cdc/graph/g2o.hpp"
 #include "child_process.hpp"
+#include "dds_helpers.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -31,14 +32,7 @@ namespace fs = std::filesystem;
 
 constexpr uint32_t kKeyframes = 120;
 
-void stop(test::ChildProcess& p) {
-  if (!p.running()) return;
-  p.signal(SIGTERM);
-  if (!p.wait(10s)) {
-    p.signal(SIGKILL);
-    p.wait(5s);
-  }
-}
+void stop(test::ChildProcess& p) { p.stop(10s); }
 
 std::string text_of(const fs::path& p) {
   std::ifstream in(p);
@@ -58,9 +52,7 @@ class FrontendRestart : public ::testing::Test {
     }
     dir_ = fs::temp_directory_path() / ("cdc_frontend_restart_" + std::to_string(::getpid()));
     fs::create_directories(dir_);
-    dds::ParticipantOptions po;
-    po.domain_id = dds::domain_from_env(0);
-    participant_ = std::make_unique<dds::Participant>(po);
+    participant_ = std::make_unique<dds::Participant>(test::test_domain());
     t_sequence_ = std::make_unique<dds::Topic<cdc_msg_KeyframeSequence>>(*participant_, dds::topics::kKeyframeSequence);
     r_sequence_ = std::make_unique<dds::Reader<cdc_msg_KeyframeSequence>>(
         *participant_, *t_sequence_, dds::qos::keyed_state().partitions(dds::partitions::all_robots_reader()));

@@ -9,6 +9,7 @@
 #include "cdc/geometry/metrics.hpp"
 #include "cdc/geometry/trajectory.hpp"
 #include "child_process.hpp"
+#include "dds_helpers.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -41,9 +42,7 @@ TEST(FrontendService, OdometryAndKeyframesFromAPlayedDrive) {
   const auto gs = gen.wait(120s);
   ASSERT_TRUE(gs && WIFEXITED(*gs) && WEXITSTATUS(*gs) == 0) << "see " << dir / "generate.log";
 
-  dds::ParticipantOptions po;
-  po.domain_id = dds::domain_from_env(0);
-  dds::Participant participant(po);
+  dds::Participant participant(test::test_domain());
   dds::Topic<cdc_msg_LidarScan> t_scan(participant, dds::topics::kLidar);
   dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
   dds::Writer<cdc_msg_LidarScan> w_scan(participant, t_scan, dds::qos::sensor_stream(16, true));

@@ -122,10 +122,7 @@ TEST_F(LivelinessAcrossProcesses, RadioSignalsCutTheSlamDomainAndNotTheLocalOne)
   std::this_thread::sleep_for(100ms);
   EXPECT_EQ(notified.load(), 2);
   EXPECT_EQ(domains.radio_cuts(), 1u);
-  peer.signal(SIGTERM);
-  own.signal(SIGTERM);
-  EXPECT_TRUE(peer.wait(5s));
-  EXPECT_TRUE(own.wait(5s));
+  EXPECT_TRUE(test::terminate_all({&peer, &own}, 5s));
 }
 
 // Why the central writes data on its liveliness topic: after a cut shorter than the participant
@@ -160,10 +157,7 @@ TEST_F(LivelinessAcrossProcesses, AfterAShortCutOnlyAWriterThatWritesIsSeenAlive
       static_cast<long long>(std::chrono::duration_cast<std::chrono::milliseconds>(alive->when - back).count()));
   std::this_thread::sleep_for(3s);
   EXPECT_EQ(asserts.state(), Liveliness::kLost) << "Cyclone now revives a writer on assertions alone";
-  w_data.signal(SIGTERM);
-  w_assert.signal(SIGTERM);
-  EXPECT_TRUE(w_data.wait(5s));
-  EXPECT_TRUE(w_assert.wait(5s));
+  EXPECT_TRUE(test::terminate_all({&w_data, &w_assert}, 5s));
 }
 
 }  // namespace

@@ -19,6 +19,7 @@
 #include "cdc/sim/world.hpp"
 #include "child_process.hpp"
 #include "circle_lap.hpp"
+#include "dds_helpers.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -39,15 +40,7 @@ namespace {
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
 
-void stop(test::ChildProcess& p) {
-  if (p.running()) {
-    p.signal(SIGTERM);
-    if (!p.wait(10s)) {
-      p.signal(SIGKILL);
-      p.wait(5s);
-    }
-  }
-}
+void stop(test::ChildProcess& p) { p.stop(10s); }
 
 // Takes `reader`'s samples every 50 ms, for at most 5 s, until `done()`; each valid one goes to `on_sample`.
 template <typename T, typename OnSample, typename Done>
@@ -143,9 +136,7 @@ TEST(LoopServices, FindVerifyAndPublishInterRobotLoopsOverDds) {
   const geometry::Trajectory& lap = circuit.lap;
   std::mt19937_64 rng(1);
 
-  dds::ParticipantOptions po;
-  po.domain_id = dds::domain_from_env(0);
-  dds::Participant participant(po);
+  dds::Participant participant(test::test_domain());
   dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
   dds::Topic<cdc_msg_Descriptor> t_desc(participant, dds::topics::kDescriptor);
   dds::Topic<cdc_msg_CloudReply> t_rep(participant, dds::topics::kCloudReply);
@@ -338,9 +329,7 @@ TEST(LoopServices, ARestartedServiceNumbersItsLoopsOnUnderTheSameIncarnation) {
   const geometry::Trajectory& laps = circuit.lap;
   std::mt19937_64 rng(2);
 
-  dds::ParticipantOptions po;
-  po.domain_id = dds::domain_from_env(0);
-  dds::Participant participant(po);
+  dds::Participant participant(test::test_domain());
   dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
   dds::Topic<cdc_msg_LoopClosure> t_loop(participant, dds::topics::kLoopClosure);
   dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096));
@@ -432,9 +421,7 @@ TEST(LoopServices, DescriptorGapsAreAskedForAndResentToTheAskerOnly) {
       make_workspace("cdc_descriptor_sync", "robots: 3\ndescriptor_sync:\n  resend_ms: 1000\n", "robots: 3\n");
   const fs::path& dir = ws.dir;
 
-  dds::ParticipantOptions po;
-  po.domain_id = dds::domain_from_env(0);
-  dds::Participant participant(po);
+  dds::Participant participant(test::test_domain());
   dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
   dds::Topic<cdc_msg_Descriptor> t_desc(participant, dds::topics::kDescriptor);
   dds::Topic<cdc_msg_DescriptorSync> t_sync(participant, dds::topics::kDescriptorSync);

@@ -6,6 +6,7 @@
 #include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/topics.hpp"
 #include "child_process.hpp"
+#include "dds_helpers.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -29,9 +30,7 @@ TEST(MapService, BuildsAndWritesTheMapFromKeyframesAndCentralPoses) {
   const fs::path dir = fs::temp_directory_path() / ("cdc_map_service_" + std::to_string(::getpid()));
   fs::create_directories(dir);
   std::ofstream(dir / "map.yaml") << "robots: 2\n";
-  dds::ParticipantOptions po;
-  po.domain_id = dds::domain_from_env(0);
-  dds::Participant participant(po);
+  dds::Participant participant(test::test_domain());
   dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
   dds::Topic<cdc_msg_OptimizedPoses> t_opt(participant, dds::topics::kCentralOptimized);
   dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096));

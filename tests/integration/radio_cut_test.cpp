@@ -118,10 +118,7 @@ TEST_F(RadioCut, ADiscardingWriterSendsNothingItHeldWhenTheLinkReturns) {
   expected.insert(11);
   EXPECT_EQ(ids_read(log_discarding), expected);
 
-  r_kept.signal(SIGTERM);
-  r_discarding.signal(SIGTERM);
-  EXPECT_TRUE(r_kept.wait(5s));
-  EXPECT_TRUE(r_discarding.wait(5s));
+  EXPECT_TRUE(test::terminate_all({&r_kept, &r_discarding}, 5s));
 }
 
 }  // namespace

@@ -7,11 +7,11 @@
 #include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/topics.hpp"
 #include "cdc/dds/validate.hpp"
-#include "cdc/io/bag.hpp"
 #include "cdc/io/pcap.hpp"
-#include "cdc/io/ros_messages.hpp"
 #include "cdc/io/velodyne.hpp"
 #include "child_process.hpp"
+#include "dds_helpers.hpp"
+#include "velodyne_fixture.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -36,29 +36,10 @@ namespace {
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
 
-struct Packet {
-  std::vector<uint8_t> data;
-  int64_t stamp_ns = 0;
-};
-
-fs::path fixture_dir() {
-  const char* env = std::getenv("CDC_DATA_DIR");
-  return (env != nullptr ? fs::path(env) : fs::path("../shared/data")) / "real" / "packets" / "velodyne";
-}
-fs::path vlp16_bag() { return fixture_dir() / "vlp16" / "1673400471837873222"; }
-fs::path vlp16_calibration() { return fixture_dir() / "calibration" / "VLP16.yaml"; }
-
-std::vector<Packet> vlp16_packets() {
-  std::vector<Packet> out;
-  auto bag = io::open_bag(vlp16_bag());
-  io::BagMessage m;
-  while (bag->next(m)) {
-    if (m.type != "velodyne_msgs/msg/VelodyneScan") continue;
-    for (const io::VelodynePacketMsg& p : io::decode_velodyne_scan(m).packets)
-      out.push_back({{p.data.begin(), p.data.end()}, p.stamp_ns});
-  }
-  return out;
-}
+using Packet = test::VelodynePacket;
+using test::vlp16_bag;
+using test::vlp16_calibration;
+using test::vlp16_packets;
 
 // Sweeps a VelodyneSweepAssembler makes of the packets with cdc-import's settings.
 size_t reference_sweeps(const std::vector<Packet>& packets) {
@@ -159,9 +140,7 @@ TEST_F(VelodyneDriver, PcapReplayReachesTheFrontEndWithTheSweepsCdcImportMakes) 
   }
 
   // (b) The front-end of robot 0, LiDAR only; the test watches its odometry to know when it is done.
-  dds::ParticipantOptions po;
-  po.domain_id = dds::domain_from_env(0);
-  dds::Participant participant(po);
+  dds::Participant participant(test::test_domain());
   dds::Topic<cdc_msg_Odometry> t_odom(participant, dds::topics::kOdometry);
   dds::Reader<cdc_msg_Odometry> r_odom(
       participant, t_odom, dds::qos::sensor_stream(64, true).partitions(dds::partitions::all_robots_reader()));
@@ -236,9 +215,7 @@ uint16_t free_udp_port() {
 TEST_F(VelodyneDriver, UdpDatagramsOnLoopbackWithMalformedOnesCounted) {
   const uint16_t port = free_udp_port();
   ASSERT_NE(port, 0);
-  dds::ParticipantOptions po;
-  po.domain_id = dds::domain_from_env(0);
-  dds::Participant participant(po);
+  dds::Participant participant(test::test_domain());
   dds::Topic<cdc_msg_LidarScan> t_scan(participant, dds::topics::kLidar);
   dds::Reader<cdc_msg_LidarScan> r_scan(participant, t_scan, dds::qos::sensor_stream(16, true));
   std::vector<std::string> args = driver_args("driver.json");

@@ -86,4 +86,19 @@ std::optional<int> ChildProcess::wait(std::chrono::milliseconds timeout) {
   return std::nullopt;
 }
 
+std::optional<int> ChildProcess::stop(std::chrono::milliseconds grace) {
+  if (pid_ <= 0) return std::nullopt;
+  signal(SIGTERM);
+  if (const auto status = wait(grace)) return status;
+  signal(SIGKILL);
+  return wait(std::chrono::seconds(5));
+}
+
+bool terminate_all(std::initializer_list<ChildProcess*> processes, std::chrono::milliseconds timeout) {
+  for (ChildProcess* p : processes) p->signal(SIGTERM);
+  bool all = true;
+  for (ChildProcess* p : processes) all = p->wait(timeout).has_value() && all;
+  return all;
+}
+
 }  // namespace cdc::test

@@ -4,6 +4,7 @@
 
 #include <sys/types.h>
 #include <chrono>
+#include <initializer_list>
 #include <optional>
 #include <string>
 #include <vector>
@@ -28,9 +29,15 @@ class ChildProcess {
   void signal(int sig) const;
   // Waits for exit; returns the raw wait status, or nullopt on timeout.
   std::optional<int> wait(std::chrono::milliseconds timeout);
+  // Ends a child still running: SIGTERM, then SIGKILL when it has not exited within grace. Returns the
+  // wait status; nullopt when no child was running, or it outlived the SIGKILL by 5 s.
+  std::optional<int> stop(std::chrono::milliseconds grace);
 
  private:
   pid_t pid_ = -1;
 };
+
+// Asks each process to end (SIGTERM), then waits up to timeout for each in turn; true when all ended.
+bool terminate_all(std::initializer_list<ChildProcess*> processes, std::chrono::milliseconds timeout);
 
 }  // namespace cdc::test

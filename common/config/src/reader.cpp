@@ -1,5 +1,6 @@
 #include "cdc/config/reader.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
@@ -50,6 +51,17 @@ void Reader::collect_keys(const YAML::Node& node, const std::string& prefix, std
       out.push_back(k);
     }
   }
+}
+
+void Reader::get_position(const std::string& key, std::array<double, 3>& out) {
+  std::vector<double> v(out.begin(), out.end());
+  get<std::vector<double>>(
+      key, v,
+      [](const std::vector<double>& xyz) {
+        return xyz.size() == 3 && std::all_of(xyz.begin(), xyz.end(), [](double x) { return std::abs(x) <= 1e7; });
+      },
+      "[x, y, z], each in [-1e7, 1e7] m");
+  std::copy(v.begin(), v.end(), out.begin());
 }
 
 std::string Reader::range_text(double lo, double hi) {

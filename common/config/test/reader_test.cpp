@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <unistd.h>
+#include <array>
 #include <filesystem>
 #include <fstream>
 #include <vector>
@@ -16,6 +17,17 @@ std::string write(const std::string& name, const std::string& text) {
   const auto p = std::filesystem::temp_directory_path() / (name + std::to_string(::getpid()) + ".yaml");
   std::ofstream(p) << text;
   return p.string();
+}
+
+// The message of the ConfigError that finish() throws; a test failure and "" when it throws none.
+std::string finish_error(Reader& r) {
+  try {
+    r.finish();
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "no error";
+  return "";
 }
 
 TEST(ConfigReader, ReadsNestedValuesAndKeepsDefaults) {
@@ -41,15 +53,10 @@ TEST(ConfigReader, ListsEveryErrorAtOnce) {
   r.get<double>(
       "range_m", range, [](const double& v) { return v > 0; }, "a positive range in metres");
   r.get<int>("dwell_ms", dwell);
-  try {
-    r.finish();
-    FAIL();
-  } catch (const ConfigError& e) {
-    const std::string m = e.what();
-    EXPECT_THAT(m, ::testing::HasSubstr("range_m: -5 is invalid (expected a positive range in metres)"));
-    EXPECT_THAT(m, ::testing::HasSubstr("dwell_ms: cannot read 'soon'"));
-    EXPECT_THAT(m, ::testing::HasSubstr("range_mm: unknown setting"));
-  }
+  const std::string m = finish_error(r);
+  EXPECT_THAT(m, ::testing::HasSubstr("range_m: -5 is invalid (expected a positive range in metres)"));
+  EXPECT_THAT(m, ::testing::HasSubstr("dwell_ms: cannot read 'soon'"));
+  EXPECT_THAT(m, ::testing::HasSubstr("range_mm: unknown setting"));
   EXPECT_DOUBLE_EQ(range, 100);  // invalid values never replace the default
   std::filesystem::remove(p);
 }
@@ -80,23 +87,42 @@ TEST(ConfigReader, NonFiniteNumbersAndValuesOutOfRangeAreRefused) {
   r.get_in("e", e, 0.0, 10.0);
   r.get<std::vector<double>>("f", f);
   r.get_in("g", g, 1, 5);
-  try {
-    r.finish();
-    FAIL();
-  } catch (const ConfigError& err) {
-    const std::string m = err.what();
-    EXPECT_THAT(m, ::testing::HasSubstr("a: .inf is not a finite number"));
-    EXPECT_THAT(m, ::testing::HasSubstr("b: .nan is not a finite number"));
-    EXPECT_THAT(m, ::testing::HasSubstr("c: -.inf is not a finite number"));
-    EXPECT_THAT(m, ::testing::HasSubstr("d: 1e12 is invalid (expected in [0, 1000])"));
-    EXPECT_THAT(m, ::testing::HasSubstr("is not a finite number"));
-    EXPECT_THAT(m, ::testing::HasSubstr("g: 7 is invalid (expected in [1, 5])"));
-    EXPECT_THAT(m, ::testing::Not(::testing::HasSubstr("e:")));
-  }
+  const std::string m = finish_error(r);
+  EXPECT_THAT(m, ::testing::HasSubstr("a: .inf is not a finite number"));
+  EXPECT_THAT(m, ::testing::HasSubstr("b: .nan is not a finite number"));
+  EXPECT_THAT(m, ::testing::HasSubstr("c: -.inf is not a finite number"));
+  EXPECT_THAT(m, ::testing::HasSubstr("d: 1e12 is invalid (expected in [0, 1000])"));
+  EXPECT_THAT(m, ::testing::HasSubstr("is not a finite number"));
+  EXPECT_THAT(m, ::testing::HasSubstr("g: 7 is invalid (expected in [1, 5])"));
+  EXPECT_THAT(m, ::testing::Not(::testing::HasSubstr("e:")));
   EXPECT_EQ(a, 1);
   EXPECT_EQ(d, 4);
   EXPECT_EQ(e, 5);  // in range: read
   EXPECT_EQ(g, 1);
+  std::filesystem::remove(p);
+}
+
+// Counts land in unsigned fields through an int, so "-1" is refused rather than wrapped; a position is
+// three numbers, each within 1e7 m of the origin.
+TEST(ConfigReader, CountsAndPositionsAreChecked) {
+  const std::string p = write("count", "a: 5\nb: -1\nc: [1, 2, 3]\nd: [1, 2]\ne: [0, 0, 1e8]\n");
+  Reader r(p);
+  uint32_t a = 1, b = 2;
+  std::array<double, 3> c{0, 0, 0}, d{0, 0, 0}, e{0, 0, 0};
+  r.get_count("a", a, 0, 10);
+  r.get_count("b", b, 0, 10);
+  r.get_position("c", c);
+  r.get_position("d", d);
+  r.get_position("e", e);
+  const std::string m = finish_error(r);
+  EXPECT_THAT(m, ::testing::HasSubstr("b: -1 is invalid (expected in [0, 10])"));
+  EXPECT_THAT(m, ::testing::HasSubstr("d: [1, 2] is invalid (expected [x, y, z], each in [-1e7, 1e7] m)"));
+  EXPECT_THAT(m, ::testing::HasSubstr("e: [0, 0, 1e8] is invalid"));
+  EXPECT_EQ(a, 5u);
+  EXPECT_EQ(b, 2u);
+  EXPECT_EQ(c, (std::array<double, 3>{1, 2, 3}));
+  EXPECT_EQ(d, (std::array<double, 3>{0, 0, 0}));
+  EXPECT_EQ(e, (std::array<double, 3>{0, 0, 0}));
   std::filesystem::remove(p);
 }
 

@@ -50,4 +50,13 @@ void information_to_msg(const Matrix6d& info, cdc_msg_Information6& out) {
   }
 }
 
+void keyframe_body_to_msg(const Eigen::Isometry3d& T_odom_keyframe, const Eigen::Isometry3d& T_prev,
+                          const Matrix6d& information, std::vector<cdc_msg_PointXYZI>& cloud, cdc_msg_Keyframe& out) {
+  out.T_odom_keyframe = to_msg(T_odom_keyframe);
+  out.T_prev_keyframe = to_msg(T_prev);
+  information_to_msg(information, out.information);
+  out.point_count = static_cast<uint32_t>(cloud.size());
+  borrow(out.cloud, cloud);
+}
+
 }  // namespace cdc::dds

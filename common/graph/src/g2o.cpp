@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <array>
 #include <charconv>
 #include <cmath>
 #include <filesystem>
@@ -222,23 +223,24 @@ void read_edge_se2(LineReader& r, Target& target) {
   target.add_edge(a, b, planar(dx, dy, dth), info);
 }
 
+// The records read, each with its reader and the dimension it speaks of.
+struct RecordKind {
+  const char* tag;
+  void (*read)(LineReader& r, Target& target);
+  int dimension;
+};
+constexpr std::array<RecordKind, 4> kRecordKinds{{{"VERTEX_SE3:QUAT", read_vertex_se3, 3},
+                                                  {"VERTEX_SE2", read_vertex_se2, 2},
+                                                  {"EDGE_SE3:QUAT", read_edge_se3, 3},
+                                                  {"EDGE_SE2", read_edge_se2, 2}}};
+
 // The dimension a record speaks of: none (FIX), 2 or 3.
 int read_record(const std::string& tag, LineReader& r, Target& target) {
-  if (tag == "VERTEX_SE3:QUAT") {
-    read_vertex_se3(r, target);
-    return 3;
-  }
-  if (tag == "VERTEX_SE2") {
-    read_vertex_se2(r, target);
-    return 2;
-  }
-  if (tag == "EDGE_SE3:QUAT") {
-    read_edge_se3(r, target);
-    return 3;
-  }
-  if (tag == "EDGE_SE2") {
-    read_edge_se2(r, target);
-    return 2;
+  for (const RecordKind& kind : kRecordKinds) {
+    if (tag == kind.tag) {
+      kind.read(r, target);
+      return kind.dimension;
+    }
   }
   if (tag == "FIX") {
     return 0;  // the solver fixes the gauge itself

@@ -180,9 +180,7 @@ int main(int argc, char** argv) {
   b2p->add_option("bag", bag, "ROS 1 .bag, ROS 2 .db3 / .mcap or a ROS 2 bag folder")->required();
   b2p->add_option("out", out_pcap, "the pcap file to write")->required();
   b2p->add_option("--topic", topic, "only this topic (default: every VelodyneScan topic)");
-  b2p->add_option("--port", bag_port, "UDP port of the datagrams")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(1, 65535));
+  cdc::config::add_number_option(*b2p, "--port", bag_port, "UDP port of the datagrams", 1, 65535);
 
   DecodeArgs d;
   CLI::App* dec = app.add_subcommand(
@@ -197,26 +195,17 @@ int main(int argc, char** argv) {
   dec->add_option("--model", d.model,
                   "VLP16, VLP32C, HDL32E, HDL64E (S2, S2.1), HDL64E_S3 or VLS128 (default: from each packet)");
   dec->add_option("--out", d.out, "folder for the sweeps");
-  dec->add_option("--port", d.port, "UDP destination port of the data packets")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(1, 65535));
+  cdc::config::add_number_option(*dec, "--port", d.port, "UDP destination port of the data packets", 1, 65535);
   dec->add_option("--return-mode", d.return_mode, "strongest, last or dual (default: from each packet)")
       ->check(CLI::IsMember({"strongest", "last", "dual"}));
-  dec->add_option("--min-range", d.decoder.min_range, "[m]")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 1000));
-  dec->add_option("--max-range", d.decoder.max_range, "[m]")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0.1, 1000));
-  dec->add_option("--sector-min", d.decoder.sector_min_deg, "keep azimuths in [min, max] [deg]")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 360));
-  dec->add_option("--sector-max", d.decoder.sector_max_deg, "(wraps through 0 when min > max) [deg]")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 360));
-  dec->add_option("--scan-phase", d.sweep.scan_phase_deg, "azimuth where sweeps are cut [deg]")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 360));
+  cdc::config::add_number_option(*dec, "--min-range", d.decoder.min_range, "[m]", 0, 1000);
+  cdc::config::add_number_option(*dec, "--max-range", d.decoder.max_range, "[m]", 0.1, 1000);
+  cdc::config::add_number_option(*dec, "--sector-min", d.decoder.sector_min_deg, "keep azimuths in [min, max] [deg]", 0,
+                                 360);
+  cdc::config::add_number_option(*dec, "--sector-max", d.decoder.sector_max_deg,
+                                 "(wraps through 0 when min > max) [deg]", 0, 360);
+  cdc::config::add_number_option(*dec, "--scan-phase", d.sweep.scan_phase_deg, "azimuth where sweeps are cut [deg]", 0,
+                                 360);
   dec->add_flag("--keep-incomplete", d.keep_incomplete, "also write sweeps ended by a gap or the end of the capture");
   CLI11_PARSE(app, argc, argv);
 

@@ -92,45 +92,41 @@ void add_options(CLI::App& app, Options& o) {
   app.add_option("--variants", o.variants, "subset of a b c d")
       ->capture_default_str()
       ->check(CLI::IsMember({"a", "b", "c", "d"}));
-  app.add_option("--max-scans", o.max_scans, "sweeps per robot (0: whole sequence)")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 1e6));
+  cdc::config::add_number_option(app, "--max-scans", o.max_scans, "sweeps per robot (0: whole sequence)", 0, 1e6);
   app.add_option("--bin-dir", o.bin_dir, "build folder")->capture_default_str();
   app.add_option("--root", o.root, "project root")->capture_default_str();
   app.add_option("--datasets", o.datasets, "where the generated datasets are kept")->capture_default_str();
-  app.add_option("--lidar-elevation-error", o.elevation_error,
-                 "degrade the simulated LiDAR with a fixed per-beam elevation calibration error of this sigma [deg]\n"
-                 "(datasets kittiNN_3robots_elevX; 0: the scenarios as they are). Unlevelled LiDAR odometry drifts\n"
-                 "0.4-1.4 % at 0.2, about what real LiDAR odometry shows on KITTI; our front-end, levelled with the\n"
-                 "IMU's gravity, drifts 0.09-0.15 % at 0.2 and 0.32-0.38 % at 0.5 (KITTI 05 robots), but at 0.5 it\n"
-                 "loses track on KITTI 06 robots 0 and 2 and KITTI 09 robot 0")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 2));
-  app.add_option(
-         "--lidar-elevation-bias", o.elevation_bias,
-         "an elevation calibration error common to every beam [deg] (datasets kittiNN_3robots_..._biasX); KITTI's\n"
-         "HDL-64E has about 0.22. Levelled, our front-end then drifts about 0.2 % on the KITTI 05 robots, ATE\n"
-         "0.15-0.25 m, most of it in height")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(-1, 1));
-  app.add_option(
-         "--lidar-azimuth-error", o.azimuth_error,
-         "a fixed per-beam azimuth calibration error of this sigma [deg] (datasets kittiNN_3robots_..._azX). At\n"
-         "0.2 our front-end drifts 0.7-1.0 % and 0.4-0.5 deg/100 m on the KITTI 05 robots, about what real\n"
-         "LiDAR odometry shows on KITTI, and the drift accumulates in yaw as on real data")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 2));
+  cdc::config::add_number_option(
+      app, "--lidar-elevation-error", o.elevation_error,
+      "degrade the simulated LiDAR with a fixed per-beam elevation calibration error of this sigma [deg]\n"
+      "(datasets kittiNN_3robots_elevX; 0: the scenarios as they are). Unlevelled LiDAR odometry drifts\n"
+      "0.4-1.4 % at 0.2, about what real LiDAR odometry shows on KITTI; our front-end, levelled with the\n"
+      "IMU's gravity, drifts 0.09-0.15 % at 0.2 and 0.32-0.38 % at 0.5 (KITTI 05 robots), but at 0.5 it\n"
+      "loses track on KITTI 06 robots 0 and 2 and KITTI 09 robot 0",
+      0, 2);
+  cdc::config::add_number_option(
+      app, "--lidar-elevation-bias", o.elevation_bias,
+      "an elevation calibration error common to every beam [deg] (datasets kittiNN_3robots_..._biasX); KITTI's\n"
+      "HDL-64E has about 0.22. Levelled, our front-end then drifts about 0.2 % on the KITTI 05 robots, ATE\n"
+      "0.15-0.25 m, most of it in height",
+      -1, 1);
+  cdc::config::add_number_option(
+      app, "--lidar-azimuth-error", o.azimuth_error,
+      "a fixed per-beam azimuth calibration error of this sigma [deg] (datasets kittiNN_3robots_..._azX). At\n"
+      "0.2 our front-end drifts 0.7-1.0 % and 0.4-0.5 deg/100 m on the KITTI 05 robots, about what real\n"
+      "LiDAR odometry shows on KITTI, and the drift accumulates in yaw as on real data",
+      0, 2);
   app.add_flag(
       "--lidar-per-robot", o.per_robot,
       "give each robot a LiDAR of its own, with calibration errors drawn for that unit (datasets ..._own); without\n"
       "it every robot carries the same miscalibrated sensor, so robots on the same road drift alike");
   app.add_flag("--reuse", o.reuse, "keep runs that already have a report.json in OUT (re-tabulate only)");
-  app.add_option("--repeats", o.repeats,
-                 "runs of (b) and (d), whose results depend on when back-end results reach the robots; the tables\n"
-                 "give the median per robot (runs 2.. in OUT/kittiNN_v_rK). (a) and (c) correct no front-end and,\n"
-                 "played in lock-step, repeat to the millimetre: they run once")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(1, 9));
+  cdc::config::add_number_option(
+      app, "--repeats", o.repeats,
+      "runs of (b) and (d), whose results depend on when back-end results reach the robots; the tables\n"
+      "give the median per robot (runs 2.. in OUT/kittiNN_v_rK). (a) and (c) correct no front-end and,\n"
+      "played in lock-step, repeat to the millimetre: they run once",
+      1, 9);
 }
 
 // A KITTI split's scenario and the dataset generated from it.

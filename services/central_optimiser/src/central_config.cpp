@@ -2,33 +2,21 @@
 
 #include "cdc/config/reader.hpp"
 
-#include <algorithm>
-#include <cmath>
+#include <array>
 
 namespace cdc::central {
 
 CentralNodeOptions load_options(const std::string& path) {
   CentralNodeOptions o;
   config::Reader r(path);
-  int robots = static_cast<int>(o.core.robot_count);
-  r.get_in("robots", robots, 1, 254);
-  o.core.robot_count = static_cast<uint32_t>(robots);
-  int central_id = static_cast<int>(o.central_id);
-  r.get_in("central_id", central_id, 0, 254);
-  o.central_id = static_cast<uint32_t>(central_id);
+  r.get_count("robots", o.core.robot_count, 1, 254);
+  r.get_count("central_id", o.central_id, 0, 254);
   r.get_in("central_on_robot", o.central_on_robot, -1, 253);  // -1: a fixed position
-  std::vector<double> pos{0, 0, 0};
-  r.get<std::vector<double>>(
-      "central_position", pos,
-      [](const std::vector<double>& v) {
-        return v.size() == 3 && std::all_of(v.begin(), v.end(), [](double x) { return std::abs(x) <= 1e7; });
-      },
-      "[x, y, z], each in [-1e7, 1e7] m");
+  std::array<double, 3> pos{0, 0, 0};
+  r.get_position("central_position", pos);
   o.central_position = Eigen::Vector3d(pos[0], pos[1], pos[2]);
   r.get_in("lease_ms", o.lease_ms, 50, 60000);
-  int max_pending = static_cast<int>(o.core.max_pending_keyframes);
-  r.get_in("max_pending_keyframes", max_pending, 1, 10'000'000);
-  o.core.max_pending_keyframes = static_cast<size_t>(max_pending);
+  r.get_count("max_pending_keyframes", o.core.max_pending_keyframes, 1, 10'000'000);
   r.get_in("update_period_ms", o.update_period_ms, 1, 60000);
   r.get_in("status_period_ms", o.status_period_ms, 1, 60000);
   r.get_in("max_result_age_ms", o.max_result_age_ms, 1, 3'600'000);
@@ -45,7 +33,7 @@ CentralNodeOptions load_options(const std::string& path) {
   r.get_in("optimiser.loop_robust_scale", o.core.loop_robust_scale, 0.0, 1e6);
   r.get<bool>("optimiser.share_loop_information", o.core.share_loop_information);
   r.get<std::string>("log_level", o.log_level);
-  if (o.central_on_robot >= robots) {
+  if (const int robots = static_cast<int>(o.core.robot_count); o.central_on_robot >= robots) {
     r.error("central_on_robot " + std::to_string(o.central_on_robot) + " is not one of the " + std::to_string(robots) +
             " robots");
   }

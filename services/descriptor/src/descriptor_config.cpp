@@ -7,16 +7,12 @@ namespace cdc::descriptor {
 DescriptorNodeOptions load_descriptor_options(const std::string& path) {
   DescriptorNodeOptions o;
   config::Reader r(path);
-  int robots = static_cast<int>(o.robots);
-  r.get_in("robots", robots, 1, 254);
-  o.robots = static_cast<uint32_t>(robots);
+  r.get_count("robots", o.robots, 1, 254);
   r.get_in("scan_context.rings", o.sc.rings, 1, 255);
   r.get_in("scan_context.sectors", o.sc.sectors, 4, 255);
   r.get_in("scan_context.max_range_m", o.sc.max_range_m, 1.0, 1000.0);
   r.get_in("scan_context.sensor_height_m", o.sc.sensor_height_m, 0.0, 100.0);
-  int per_sync = static_cast<int>(o.max_per_sync);
-  r.get_in("max_per_sync", per_sync, 1, 100000);
-  o.max_per_sync = static_cast<uint32_t>(per_sync);
+  r.get_count("max_per_sync", o.max_per_sync, 1, 100000);
   r.get<std::string>("log_level", o.log_level);
   r.finish();
   return o;

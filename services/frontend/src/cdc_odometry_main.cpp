@@ -86,9 +86,7 @@ struct Options {
 
 void add_options(CLI::App& app, Options& o) {
   app.add_option("dataset", o.input, "dataset folder")->required()->check(CLI::ExistingDirectory);
-  app.add_option("--robot", o.robot, "robot of a cdc-sim dataset")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 254));
+  cdc::config::add_number_option(app, "--robot", o.robot, "robot of a cdc-sim dataset", 0, 254);
   app.add_flag("--kitti", o.kitti, "DATASET is a KITTI velodyne folder");
   app.add_option("--poses", o.poses, "poses, 3x4 row-major per sweep (for --kitti)")->check(CLI::ExistingFile);
   app.add_option("--poses-frame", o.poses_frame,
@@ -102,9 +100,7 @@ void add_options(CLI::App& app, Options& o) {
   app.add_option("--times", o.times_path,
                  "sweep times, seconds per line (for --kitti; default DIR/times.txt or frame x period)")
       ->check(CLI::ExistingFile);
-  app.add_option("--period", o.period_s, "sweep period [s] (for --kitti)")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0.001, 10));
+  cdc::config::add_number_option(app, "--period", o.period_s, "sweep period [s] (for --kitti)", 0.001, 10);
   app.add_option("--config", o.config_path,
                  "front-end configuration (services/frontend/config/frontend.yaml; default: its defaults); the flags "
                  "below override it")
@@ -120,9 +116,7 @@ void add_options(CLI::App& app, Options& o) {
   app.add_flag("--no-level", o.no_level,
                "do not level the odometry with the IMU window's gravity "
                "(roll, pitch and height then follow the map's tilt)");
-  app.add_option("--max-scans", o.max_scans, "at most this many scans (0: all)")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 1e6));
+  cdc::config::add_number_option(app, "--max-scans", o.max_scans, "at most this many scans (0: all)", 0, 1e6);
   app.add_option("--out", o.out_dir, "write odometry.tum, odometry.kitti, keyframes.tum and report.json here");
   app.add_flag("--json", o.json, "print the report as one JSON object");
 }

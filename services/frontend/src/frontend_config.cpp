@@ -55,19 +55,14 @@ void read_imu(config::Reader& r, FrontendNodeOptions& o) {
   r.get<bool>("imu.window.deskew", p.imu_deskew);
   r.get<bool>("imu.window.refine_gravity", p.window.refine_gravity);
   r.get_in("imu.window.gravity_prior_sigma", p.window.gravity_prior_sigma, 1e-9, 100.0);
-  int window = static_cast<int>(p.window.size), align = static_cast<int>(p.window.align_sweeps);
-  r.get_in("imu.window.size", window, 2, 100);
-  r.get_in("imu.window.align_sweeps", align, 3, 1000);
+  r.get_count("imu.window.size", p.window.size, 2, 100);
+  r.get_count("imu.window.align_sweeps", p.window.align_sweeps, 3, 1000);
   r.get_in("imu.window.gyro_noise", p.window.noise.gyro_noise, 1e-12, 100.0);
   r.get_in("imu.window.accel_noise", p.window.noise.accel_noise, 1e-12, 100.0);
   r.get_in("imu.window.gyro_bias_walk", p.window.noise.gyro_bias_walk, 1e-12, 100.0);
   r.get_in("imu.window.accel_bias_walk", p.window.noise.accel_bias_walk, 1e-12, 100.0);
-  p.window.size = static_cast<size_t>(window);
-  p.window.align_sweeps = static_cast<size_t>(align);
   r.get<bool>("imu.level_with_gravity", p.level_with_gravity);
-  int level_sweeps = static_cast<int>(p.level_reference_sweeps);
-  r.get_in("imu.level_reference_sweeps", level_sweeps, 1, 100000);
-  p.level_reference_sweeps = static_cast<size_t>(level_sweeps);
+  r.get_count("imu.level_reference_sweeps", p.level_reference_sweeps, 1, 100000);
 }
 
 }  // namespace
@@ -75,9 +70,7 @@ void read_imu(config::Reader& r, FrontendNodeOptions& o) {
 FrontendNodeOptions load_frontend_options(const std::string& path) {
   FrontendNodeOptions o;
   config::Reader r(path);
-  int robots = static_cast<int>(o.robots);
-  r.get_in("robots", robots, 1, 254);
-  o.robots = static_cast<uint32_t>(robots);
+  r.get_count("robots", o.robots, 1, 254);
   read_registration(r, o.core);
   const Degrees deg = read_keyframes_and_fusion(r, o.core);
   read_imu(r, o);

@@ -217,11 +217,7 @@ void FrontendNode::publish_keyframe(const KeyframeOut& k) {
   kf.keyframe_id = k.id;
   kf.incarnation = *sequence_incarnation_;
   kf.stamp_ns = k.stamp_ns;
-  kf.T_odom_keyframe = dds::to_msg(k.T_odom_keyframe);
-  kf.T_prev_keyframe = dds::to_msg(k.T_prev);
-  dds::information_to_msg(k.information, kf.information);
-  kf.point_count = static_cast<uint32_t>(cloud_.size());
-  dds::borrow(kf.cloud, cloud_);
+  dds::keyframe_body_to_msg(k.T_odom_keyframe, k.T_prev, k.information, cloud_, kf);
   w_kf_.write(kf);
   ++counters_.keyframes;
 }

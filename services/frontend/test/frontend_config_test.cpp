@@ -10,6 +10,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <initializer_list>
 #include <tuple>
 
 namespace cdc::frontend {
@@ -20,6 +21,19 @@ std::string write_yaml(const std::string& text) {
       std::filesystem::temp_directory_path() / ("cdc-frontend-config-" + std::to_string(::getpid()) + ".yaml");
   std::ofstream(p) << text;
   return p.string();
+}
+
+// Loading YAML fails with a ConfigError whose message holds each of the parts.
+void expect_refused(const std::string& yaml, std::initializer_list<const char*> parts) {
+  const std::string path = write_yaml(yaml);
+  try {
+    load_frontend_options(path);
+    ADD_FAILURE() << "no error";
+  } catch (const config::ConfigError& e) {
+    const std::string what = e.what();
+    for (const char* part : parts) EXPECT_NE(what.find(part), std::string::npos) << what;
+  }
+  std::filesystem::remove(path);
 }
 
 TEST(FrontendConfig, ShippedFileStatesTheDefaults) {
@@ -61,39 +75,21 @@ TEST(FrontendConfig, ValuesAreRead) {
 }
 
 TEST(FrontendConfig, BadValuesAndUnknownKeysAreNamed) {
-  const std::string path = write_yaml(
+  expect_refused(
       "crop:\n  max_range_m: -5\nregistration:\n  voxel: 1\nimu:\n  T_lidar_imu:\n    orientation: [0, 0, 0, 2]\n"
-      "recovery:\n  good_fit_ratio: 1.5\n");
-  try {
-    load_frontend_options(path);
-    ADD_FAILURE() << "no error";
-  } catch (const config::ConfigError& e) {
-    const std::string what = e.what();
-    EXPECT_NE(what.find("crop.max_range_m"), std::string::npos) << what;
-    EXPECT_NE(what.find("registration.voxel"), std::string::npos) << what;
-    EXPECT_NE(what.find("unit quaternion"), std::string::npos) << what;
-    EXPECT_NE(what.find("recovery.good_fit_ratio"), std::string::npos) << what;
-  }
-  std::filesystem::remove(path);
+      "recovery:\n  good_fit_ratio: 1.5\n",
+      {"crop.max_range_m", "registration.voxel", "unit quaternion", "recovery.good_fit_ratio"});
 }
 
 // Values that pass must work: each numeric key has a finite range, a crop must keep something, and the error
 // names the key, the value and the range.
 TEST(FrontendConfig, ValuesThatCannotWorkAreRefusedWithTheirRange) {
-  const std::string path = write_yaml(
+  expect_refused(
       "crop:\n  min_range_m: 50\n  max_range_m: 40\nregistration:\n  voxel_m: 1e-9\nimage_columns: 1000000000\n"
-      "fusion:\n  pos_max_m: .inf\n");
-  try {
-    load_frontend_options(path);
-    ADD_FAILURE() << "no error";
-  } catch (const config::ConfigError& e) {
-    const std::string what = e.what();
-    EXPECT_NE(what.find("registration.voxel_m: 1e-9 is invalid (expected in [0.01, 10])"), std::string::npos) << what;
-    EXPECT_NE(what.find("image_columns: 1000000000 is invalid (expected in [100, 10000])"), std::string::npos) << what;
-    EXPECT_NE(what.find("crop.min_range_m must be below crop.max_range_m"), std::string::npos) << what;
-    EXPECT_NE(what.find("fusion.pos_max_m: .inf is not a finite number"), std::string::npos) << what;
-  }
-  std::filesystem::remove(path);
+      "fusion:\n  pos_max_m: .inf\n",
+      {"registration.voxel_m: 1e-9 is invalid (expected in [0.01, 10])",
+       "image_columns: 1000000000 is invalid (expected in [100, 10000])",
+       "crop.min_range_m must be below crop.max_range_m", "fusion.pos_max_m: .inf is not a finite number"});
 }
 
 }  // namespace

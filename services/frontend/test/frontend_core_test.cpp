@@ -86,15 +86,21 @@ TEST(Frontend, TheFirstKeyframeOfARobotStartingAtSpeedIsDeskewed) {
   EXPECT_TRUE(next->T_prev.isApprox(next->T_odom_keyframe, 1e-9));
 }
 
-TEST(Frontend, KeyframesCarryRelativeOdometryWithInformation) {
-  Drive d(5.0, 0.3, 6.0);
-  FrontendCore core(FrontendParams{});
+// The keyframes the core makes of the drive's first n sweeps, 0.1 s apart from 0.2 s.
+std::vector<KeyframeOut> drive_keyframes(FrontendCore& core, Drive& d, int n) {
   std::vector<KeyframeOut> kfs;
-  for (int k = 0; k < 40; ++k) {
+  for (int k = 0; k < n; ++k) {
     const double t = 0.2 + 0.1 * k;
     auto o = core.process(static_cast<int64_t>(t * 1e9), d.sweep(t));
     if (o.keyframe) kfs.push_back(std::move(*o.keyframe));
   }
+  return kfs;
+}
+
+TEST(Frontend, KeyframesCarryRelativeOdometryWithInformation) {
+  Drive d(5.0, 0.3, 6.0);
+  FrontendCore core(FrontendParams{});
+  const std::vector<KeyframeOut> kfs = drive_keyframes(core, d, 40);
   double travelled = 0;
   for (int k = 1; k < 40; ++k)
     travelled += (d.traj.pose(0.2 + 0.1 * k).translation() - d.traj.pose(0.1 + 0.1 * k).translation()).norm();
@@ -132,12 +138,9 @@ TEST(Frontend, KeyframesCarryRelativeOdometryWithInformation) {
 TEST(Frontend, ARestartedFrontEndContinuesTheKeyframeSequence) {
   Drive d(5.0, 0.3, 6.0);
   FrontendCore first(FrontendParams{});
-  std::optional<KeyframeOut> newest;
-  for (int k = 0; k < 20; ++k) {
-    const double t = 0.2 + 0.1 * k;
-    if (auto o = first.process(static_cast<int64_t>(t * 1e9), d.sweep(t)); o.keyframe) newest = std::move(o.keyframe);
-  }
-  ASSERT_TRUE(newest.has_value());
+  const std::vector<KeyframeOut> before = drive_keyframes(first, d, 20);
+  ASSERT_FALSE(before.empty());
+  const KeyframeOut* newest = &before.back();
   ASSERT_GT(newest->id, 0u);
   FrontendParams params;
   FrontendCore restarted(params), fresh(params);  // fresh: the same sweeps in a new sequence

@@ -238,9 +238,7 @@ void add_pcm_command(CLI::App& app, PcmCommand& c) {
   pcm->add_option("input", c.input, "folder of per-robot .g2o files, or one .g2o file")
       ->required()
       ->check(CLI::ExistingPath);
-  pcm->add_option("--chi2", c.threshold, "Mahalanobis threshold on a cycle (6 DoF)")
-      ->check(cdc::config::cli_range(0.01, 1e6))
-      ->capture_default_str();
+  cdc::config::add_number_option(*pcm, "--chi2", c.threshold, "Mahalanobis threshold on a cycle (6 DoF)", 0.01, 1e6);
   pcm->add_flag("--json", c.json, "print one JSON object with the accepted and rejected loops (g2o vertex ids)");
   pcm->add_flag("--strict", c.strict, "fail on damaged lines instead of skipping them");
 }
@@ -269,31 +267,22 @@ CLI::App* add_run_command(CLI::App& app, RunCommand& c) {
       app.add_subcommand("run", "loop closure over a cdc-sim dataset folder, judged against its ground truth");
   run->add_option("dataset", o.dataset, "dataset folder (cdc-sim generate)")->required()->check(CLI::ExistingDirectory);
   run->add_option("--out", o.out, "write keyframes.csv, loops.csv and report.json here");
-  run->add_option("--keyframe-m", o.keyframe_m, "keyframe every this far [m]")
-      ->check(cdc::config::cli_range(0.01, 1000))
-      ->capture_default_str();
-  run->add_option("--noise-m", o.noise_m, "odometry noise per keyframe, translation sigma [m]")
-      ->check(cdc::config::cli_range(0, 10))
-      ->capture_default_str();
-  run->add_option("--noise-rad", o.noise_rad, "odometry noise per keyframe, rotation sigma [rad]")
-      ->check(cdc::config::cli_range(0, 1))
-      ->capture_default_str();
-  run->add_option("--seed", o.seed, "noise seed")->capture_default_str()->check(cdc::config::cli_range(0, 4294967295));
-  run->add_option("--max-scans", o.max_scans, "scans per robot (0: all)")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 1e6));
+  cdc::config::add_number_option(*run, "--keyframe-m", o.keyframe_m, "keyframe every this far [m]", 0.01, 1000);
+  cdc::config::add_number_option(*run, "--noise-m", o.noise_m, "odometry noise per keyframe, translation sigma [m]", 0,
+                                 10);
+  cdc::config::add_number_option(*run, "--noise-rad", o.noise_rad, "odometry noise per keyframe, rotation sigma [rad]",
+                                 0, 1);
+  cdc::config::add_number_option(*run, "--seed", o.seed, "noise seed", 0, 4294967295);
+  cdc::config::add_number_option(*run, "--max-scans", o.max_scans, "scans per robot (0: all)", 0, 1e6);
   run->add_option(
          "--config", c.config,
          "the service's configuration (services/loop_closure/config/loop_closure.yaml) for the core's parameters;\n"
          "default: their built-in defaults. --chi2 and --min-support override it")
       ->check(CLI::ExistingFile);
-  c.chi2_given = run->add_option("--chi2", c.chi2, "PCM threshold")
-                     ->check(cdc::config::cli_range(0.01, 1e6))
-                     ->capture_default_str();
-  c.support_given = run->add_option("--min-support", c.support,
-                                    "inter-robot loops are published from a PCM-consistent set at least this large")
-                        ->check(cdc::config::cli_range(1, 1000))
-                        ->capture_default_str();
+  c.chi2_given = cdc::config::add_number_option(*run, "--chi2", c.chi2, "PCM threshold", 0.01, 1e6);
+  c.support_given = cdc::config::add_number_option(
+      *run, "--min-support", c.support, "inter-robot loops are published from a PCM-consistent set at least this large",
+      1, 1000);
   run->add_flag("--json", o.json, "print the report as one JSON object");
   return run;
 }

@@ -12,14 +12,6 @@ using config::Reader;
 
 constexpr int kHourMs = 3'600'000;
 
-// A count (unsigned in the options) read as an int in [lo, hi].
-template <class Count>
-void get_count(Reader& r, const std::string& key, Count& out, int lo, int hi) {
-  int v = static_cast<int>(out);
-  r.get_in(key, v, lo, hi);
-  out = static_cast<Count>(v);
-}
-
 // A duration read in milliseconds, in [lo, hi].
 void get_ms(Reader& r, const std::string& key, Nanos& out, int lo, int hi) {
   int v = static_cast<int>(std::chrono::duration_cast<std::chrono::milliseconds>(out).count());
@@ -34,13 +26,13 @@ void read_scan_context(Reader& r, lidar::ScanContextParams& p) {
 }
 
 void read_retrieval(Reader& r, LoopParams& p) {
-  get_count(r, "retrieval.knn", p.knn, 1, 1000);
-  get_count(r, "retrieval.peer_request_spacing", p.peer_request_spacing, 0, 100000);
+  r.get_count("retrieval.knn", p.knn, 1, 1000);
+  r.get_count("retrieval.peer_request_spacing", p.peer_request_spacing, 0, 100000);
   r.get<bool>("retrieval.lower_robot_verifies", p.lower_robot_verifies);
   r.get_in("retrieval.reaim_max_m", p.reaim_max_m, 0.0, 1000.0);
   r.get_in("retrieval.max_sc_distance", p.max_sc_distance, 0.001, 1.0);
-  get_count(r, "retrieval.exclude_recent", p.exclude_recent, 0, 100000);
-  get_count(r, "retrieval.max_verify", p.max_verify, 1, 1000);
+  r.get_count("retrieval.exclude_recent", p.exclude_recent, 0, 100000);
+  r.get_count("retrieval.max_verify", p.max_verify, 1, 1000);
   r.get_in("retrieval.intra_gate_m", p.intra_gate_m, 0.0, 1000.0);
   r.get_in("retrieval.intra_gate_per_m", p.intra_gate_per_m, 0.0, 10.0);
 }
@@ -59,14 +51,14 @@ void read_verification(Reader& r, LoopParams& p) {
 
 void read_pcm(Reader& r, LoopParams& p) {
   r.get_in("pcm.chi2_threshold", p.pcm.chi2_threshold, 0.01, 1e6);
-  get_count(r, "pcm.min_support", p.min_inter_support, 1, 1000);
+  r.get_count("pcm.min_support", p.min_inter_support, 1, 1000);
 }
 
 // Cloud requests, and the clouds kept.
 void read_clouds(Reader& r, LoopParams& p) {
   get_ms(r, "cloud_request_timeout_ms", p.request_timeout, 1, kHourMs);
-  get_count(r, "cloud_cache", p.cloud_cache, 1, 100000);
-  get_count(r, "verification.prepared_clouds", p.prepared_clouds, 0, 1024);
+  r.get_count("cloud_cache", p.cloud_cache, 1, 100000);
+  r.get_count("verification.prepared_clouds", p.prepared_clouds, 0, 1024);
   r.get_in("cloud_request_attempts", p.request_attempts, 1, 1000);
   get_ms(r, "cloud_request_retry_ms", p.request_retry, 1, kHourMs);
 }
@@ -76,7 +68,7 @@ void read_node(Reader& r, LoopNodeOptions& o) {
   get_ms(r, "peer_timeout_ms", o.reach.silence, 1, kHourMs);
   get_ms(r, "loop_resend.margin_ms", o.reach.margin, 0, kHourMs);
   get_ms(r, "loop_resend.delay_ms", o.reach.delay, 0, kHourMs);
-  get_count(r, "loop_resend.keep_loops", o.reach.keep, 1, 1000000);
+  r.get_count("loop_resend.keep_loops", o.reach.keep, 1, 1000000);
   r.get_in("tick_ms", o.tick_ms, 1, 60000);
   get_ms(r, "descriptor_sync.resend_ms", o.sequencer.resend, 1, kHourMs);
   r.get_in("descriptor_sync.max_attempts", o.sequencer.max_attempts, 1, 1000);
@@ -89,7 +81,7 @@ void read_node(Reader& r, LoopNodeOptions& o) {
 LoopNodeOptions load_loop_options(const std::string& path) {
   LoopNodeOptions o;
   Reader r(path);
-  get_count(r, "robots", o.robots, 1, 254);
+  r.get_count("robots", o.robots, 1, 254);
   read_scan_context(r, o.core.scan_context);
   read_retrieval(r, o.core);
   read_verification(r, o.core);

@@ -150,11 +150,7 @@ cdc_msg_Keyframe keyframe_message(uint32_t robot, const OwnKeyframe& k, std::vec
   m.keyframe_id = k.id;
   m.incarnation = k.incarnation;
   m.stamp_ns = k.stamp_ns;
-  m.T_odom_keyframe = dds::to_msg(k.T_odom);
-  m.T_prev_keyframe = dds::to_msg(k.T_prev);
-  dds::information_to_msg(k.information, m.information);
-  m.point_count = static_cast<uint32_t>(cloud.size());
-  dds::borrow(m.cloud, cloud);
+  dds::keyframe_body_to_msg(k.T_odom, k.T_prev, k.information, cloud, m);
   return m;
 }
 

@@ -11,9 +11,7 @@ PeerNodeOptions load_options(const std::string& path) {
   config::Reader r(path);
   constexpr int kHourMs = 3'600'000;
   constexpr double kUnlimitedM = 1e9;  // a range this long stands for "no limit" in the shipped files
-  int robots = static_cast<int>(o.core.robot_count);
-  r.get_in("robots", robots, 1, 254);
-  o.core.robot_count = static_cast<uint32_t>(robots);
+  r.get_count("robots", o.core.robot_count, 1, 254);
   r.get_in("range_m", o.core.rtdos.range_m, 1.0, kUnlimitedM);
   r.get_in("hysteresis_m", o.core.rtdos.hysteresis_m, 0.0, kUnlimitedM);
   // Keys left out keep the core's defaults (PeerConfig, RtdosConfig): one place for each.
@@ -51,9 +49,7 @@ PeerNodeOptions load_options(const std::string& path) {
   double rot_deg = o.core.fusion.rot_max * 180.0 / M_PI;
   r.get_in("fusion.rot_max_deg", rot_deg, 0.01, 180.0);
   o.core.fusion.rot_max = rot_deg * M_PI / 180.0;
-  int central_id = static_cast<int>(o.central_id);
-  r.get_in("central_id", central_id, 0, 254);
-  o.central_id = static_cast<uint32_t>(central_id);
+  r.get_count("central_id", o.central_id, 0, 254);
   r.get_in("tick_ms", o.tick_ms, 1, 60000);
   r.get_in("status_period_ms", o.status_period_ms, 1, 60000);
   r.get_in("radio_status_period_ms", o.radio_status_period_ms, 1, 60000);

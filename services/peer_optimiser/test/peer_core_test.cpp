@@ -594,6 +594,13 @@ namespace {
 
 using namespace std::chrono_literals;
 
+// The core's world trajectory holds n poses, their stamps increasing.
+void expect_trajectory_in_stamp_order(const PeerCore& core, size_t n) {
+  const geometry::Trajectory t = core.world_trajectory();
+  ASSERT_EQ(t.size(), n);
+  for (size_t i = 1; i < t.size(); ++i) EXPECT_GT(t[i].stamp_ns, t[i - 1].stamp_ns);
+}
+
 // Robot 1's first front-end makes keyframes 0..99 of incarnation 3; a restarted one continues the
 // sequence with 100..199 (incarnation 3, after a weak link): the core holds all 200, chained.
 TEST(PeerCore, ARestartedFrontEndThatContinuesTheSequenceHasEveryKeyframeHeld) {
@@ -609,9 +616,7 @@ TEST(PeerCore, ARestartedFrontEndThatContinuesTheSequenceHasEveryKeyframeHeld) {
   EXPECT_EQ(core.keyframes_held(), 200u);
   EXPECT_EQ(core.last_keyframe_id(), 199);
   EXPECT_EQ(core.graph().count(graph::FactorKind::kOdometry), 199u);
-  const geometry::Trajectory t = core.world_trajectory();
-  ASSERT_EQ(t.size(), 200u);
-  for (size_t i = 1; i < t.size(); ++i) EXPECT_GT(t[i].stamp_ns, t[i - 1].stamp_ns);
+  expect_trajectory_in_stamp_order(core, 200u);
 }
 
 // The hole of a front-end that numbers afresh: keyframes whose ids the core holds, of another
@@ -647,9 +652,7 @@ TEST(PeerCore, AKeyframeConflictingWithTheSequenceIsRefusedAndNamed) {
   ASSERT_NE(core.keyframe(5), nullptr);
   EXPECT_EQ(core.keyframe(5)->incarnation, 3u);
   EXPECT_EQ(core.keyframe(5)->stamp_ns, stamp_of(5));
-  const geometry::Trajectory t = core.world_trajectory();
-  ASSERT_EQ(t.size(), 100u);
-  for (size_t i = 1; i < t.size(); ++i) EXPECT_GT(t[i].stamp_ns, t[i - 1].stamp_ns);
+  expect_trajectory_in_stamp_order(core, 100u);
 }
 
 // The trajectory written at shutdown follows the corrections the core published.

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
 #include <vector>
 
 namespace cdc::peer {
@@ -85,24 +86,36 @@ TEST(Rtdos, MaskBlocksRangeTriggersRightAfterASwitch) {
   EXPECT_EQ(t->reason, SwitchReason::kOutOfRange);
 }
 
-TEST(Rtdos, ReturnNeedsHysteresisAndAContinuousDwell) {
-  // Out at 10 s. At 95 m it is below CR_0 but not below CR_0 - hysteresis; at 89 m (31 s) the dwell
-  // starts; leaving the inner zone (91 m at 33.5 s) restarts it from 34 s, and it completes at 37 s.
-  Rtdos m = centralized_at_3s();
-  expect_return(m, at(10s, true, 120.0),
-                {at(20s, true, 95.0), at(30s, true, 95.0), at(31s, true, 89.0), at(33s, true, 89.0),
-                 at(33500ms, true, 91.0), at(34s, true, 80.0), at(36900ms, true, 80.0)},
-                at(37s, true, 80.0));
-}
+// The way back to CENTRALIZED, case by case: out on `leave`, none of `quiet` switches, `back` does.
+struct ReturnCase {
+  const char* needs;
+  RtdosInput leave;
+  std::vector<RtdosInput> quiet;
+  RtdosInput back;
+};
 
-TEST(Rtdos, ReturnNeedsALiveCentral) {
-  // Lost at 4 s. In range but with no central until 21 s, when the dwell starts; losing the central
-  // during the dwell (23.5 s) restarts it, and it completes 3 s after the central is back.
-  Rtdos m = centralized_at_3s();
-  expect_return(m, at(4s, false, 50.0),
-                {at(10s, false, 50.0), at(20s, false, 50.0), at(21s, true, 50.0), at(23s, true, 50.0),
-                 at(23500ms, false, 50.0), at(24s, true, 50.0), at(26s, true, 50.0)},
-                at(27s, true, 50.0));
+TEST(Rtdos, ReturnNeedsHysteresisAContinuousDwellAndALiveCentral) {
+  const std::vector<ReturnCase> cases{
+      // Out at 10 s. At 95 m it is below CR_0 but not below CR_0 - hysteresis; at 89 m (31 s) the dwell
+      // starts; leaving the inner zone (91 m at 33.5 s) restarts it from 34 s, and it completes at 37 s.
+      {"hysteresis and a continuous dwell",
+       at(10s, true, 120.0),
+       {at(20s, true, 95.0), at(30s, true, 95.0), at(31s, true, 89.0), at(33s, true, 89.0), at(33500ms, true, 91.0),
+        at(34s, true, 80.0), at(36900ms, true, 80.0)},
+       at(37s, true, 80.0)},
+      // Lost at 4 s. In range but with no central until 21 s, when the dwell starts; losing the central
+      // during the dwell (23.5 s) restarts it, and it completes 3 s after the central is back.
+      {"a live central",
+       at(4s, false, 50.0),
+       {at(10s, false, 50.0), at(20s, false, 50.0), at(21s, true, 50.0), at(23s, true, 50.0), at(23500ms, false, 50.0),
+        at(24s, true, 50.0), at(26s, true, 50.0)},
+       at(27s, true, 50.0)},
+  };
+  for (const ReturnCase& c : cases) {
+    SCOPED_TRACE(std::string("return needs ") + c.needs);
+    Rtdos m = centralized_at_3s();
+    expect_return(m, c.leave, c.quiet, c.back);
+  }
 }
 
 TEST(Rtdos, NoFlappingOnADistanceOscillatingAroundCr0) {

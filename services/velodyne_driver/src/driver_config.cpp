@@ -28,7 +28,8 @@ std::optional<io::VelodyneReturnMode> parse_return_mode(std::string_view name) {
 VelodyneDriverConfig load_driver_config(const std::string& path) {
   VelodyneDriverConfig c;
   config::Reader r(path);
-  std::string model = c.model ? std::string(io::to_string(*c.model)) : "auto", return_mode = "auto", calibration;
+  std::string model = c.decoder.model ? std::string(io::to_string(*c.decoder.model)) : "auto", return_mode = "auto",
+              calibration;
   const auto model_ok = [](const std::string& v) {
     try {
       parse_model(v);
@@ -44,29 +45,29 @@ VelodyneDriverConfig load_driver_config(const std::string& path) {
       [](const std::string& v) { return v == "auto" || v == "strongest" || v == "last" || v == "dual"; },
       "auto, strongest, last or dual");
   r.get<double>(
-      "sensor.rpm", c.rpm, [](const double& v) { return v >= 60 && v <= 1500; }, "60..1500");
+      "sensor.rpm", c.decoder.rpm, [](const double& v) { return v >= 60 && v <= 1500; }, "60..1500");
   r.get<double>(
       "sweep.scan_phase_deg", c.scan_phase_deg, [](const double& v) { return v >= 0 && v <= 360; }, "0..360");
   double max_gap_ms = 50;
   r.get<double>(
       "sweep.max_gap_ms", max_gap_ms, [](const double& v) { return v > 0 && v <= 10000; }, "(0, 10000]");
   c.max_gap = std::chrono::nanoseconds(static_cast<int64_t>(max_gap_ms * 1e6));
-  r.get_in("filter.min_range_m", c.min_range_m, 0.0, 1000.0);
-  r.get_in("filter.max_range_m", c.max_range_m, 0.1, 1000.0);
+  r.get_in("filter.min_range_m", c.decoder.min_range, 0.0, 1000.0);
+  r.get_in("filter.max_range_m", c.decoder.max_range, 0.1, 1000.0);
   r.get<double>(
-      "filter.sector_min_deg", c.sector_min_deg, [](const double& v) { return v >= 0 && v <= 360; }, "0..360");
+      "filter.sector_min_deg", c.decoder.sector_min_deg, [](const double& v) { return v >= 0 && v <= 360; }, "0..360");
   r.get<double>(
-      "filter.sector_max_deg", c.sector_max_deg, [](const double& v) { return v >= 0 && v <= 360; }, "0..360");
+      "filter.sector_max_deg", c.decoder.sector_max_deg, [](const double& v) { return v >= 0 && v <= 360; }, "0..360");
   int port = c.port;
   r.get<int>(
       "udp.port", port, [](const int& v) { return v >= 1 && v <= 65535; }, "1..65535");
   c.port = static_cast<uint16_t>(port);
   r.get_in("udp.receive_buffer_bytes", c.receive_buffer_bytes, 65536, 1 << 30);
   r.get<std::string>("log_level", c.log_level);
-  if (c.min_range_m >= c.max_range_m) r.error("filter.min_range_m must be below filter.max_range_m");
+  if (c.decoder.min_range >= c.decoder.max_range) r.error("filter.min_range_m must be below filter.max_range_m");
   r.finish();
-  c.model = parse_model(model);
-  c.return_mode = parse_return_mode(return_mode);
+  c.decoder.model = parse_model(model);
+  c.decoder.return_mode = parse_return_mode(return_mode);
   if (!calibration.empty()) {
     c.calibration = calibration;
     if (c.calibration.is_relative() && !path.empty())

@@ -31,19 +31,17 @@ void add_options(CLI::App& app, CommandLine& c) {
   app.add_option("--port", c.port, "UDP data port (default: udp.port, 2368)")->check(cdc::config::cli_range(1, 65535));
   app.add_option("--pcap", c.node.pcap, "replay this capture's datagrams to the data port instead of listening")
       ->check(CLI::ExistingFile);
-  app.add_option("--rate", c.node.rate, "replay speed: 1 the capture's own, 2 twice as fast, 0 as fast as possible")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 1000));
-  app.add_option("--wait-readers", c.node.wait_readers, "wait up to 30 s for this many LiDAR readers before starting")
-      ->capture_default_str()
-      ->check(cdc::config::cli_range(0, 1000));
+  cdc::config::add_number_option(app, "--rate", c.node.rate,
+                                 "replay speed: 1 the capture's own, 2 twice as fast, 0 as fast as possible", 0, 1000);
+  cdc::config::add_number_option(app, "--wait-readers", c.node.wait_readers,
+                                 "wait up to 30 s for this many LiDAR readers before starting", 0, 1000);
 }
 
 int run(const cdc::runtime::ServiceSpec& spec, const cdc::runtime::ServiceOptions& common, CommandLine& c) {
   VelodyneNodeOptions& o = c.node;
   o.driver = load_driver_config(common.config);
   try {
-    if (!c.model.empty()) o.driver.model = parse_model(c.model);
+    if (!c.model.empty()) o.driver.decoder.model = parse_model(c.model);
   } catch (const std::invalid_argument& e) {
     throw cdc::runtime::UsageError(e.what());
   }

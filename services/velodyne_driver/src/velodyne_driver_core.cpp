@@ -10,25 +10,19 @@ namespace cdc::velodyne_driver {
 namespace {
 
 io::VelodyneCalibration make_calibration(const VelodyneDriverConfig& c) {
-  if (!c.calibration.empty()) return io::read_velodyne_calibration(c.calibration, c.model);
-  if (!c.model)
+  const std::optional<io::VelodyneModel>& model = c.decoder.model;
+  if (!c.calibration.empty()) return io::read_velodyne_calibration(c.calibration, model);
+  if (!model)
     throw std::invalid_argument("Velodyne driver: give the sensor's calibration or its model (for the built-in table)");
-  return io::default_velodyne_calibration(*c.model);
+  return io::default_velodyne_calibration(*model);
 }
 
-io::VelodyneDecoderOptions decoder_options(const VelodyneDriverConfig& c) {
-  if (!(c.min_range_m >= 0.0 && c.min_range_m < c.max_range_m)) {
+const io::VelodyneDecoderOptions& decoder_options(const VelodyneDriverConfig& c) {
+  const io::VelodyneDecoderOptions& d = c.decoder;
+  if (!(d.min_range >= 0.0 && d.min_range < d.max_range)) {
     throw std::invalid_argument("Velodyne driver: need 0 <= min_range_m < max_range_m");
   }
-  if (!(c.rpm > 0.0)) throw std::invalid_argument("Velodyne driver: rpm must be positive");
-  io::VelodyneDecoderOptions d;
-  d.model = c.model;
-  d.return_mode = c.return_mode;
-  d.min_range = c.min_range_m;
-  d.max_range = c.max_range_m;
-  d.sector_min_deg = c.sector_min_deg;
-  d.sector_max_deg = c.sector_max_deg;
-  d.rpm = c.rpm;
+  if (!(d.rpm > 0.0)) throw std::invalid_argument("Velodyne driver: rpm must be positive");
   return d;
 }
 

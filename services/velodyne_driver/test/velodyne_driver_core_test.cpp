@@ -4,8 +4,7 @@
 #include "cdc/velodyne_driver/velodyne_driver_core.hpp"
 
 #include "cdc/config/reader.hpp"
-#include "cdc/io/bag.hpp"
-#include "cdc/io/ros_messages.hpp"
+#include "velodyne_fixture.hpp"
 
 #include <gtest/gtest.h>
 
@@ -24,37 +23,14 @@ using namespace std::chrono_literals;
 
 constexpr uint16_t kPort = 2368;
 
-fs::path data_dir() {
-  const char* env = std::getenv("CDC_DATA_DIR");
-  return env != nullptr ? fs::path(env) : fs::path("../shared/data");
-}
-
-fs::path fixture_dir() { return data_dir() / "real" / "packets" / "velodyne"; }
-
-struct Packet {
-  std::vector<uint8_t> data;
-  int64_t stamp_ns = 0;
-};
-
-// Every packet of the VLP-16 bag, in bag order; empty when the data folder is absent.
-std::vector<Packet> vlp16_packets() {
-  std::vector<Packet> out;
-  const fs::path bag = fixture_dir() / "vlp16" / "1673400471837873222";
-  if (!fs::exists(bag)) return out;
-  auto reader = io::open_bag(bag);
-  io::BagMessage m;
-  while (reader->next(m)) {
-    if (m.type != "velodyne_msgs/msg/VelodyneScan") continue;
-    for (const io::VelodynePacketMsg& p : io::decode_velodyne_scan(m).packets)
-      out.push_back({{p.data.begin(), p.data.end()}, p.stamp_ns});
-  }
-  return out;
-}
+using test::velodyne_fixture_dir;
+using test::vlp16_packets;
+using Packet = test::VelodynePacket;
 
 VelodyneDriverConfig vlp16_config() {
   VelodyneDriverConfig c;
-  c.model = io::VelodyneModel::kVLP16;
-  c.calibration = fixture_dir() / "calibration" / "VLP16.yaml";
+  c.decoder.model = io::VelodyneModel::kVLP16;
+  c.calibration = test::vlp16_calibration();
   return c;
 }
 
@@ -65,7 +41,7 @@ std::vector<DriverSweep> drain(VelodyneDriverCore& core) {
 }
 
 #define SKIP_WITHOUT_FIXTURE(packets) \
-  if ((packets).empty()) GTEST_SKIP() << "no Velodyne fixture under " << fixture_dir() << " (set CDC_DATA_DIR)"
+  if ((packets).empty()) GTEST_SKIP() << "no Velodyne fixture under " << velodyne_fixture_dir() << " (set CDC_DATA_DIR)"
 
 TEST(VelodyneDriverCore, SameSweepsAsTheAssemblerWithImportSettings) {
   const std::vector<Packet> packets = vlp16_packets();
@@ -73,11 +49,11 @@ TEST(VelodyneDriverCore, SameSweepsAsTheAssemblerWithImportSettings) {
   const VelodyneDriverConfig config = vlp16_config();
   VelodyneDriverCore core(config);
   io::VelodyneDecoderOptions d;
-  d.model = config.model;
+  d.model = config.decoder.model;
   io::VelodyneSweepOptions so;
   so.emit_first = false;
   so.emit_incomplete = false;
-  io::VelodyneSweepAssembler assembler(io::read_velodyne_calibration(config.calibration, config.model), d, so);
+  io::VelodyneSweepAssembler assembler(io::read_velodyne_calibration(config.calibration, config.decoder.model), d, so);
   std::vector<DriverSweep> sweeps;
   std::vector<io::VelodyneSweep> reference;
   for (const Packet& p : packets) {
@@ -216,15 +192,15 @@ TEST(VelodyneDriverCore, ASilenceDropsTheSweepItInterrupts) {
 
 TEST(VelodyneDriverCore, NeedsACalibrationOrAModel) {
   VelodyneDriverConfig c;
-  c.model.reset();
+  c.decoder.model.reset();
   EXPECT_THROW(VelodyneDriverCore{c}, std::invalid_argument);
-  c.model = io::VelodyneModel::kVLP32C;
+  c.decoder.model = io::VelodyneModel::kVLP32C;
   VelodyneDriverCore built_in(c);
   EXPECT_EQ(built_in.calibration().lasers.size(), 32u);
   c.calibration = "/nonexistent/VLP32.yaml";
   EXPECT_THROW(VelodyneDriverCore{c}, io::FormatError);
   c.calibration.clear();
-  c.min_range_m = 300;
+  c.decoder.min_range = 300;
   EXPECT_THROW(VelodyneDriverCore{c}, std::invalid_argument);
 }
 
@@ -260,16 +236,16 @@ TEST(ReplayPacer, ScalesCaptureTimeByTheRate) {
 
 TEST(VelodyneDriverConfig, TheShippedFileHoldsTheDefaults) {
   const VelodyneDriverConfig d, f = load_driver_config(CDC_VELODYNE_YAML);
-  EXPECT_EQ(f.model, d.model);
+  EXPECT_EQ(f.decoder.model, d.decoder.model);
   EXPECT_TRUE(f.calibration.empty());
-  EXPECT_EQ(f.return_mode, d.return_mode);
-  EXPECT_EQ(f.rpm, d.rpm);
+  EXPECT_EQ(f.decoder.return_mode, d.decoder.return_mode);
+  EXPECT_EQ(f.decoder.rpm, d.decoder.rpm);
   EXPECT_EQ(f.scan_phase_deg, d.scan_phase_deg);
   EXPECT_EQ(f.max_gap, d.max_gap);
-  EXPECT_EQ(f.min_range_m, d.min_range_m);
-  EXPECT_EQ(f.max_range_m, d.max_range_m);
-  EXPECT_EQ(f.sector_min_deg, d.sector_min_deg);
-  EXPECT_EQ(f.sector_max_deg, d.sector_max_deg);
+  EXPECT_EQ(f.decoder.min_range, d.decoder.min_range);
+  EXPECT_EQ(f.decoder.max_range, d.decoder.max_range);
+  EXPECT_EQ(f.decoder.sector_min_deg, d.decoder.sector_min_deg);
+  EXPECT_EQ(f.decoder.sector_max_deg, d.decoder.sector_max_deg);
   EXPECT_EQ(f.port, d.port);
   EXPECT_EQ(f.receive_buffer_bytes, d.receive_buffer_bytes);
   EXPECT_EQ(f.log_level, d.log_level);
@@ -281,14 +257,14 @@ TEST(VelodyneDriverConfig, ReadsKeysAndListsEveryError) {
   std::ofstream(dir / "good.yaml") << "sensor:\n  model: vlp-32c\n  calibration: cal/VLP32.yaml\n  return_mode: dual\n"
                                       "sweep:\n  scan_phase_deg: 180\n  max_gap_ms: 20\nudp:\n  port: 2370\n";
   const VelodyneDriverConfig g = load_driver_config((dir / "good.yaml").string());
-  EXPECT_EQ(g.model, io::VelodyneModel::kVLP32C);
+  EXPECT_EQ(g.decoder.model, io::VelodyneModel::kVLP32C);
   EXPECT_EQ(g.calibration, dir / "cal" / "VLP32.yaml");
-  EXPECT_EQ(g.return_mode, io::VelodyneReturnMode::kDual);
+  EXPECT_EQ(g.decoder.return_mode, io::VelodyneReturnMode::kDual);
   EXPECT_EQ(g.scan_phase_deg, 180.0);
   EXPECT_EQ(g.max_gap, std::chrono::nanoseconds(20ms));
   EXPECT_EQ(g.port, 2370);
   std::ofstream(dir / "auto.yaml") << "sensor:\n  model: auto\n";
-  EXPECT_FALSE(load_driver_config((dir / "auto.yaml").string()).model.has_value());
+  EXPECT_FALSE(load_driver_config((dir / "auto.yaml").string()).decoder.model.has_value());
   std::ofstream(dir / "bad.yaml") << "sensor:\n  model: HDL-99\n  return_mode: both\nudp:\n  port: 70000\n"
                                      "filter:\n  min_range_m: 5\n  max_range_m: 2\nspeed: 3\n";
   try {

@@ -46,6 +46,26 @@ std::vector<LidarReturn> sweep_at_origin(const World& w, const LidarModel& m, st
       w, m, [](double) { return at(0, 0, 0); }, rng);
 }
 
+double distance(const LidarReturn& p) { return std::sqrt(p.x * p.x + p.y * p.y + p.z * p.z); }
+
+// A sweep from the origin of flat ground 2 m below: every point of ring 0 goes to check0, every point
+// of ring 1 to check1, and each of the two rings has one point per column.
+template <typename Check0, typename Check1>
+void check_rings_on_ground(const LidarModel& m, std::mt19937_64& rng, Check0 check0, Check1 check1) {
+  int n0 = 0, n1 = 0;
+  for (const LidarReturn& p : sweep_at_origin(flat_ground(-2.0), m, rng)) {
+    if (p.ring == 0) {
+      check0(p);
+      ++n0;
+    } else if (p.ring == 1) {
+      check1(p);
+      ++n1;
+    }
+  }
+  EXPECT_EQ(n0, m.columns);
+  EXPECT_EQ(n1, m.columns);
+}
+
 TEST(World, RayAgainstTheGroundPlaneGivesTheAnalyticRange) {
   const World w = flat_ground(-2.0);
   const Eigen::Vector3d d = Eigen::Vector3d(std::cos(0.3), 0, -std::sin(0.3));
@@ -127,28 +147,20 @@ TEST(Lidar, RangeNoiseAndDropoutsHaveTheConfiguredSize) {
 TEST(Lidar, ElevationCalibrationErrorPutsPointsAlongTheNominalBeam) {
   // Flat ground 2 m below the sensor. Beam 0 of the VLP-16 (nominal -15 deg) really fires at
   // -15.5 deg: it meets the ground at 2 / sin(15.5 deg), and that range is reported along -15 deg.
-  const World w = flat_ground(-2.0);
   LidarModel m = exact(LidarModel::vlp16());
   m.elevation_error_deg.assign(m.elevations_deg.size(), 0.0);
   m.elevation_error_deg[0] = -0.5;
   std::mt19937_64 rng(1);
-  const auto pts = sweep_at_origin(w, m, rng);
   const double range = 2.0 / std::sin(15.5 * M_PI / 180), z = -range * std::sin(15.0 * M_PI / 180);
-  int n0 = 0, n1 = 0;
-  for (const auto& p : pts) {
-    if (p.ring == 0) {
-      EXPECT_NEAR(std::sqrt(p.x * p.x + p.y * p.y + p.z * p.z), range, 1e-3);
-      EXPECT_NEAR(p.z, z, 1e-3);  // 1.93 m: the ground looks like a cone, not a plane
-      ++n0;
-    } else if (p.ring == 1) {
-      EXPECT_NEAR(p.z, -2.0, 1e-3);  // an exact beam still sees the plane
-      ++n1;
-    }
-  }
-  EXPECT_EQ(n0, m.columns);
-  EXPECT_EQ(n1, m.columns);
+  check_rings_on_ground(
+      m, rng,
+      [&](const LidarReturn& p) {
+        EXPECT_NEAR(distance(p), range, 1e-3);
+        EXPECT_NEAR(p.z, z, 1e-3);  // 1.93 m: the ground looks like a cone, not a plane
+      },
+      [](const LidarReturn& p) { EXPECT_NEAR(p.z, -2.0, 1e-3); });  // an exact beam still sees the plane
   m.elevation_error_deg.resize(3);
-  EXPECT_THROW(sweep_at_origin(w, m, rng), std::invalid_argument);
+  EXPECT_THROW(sweep_at_origin(flat_ground(-2.0), m, rng), std::invalid_argument);
 }
 
 TEST(Lidar, AzimuthCalibrationErrorTurnsTheBeamButNotItsReportedDirection) {
@@ -188,28 +200,16 @@ TEST(Lidar, AzimuthCalibrationErrorTurnsTheBeamButNotItsReportedDirection) {
 
 TEST(Lidar, RangeOffsetLengthensEveryReturnOfItsBeam) {
   // Flat ground 2 m below: ring 0 (-15 deg) reports 5 cm too far, ring 1 is exact.
-  const World w = flat_ground(-2.0);
   LidarModel m = exact(LidarModel::vlp16());
   m.range_offset_m.assign(m.elevations_deg.size(), 0.0);
   m.range_offset_m[0] = 0.05;
   std::mt19937_64 rng(1);
-  const auto pts = sweep_at_origin(w, m, rng);
   const double r0 = 2.0 / std::sin(15.0 * M_PI / 180) + 0.05, r1 = 2.0 / std::sin(13.0 * M_PI / 180);
-  int n0 = 0, n1 = 0;
-  for (const auto& p : pts) {
-    const double r = std::sqrt(p.x * p.x + p.y * p.y + p.z * p.z);
-    if (p.ring == 0) {
-      EXPECT_NEAR(r, r0, 1e-3);
-      ++n0;
-    } else if (p.ring == 1) {
-      EXPECT_NEAR(r, r1, 1e-3);
-      ++n1;
-    }
-  }
-  EXPECT_EQ(n0, m.columns);
-  EXPECT_EQ(n1, m.columns);
+  check_rings_on_ground(
+      m, rng, [&](const LidarReturn& p) { EXPECT_NEAR(distance(p), r0, 1e-3); },
+      [&](const LidarReturn& p) { EXPECT_NEAR(distance(p), r1, 1e-3); });
   m.range_offset_m.resize(17);
-  EXPECT_THROW(sweep_at_origin(w, m, rng), std::invalid_argument);
+  EXPECT_THROW(sweep_at_origin(flat_ground(-2.0), m, rng), std::invalid_argument);
 }
 
 TEST(Lidar, AMovingSensorsSweepIsDistortedByExactlyTheMotion) {

@@ -47,12 +47,26 @@ io::KittiSequenceOptions lidar_poses(const fs::path& seq) {
   return o;
 }
 
-TEST(Import, KittiSplitIntoRobotsKeepsEverySweepItsPoseAndMakesTheRadioFromThePoses) {
-  const fs::path root = temp_dir("split");
+// Each test works in a fresh folder, root, that is removed when the test ends; the dataset is written to
+// root/ds.
+class Import : public ::testing::Test {
+ protected:
+  void use_folder(const std::string& name) {
+    root = temp_dir(name);
+    o.out = root / "ds";
+  }
+  void TearDown() override {
+    if (!root.empty()) fs::remove_all(root);
+  }
+
+  fs::path root;
+  ImportOptions o;
+};
+
+TEST_F(Import, KittiSplitIntoRobotsKeepsEverySweepItsPoseAndMakesTheRadioFromThePoses) {
+  use_folder("split");
   const fs::path seq = make_sequence(root, 60);
   const Recording rec = kitti_recording(seq, lidar_poses(seq), io::PointTimes::kNone, "ground_truth");
-  ImportOptions o;
-  o.out = root / "ds";
   o.robots = 3;
   o.time_shift_s = 1.0;
   o.radio.central_range_m = 30;  // robots 1 and 2 start 40 and 80 m away from robot 0's start
@@ -92,14 +106,11 @@ TEST(Import, KittiSplitIntoRobotsKeepsEverySweepItsPoseAndMakesTheRadioFromThePo
   std::ifstream periods(o.out / "radio_periods.csv");
   std::string text((std::istreambuf_iterator<char>(periods)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("2,200,"), std::string::npos) << text;
-  fs::remove_all(root);
 }
 
-TEST(Import, AzimuthTimesAreWrittenOnlyWhenAskedForAndLieWithinTheSweep) {
-  const fs::path root = temp_dir("azimuth");
+TEST_F(Import, AzimuthTimesAreWrittenOnlyWhenAskedForAndLieWithinTheSweep) {
+  use_folder("azimuth");
   const fs::path seq = make_sequence(root, 5);
-  ImportOptions o;
-  o.out = root / "ds";
   write_import(kitti_recording(seq, {}, io::PointTimes::kAzimuth, "none"), o);
   EXPECT_EQ(io::read_dataset_info(o.out).point_times, io::PointTimes::kAzimuth);
   const auto scans = io::list_dataset_scans(o.out.string());
@@ -110,14 +121,11 @@ TEST(Import, AzimuthTimesAreWrittenOnlyWhenAskedForAndLieWithinTheSweep) {
     EXPECT_GE(p.time_offset, 0.0f);
     EXPECT_LE(p.time_offset, 0.5f);
   }
-  fs::remove_all(root);
 }
 
-TEST(Import, AFailedImportLeavesNoDatasetBehind) {
-  const fs::path root = temp_dir("fail");
+TEST_F(Import, AFailedImportLeavesNoDatasetBehind) {
+  use_folder("fail");
   const fs::path seq = make_sequence(root, 30);
-  ImportOptions o;
-  o.out = root / "ds";
   o.robots = 3;
   // Several robots with poses but no range: refused before anything is committed.
   EXPECT_THROW(write_import(kitti_recording(seq, lidar_poses(seq), io::PointTimes::kNone, "ground_truth"), o),
@@ -138,11 +146,10 @@ TEST(Import, AFailedImportLeavesNoDatasetBehind) {
   } catch (const io::FormatError& e) {
     EXPECT_NE(std::string(e.what()).find("000020.bin"), std::string::npos) << e.what();
   }
-  fs::remove_all(root);
 }
 
-TEST(Import, SweepFolderOfPcdFilesKeepsTheirPointTimesAndRings) {
-  const fs::path root = temp_dir("pcd");
+TEST_F(Import, SweepFolderOfPcdFilesKeepsTheirPointTimesAndRings) {
+  use_folder("pcd");
   const fs::path dir = root / "sweeps";
   fs::create_directories(dir);
   for (int k = 0; k < 3; ++k) {
@@ -152,8 +159,6 @@ TEST(Import, SweepFolderOfPcdFilesKeepsTheirPointTimesAndRings) {
     for (int i = 0; i < 3; ++i) f << 1.0 + i << ' ' << k << " 0.5 " << 10 * i << ' ' << i << ' ' << 0.01 * i << '\n';
   }
   std::ofstream(dir / "times.txt") << "5.0\n5.1\n5.2\n";
-  ImportOptions o;
-  o.out = root / "ds";
   const ImportSummary sum = write_import(sweep_folder_recording(dir, {}), o);
   EXPECT_EQ(sum.info.point_times, io::PointTimes::kSensor);
   EXPECT_EQ(sum.info.scans, 3u);
@@ -166,16 +171,13 @@ TEST(Import, SweepFolderOfPcdFilesKeepsTheirPointTimesAndRings) {
   EXPECT_FLOAT_EQ(s.points[2].y, 1.0f);
   EXPECT_FLOAT_EQ(s.points[2].time_offset, 0.02f);
   EXPECT_EQ(s.points[2].ring, 2);
-  fs::remove_all(root);
 }
 
-TEST(Import, RealBalmSweepsSplitIntoThreeOverlappingRobots) {
+TEST_F(Import, RealBalmSweepsSplitIntoThreeOverlappingRobots) {
   const char* env = std::getenv("CDC_DATA_DIR");
   const fs::path data = fs::path(env != nullptr ? env : "../shared/data") / "real/balm_10cm";
   if (!fs::exists(data / "poses.txt")) GTEST_SKIP() << "real data absent: " << data << " not found (set CDC_DATA_DIR)";
-  const fs::path root = temp_dir("balm");
-  ImportOptions o;
-  o.out = root / "ds";
+  use_folder("balm");
   o.robots = 3;
   o.radio.central_range_m = 8;
   o.max_scans = 5;
@@ -185,7 +187,6 @@ TEST(Import, RealBalmSweepsSplitIntoThreeOverlappingRobots) {
   EXPECT_EQ(sum.info.point_times, io::PointTimes::kNone);
   EXPECT_EQ(sum.info.poses, "reference");
   EXPECT_NEAR(sum.info.sweep_period_s, 0.5, 0.01);
-  fs::remove_all(root);
 }
 
 }  // namespace

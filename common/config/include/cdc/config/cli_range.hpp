@@ -33,4 +33,11 @@ inline CLI::Validator cli_range(double lo, double hi) {
       "NUMBER " + range.substr(3));
 }
 
+// A numeric option that shows its default in --help and takes only a finite number in [lo, hi].
+template <typename T>
+CLI::Option* add_number_option(CLI::App& app, const std::string& name, T& value, const std::string& description,
+                               double lo, double hi) {
+  return app.add_option(name, value, description)->capture_default_str()->check(cli_range(lo, hi));
+}
+
 }  // namespace cdc::config

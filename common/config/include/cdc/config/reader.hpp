@@ -4,6 +4,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <array>
 #include <cmath>
 #include <functional>
 #include <set>
@@ -60,6 +61,18 @@ class Reader {
     get<T>(
         key, out, [lo, hi](const T& v) { return v >= lo && v <= hi; }, range_text(lo, hi));
   }
+
+  // Reads the count `key` into an unsigned field: as an int in [lo, hi], so that a negative value is
+  // refused rather than wrapped round.
+  template <class Count>
+  void get_count(const std::string& key, Count& out, int lo, int hi) {
+    int v = static_cast<int>(out);
+    get_in(key, v, lo, hi);
+    out = static_cast<Count>(v);
+  }
+
+  // Reads a position [x, y, z] in metres, each coordinate within [-1e7, 1e7], into out when present.
+  void get_position(const std::string& key, std::array<double, 3>& out);
 
   // "in [lo, hi]" with the shortest exact spelling of both ends.
   static std::string range_text(double lo, double hi);

@@ -7,6 +7,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <vector>
 
 namespace cdc::dds {
 
@@ -28,6 +29,12 @@ cdc_msg_PoseF to_msg_f(const Eigen::Isometry3d& T);
 
 Matrix6d information_to_eigen(const cdc_msg_Information6& info);
 void information_to_msg(const Matrix6d& info, cdc_msg_Information6& out);
+
+// The body of a keyframe message: its pose in the robot's odometry frame, its pose relative to the
+// keyframe before and that relative pose's information, and its cloud, lent from storage (which has to
+// outlive the write, see borrow()). The caller sets the robot, the id, the incarnation and the stamp.
+void keyframe_body_to_msg(const Eigen::Isometry3d& T_odom_keyframe, const Eigen::Isometry3d& T_prev,
+                          const Matrix6d& information, std::vector<cdc_msg_PointXYZI>& cloud, cdc_msg_Keyframe& out);
 
 // Wall-clock time now, integer nanoseconds since the epoch.
 inline int64_t now_ns() {

@@ -22,18 +22,23 @@
 
 namespace cdc::velodyne_driver {
 
+// The decoder's defaults for a VLP-16, the driver's sensor unless the configuration names another.
+inline io::VelodyneDecoderOptions vlp16_decoder_options() {
+  io::VelodyneDecoderOptions d;
+  d.model = io::VelodyneModel::kVLP16;
+  return d;
+}
+
 struct VelodyneDriverConfig {
-  std::optional<io::VelodyneModel> model = io::VelodyneModel::kVLP16;  // nullopt: from each packet's product id
-  std::filesystem::path calibration;                  // calibration YAML (ROS driver format); empty: built-in table
-  std::optional<io::VelodyneReturnMode> return_mode;  // nullopt: from each packet's return-mode byte
-  double rpm = 600.0;                                 // nominal speed (only for packets whose azimuths give no rate)
-  double scan_phase_deg = 0.0;                        // [deg] azimuth where sweeps are cut, [0, 360]
+  // The model (nullopt: from each packet's product id), the return mode, the nominal speed and the range
+  // and azimuth filters, as the decoder takes them.
+  io::VelodyneDecoderOptions decoder = vlp16_decoder_options();
+  std::filesystem::path calibration;  // calibration YAML (ROS driver format); empty: built-in table
+  double scan_phase_deg = 0.0;        // [deg] azimuth where sweeps are cut, [0, 360]
   std::chrono::nanoseconds max_gap{std::chrono::milliseconds(50)};  // a longer silence ends a sweep (dropped)
-  double min_range_m = 0.4, max_range_m = 200.0;                    // [m] a point is kept when min < distance < max
-  double sector_min_deg = 0.0, sector_max_deg = 360.0;  // [deg] kept azimuths (wrapping through 0 when min > max)
-  uint16_t port = 2368;                                 // UDP destination port of the data packets
-  int receive_buffer_bytes = 8 << 20;                   // SO_RCVBUF asked for (Linux grants twice that, capped at
-                                                        // 2 x net.core.rmem_max)
+  uint16_t port = 2368;                                             // UDP destination port of the data packets
+  int receive_buffer_bytes = 8 << 20;  // SO_RCVBUF asked for (Linux grants twice that, capped at
+                                       // 2 x net.core.rmem_max)
   std::string log_level = "info";
 };
 
