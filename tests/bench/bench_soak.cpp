@@ -327,6 +327,14 @@ int run(const Options& o) {
   }
   nlohmann::json j = report(o, services, samples);
   j["complete"] = complete;
+  std::ifstream stats(dir / "central.json");  // written by the central as it stops
+  if (stats) {
+    const nlohmann::json c = nlohmann::json::parse(stats, nullptr, false);
+    for (const char* key :
+         {"graph_poses", "graph_factors", "loops_accepted", "updates", "unsettled_updates", "results_held"}) {
+      if (c.is_object() && c.contains(key)) j["central_stats"][key] = c[key];
+    }
+  }
   j["csv"] = (dir / "soak.csv").string();
   print_summary(j);
   std::cout << j.dump() << std::endl;
