@@ -301,6 +301,32 @@ void print_summary(const nlohmann::json& j) {
               static_cast<long long>(j["central_keyframes"].get<int64_t>()));
 }
 
+// Lines of a log that contain `text` (a peer's mode switches: the central's liveliness lapsed).
+size_t count_lines(const fs::path& path, const std::string& text) {
+  std::ifstream in(path);
+  size_t n = 0;
+  for (std::string line; std::getline(in, line);)
+    if (line.find(text) != std::string::npos) ++n;
+  return n;
+}
+
+// What the services' own logs and stats say: the peers' switches to DISTRIBUTED (the central's
+// liveliness lapsed) and the central's final graph and update counts.
+void add_run_facts(const Options& o, const fs::path& dir, nlohmann::json& j) {
+  for (uint32_t r = 0; r < o.robots; ++r) {
+    j["peer_switches_to_distributed"].push_back(
+        count_lines(dir / ("peer" + std::to_string(r) + ".log"), "CENTRALIZED -> DISTRIBUTED"));
+  }
+  std::ifstream stats(dir / "central.json");  // written by the central as it stops
+  if (stats) {
+    const nlohmann::json c = nlohmann::json::parse(stats, nullptr, false);
+    for (const char* key :
+         {"graph_poses", "graph_factors", "loops_accepted", "updates", "unsettled_updates", "results_held"}) {
+      if (c.is_object() && c.contains(key)) j["central_stats"][key] = c[key];
+    }
+  }
+}
+
 int run(const Options& o) {
   if (!o.dds_config.empty()) ::setenv("CYCLONEDDS_URI", ("file://" + o.dds_config).c_str(), 1);
   if (std::getenv("CYCLONEDDS_URI") == nullptr) {
@@ -327,14 +353,7 @@ int run(const Options& o) {
   }
   nlohmann::json j = report(o, services, samples);
   j["complete"] = complete;
-  std::ifstream stats(dir / "central.json");  // written by the central as it stops
-  if (stats) {
-    const nlohmann::json c = nlohmann::json::parse(stats, nullptr, false);
-    for (const char* key :
-         {"graph_poses", "graph_factors", "loops_accepted", "updates", "unsettled_updates", "results_held"}) {
-      if (c.is_object() && c.contains(key)) j["central_stats"][key] = c[key];
-    }
-  }
+  add_run_facts(o, dir, j);
   j["csv"] = (dir / "soak.csv").string();
   print_summary(j);
   std::cout << j.dump() << std::endl;
