@@ -97,6 +97,7 @@ CentralNode::CentralNode(const runtime::ServiceOptions& common, const CentralNod
   keyframes_.on([this](const cdc_msg_Keyframe& m) { on_keyframe(m); });
   loops_.on([this](const cdc_msg_LoopClosure& m) { on_loop(m); });
   world_.on([this](const cdc_msg_WorldTransform& m) { on_world(m); });
+  core_.on_iteration([this] { w_alive_.assert_liveliness(); });
   spdlog::info("central optimiser up: incarnation {}, {} robots, lease {} ms, domain {}", incarnation_,
                o.core.robot_count, o.lease_ms, common.domain_id());
 }

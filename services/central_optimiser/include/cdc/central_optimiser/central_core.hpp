@@ -9,6 +9,7 @@
 #include <Eigen/Geometry>
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <optional>
 #include <set>
@@ -57,16 +58,22 @@ struct CentralConfig {
   // Loops through one keyframe share its cloud's errors: each loop's information is divided by the
   // most loops either of its keyframes takes part in (graph::share_loop_information).
   bool share_loop_information = true;
+  // Loops held waiting for their keyframes (loops in the graph do not count).
   size_t max_pending_loops = 100'000;
   // Keyframes held beyond a gap in their robot session's ids (waiting for a predecessor), over all
   // sessions. One beyond the cap is refused: it is not acknowledged, so a real one is sent again.
   size_t max_pending_keyframes = 10'000;
   // Incremental updates re-optimise what changed (new keyframes, loop ends) plus this many
-  // preceding keyframes of the same robot, the rest held fixed; every full_every updates (and
-  // whenever a robot joins the world, after any update that did not converge, and once a robot has
-  // gained more than `window` keyframes since the last full pass) the whole graph is re-optimised.
+  // preceding keyframes of the same robot, the rest held fixed; a local update that does not
+  // converge is continued by the next. The whole graph is re-optimised when a robot joins the world,
+  // after a full pass that did not converge, once a robot has gained more than
+  // max(window, full_growth x its keyframes) since the last full pass, and every full_every updates
+  // once the graph has changed (keyframes and loops inserted) by full_growth of its size. A full
+  // pass costs O(graph) and comes after O(graph) changes: the work per keyframe stays bounded as the
+  // mission grows.
   uint32_t window = 30;
   uint32_t full_every = 20;
+  double full_growth = 0.1;
   int full_pass_iterations = 3;
   double full_pass_time_s = 0.3;
 };
@@ -117,6 +124,8 @@ class CentralCore {
   // graph, or all of it every full_every updates, and at every update while the graph is not
   // settled.
   UpdateStats optimise();
+  // Called after every solver iteration (the node asserts its liveliness from it).
+  void on_iteration(std::function<void()> f) { on_iteration_ = std::move(f); }
   // Solves to convergence (no budget), for final results.
   UpdateStats optimise_fully();
 
@@ -152,6 +161,7 @@ class CentralCore {
     std::optional<Eigen::Isometry3d> hint;                           // T_world_robot from the robot
     Eigen::Isometry3d T_world_odom = Eigen::Isometry3d::Identity();  // once placed
     std::set<uint32_t> loop_seqs;                                    // loops sent by this session
+    int64_t loop_contiguous = -1;                                    // seqs 0 .. loop_contiguous are all held
     uint32_t inserted_since_full = 0;  // keyframes put in the graph since the last full pass
   };
   struct StoredLoop {
@@ -171,13 +181,26 @@ class CentralCore {
   UpdateStats solve_with(const graph::SolverOptions& options);
   UpdateStats solve_local(const graph::SolverOptions& options);
   void touch(const Session& s, uint32_t id) { touched_.insert(key(s, id)); }
+  void add_between(Key a, Key b, const Eigen::Isometry3d& T_a_b, const Matrix6d& information);
+  void index_factors();
+  void withdraw(StoredLoop& l);
+  void hold_loop_seq(uint32_t sender, uint32_t incarnation, uint32_t seq);
+  std::set<Key> active_keys() const;
+  bool full_pass_due() const;
+  graph::SolverOptions update_options() const;
 
   CentralConfig config_;
   std::map<uint32_t, std::vector<Session>> sessions_;  // per robot, by arrival of incarnations
   std::vector<StoredLoop> loops_;
+  std::vector<size_t> pending_loops_;                            // loops_ not in the graph and not withdrawn
   size_t pending_keyframes_ = 0;                                 // held beyond a gap, over all sessions
   std::set<std::tuple<uint32_t, uint32_t, uint32_t>> loop_ids_;  // (sender, incarnation, seq)
   graph::PoseGraph graph_;
+  std::map<Key, std::vector<size_t>> factors_at_;  // key -> indices of graph_.factors through it
+  std::map<Key, int> loop_counts_;                 // key -> loop factors through it (graph::loop_counts)
+  uint64_t changes_since_full_ = 0;                // keyframes and loops inserted since the last full pass
+  bool last_full_ = false;                         // the last update was a full pass
+  std::function<void()> on_iteration_;
   uint64_t version_ = 0;
   bool dirty_ = false;
   std::set<Key> touched_;  // keys changed since the last update
