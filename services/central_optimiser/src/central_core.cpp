@@ -65,7 +65,8 @@ AddResult CentralCore::add_keyframe(const KeyframeIn& kf) {
     graph_.add_prior(key(*s, 0), kf.T_odom_keyframe, Matrix6d::Identity() * kAnchorInformation);
     factors_at_[key(*s, 0)].push_back(graph_.factors.size() - 1);
     graph_.poses[key(*s, 0)] = kf.T_odom_keyframe;
-    s->in_graph.insert(0);
+    s->in_graph = 1;
+    s->keyframes.at(0).link.reset();
     s->placed = true;
     s->T_world_odom = Eigen::Isometry3d::Identity();
   }
@@ -80,7 +81,7 @@ AddResult CentralCore::add_keyframe(const KeyframeIn& kf) {
 // A keyframe id names one keyframe of a robot's sequence (idl/README.md): the same keyframe again (a
 // re-send) is a duplicate; other contents under a held id (a front-end that numbered afresh under the
 // same incarnation) are refused, never taken for a duplicate.
-AddResult CentralCore::held_already(const KeyframeIn& held, const KeyframeIn& kf) {
+AddResult CentralCore::held_already(const Held& held, const KeyframeIn& kf) {
   if (held.stamp_ns == kf.stamp_ns) {
     ++counters_.keyframes_duplicate;
     return {Outcome::kDuplicate, {}};
@@ -95,7 +96,8 @@ AddResult CentralCore::held_already(const KeyframeIn& held, const KeyframeIn& kf
 // Holds kf and moves the session's contiguous end past every keyframe that now follows without a
 // gap: those stop pending. Each keyframe is passed over once, so the intake costs O(log n) each.
 void CentralCore::hold(Session& s, const KeyframeIn& kf) {
-  auto it = s.keyframes.emplace(kf.id, kf).first;
+  Held h{kf.stamp_ns, kf.T_odom_keyframe, std::make_unique<Held::Link>(Held::Link{kf.T_prev_keyframe, kf.information})};
+  auto it = s.keyframes.emplace(kf.id, std::move(h)).first;
   if (kf.id != s.contiguous) {
     ++pending_keyframes_;
     return;
@@ -108,29 +110,28 @@ void CentralCore::hold(Session& s, const KeyframeIn& kf) {
 }
 
 // Chains the held keyframes that follow the graph's newest one of the session, in id order: the
-// graph holds ids 0 .. in_graph.size() - 1, so the next one is looked up, never searched for.
+// graph holds ids 0 .. in_graph - 1, so the next one is looked up, never searched for.
 void CentralCore::insert_ready_keyframes(Session& s) {
-  for (uint64_t next = s.in_graph.size(); next < s.contiguous; ++next) {
+  for (uint64_t next = s.in_graph; next < s.contiguous; ++next) {
     const auto id = static_cast<uint32_t>(next);
-    const KeyframeIn& kf = s.keyframes.at(id);
+    Held& kf = s.keyframes.at(id);
+    const std::unique_ptr<Held::Link> link = std::move(kf.link);
+    s.in_graph = id + 1;
+    touch(s, id);
     if (id == 0) {
       graph_.poses[key(s, 0)] = s.T_world_odom * kf.T_odom_keyframe;
-      s.in_graph.insert(0);
-      touch(s, 0);
       continue;
     }
     const Key prev = key(s, id - 1), cur = key(s, id);
-    graph_.poses[cur] = graph_.poses.at(prev) * kf.T_prev_keyframe;  // chained from the optimised predecessor
-    add_between(prev, cur, kf.T_prev_keyframe, kf.information);
-    s.in_graph.insert(id);
-    touch(s, id);
+    graph_.poses[cur] = graph_.poses.at(prev) * link->T_prev_keyframe;  // chained from the optimised predecessor
+    add_between(prev, cur, link->T_prev_keyframe, link->information);
     // A backlog (a robot's re-sent keyframes after a rejoin, with the loops it missed) is more than a
     // window: a local pass holds the rest of that robot fixed, and the loops that should turn its whole
     // trajectory bend only its end. Robot 2 of the demo: its fitted T_world_robot 0.2 m and 3 mrad off
     // for 2 s of local passes, then a full pass moved its corrected newest keyframe 0.15-0.3 m.
     // In a long mission a robot gains `window` keyframes every few seconds: the bound grows with the
     // session, so that steady growth pays for its full passes and a backlog still triggers one.
-    const double grown = std::max<double>(config_.window, config_.full_growth * static_cast<double>(s.in_graph.size()));
+    const double grown = std::max<double>(config_.window, config_.full_growth * static_cast<double>(s.in_graph));
     if (++s.inserted_since_full > grown) need_full_ = true;
   }
 }
@@ -160,16 +161,16 @@ void CentralCore::try_insert_loops() {
         continue;
       }
       // Place a session the first time a loop ties it to the anchored graph.
-      if (sa->placed && !sb->placed && sa->in_graph.count(l.in.keyframe_a) != 0) {
+      if (sa->placed && !sb->placed && sa->has(l.in.keyframe_a)) {
         const Eigen::Isometry3d T_world_b = graph_.poses.at(key(*sa, l.in.keyframe_a)) * l.in.T_a_b;
         place(*sb, sb->hint.value_or(T_world_b * sb->keyframes.at(l.in.keyframe_b).T_odom_keyframe.inverse()));
         progress = true;
-      } else if (sb->placed && !sa->placed && sb->in_graph.count(l.in.keyframe_b) != 0) {
+      } else if (sb->placed && !sa->placed && sb->has(l.in.keyframe_b)) {
         const Eigen::Isometry3d T_world_a = graph_.poses.at(key(*sb, l.in.keyframe_b)) * l.in.T_a_b.inverse();
         place(*sa, sa->hint.value_or(T_world_a * sa->keyframes.at(l.in.keyframe_a).T_odom_keyframe.inverse()));
         progress = true;
       }
-      if (sa->in_graph.count(l.in.keyframe_a) != 0 && sb->in_graph.count(l.in.keyframe_b) != 0) {
+      if (sa->has(l.in.keyframe_a) && sb->has(l.in.keyframe_b)) {
         add_between(key(*sa, l.in.keyframe_a), key(*sb, l.in.keyframe_b), l.in.T_a_b, l.in.information);
         l.in_graph = true;
         l.factor_index = graph_.factors.size() - 1;
@@ -426,8 +427,8 @@ std::vector<RobotEstimate> CentralCore::estimates() const {
     RobotEstimate e;
     e.robot = robot;
     e.incarnation = s.incarnation;
-    if (s.placed && !s.in_graph.empty()) {
-      for (uint32_t id : s.in_graph) {
+    if (s.placed && s.in_graph > 0) {
+      for (uint32_t id = 0; id < s.in_graph; ++id) {
         e.poses.emplace_back(id, graph_.poses.at(key(s, id)));
       }
       // W from the robot's odometry frame (paper eq. 1-2), fitted to all its keyframes in the graph
@@ -472,7 +473,7 @@ std::optional<Eigen::Vector3d> CentralCore::newest_position(uint32_t robot) cons
   auto it = sessions_.find(robot);
   if (it == sessions_.end() || it->second.empty()) return std::nullopt;
   const Session& s = it->second.back();
-  if (s.placed && !s.in_graph.empty()) return graph_.poses.at(key(s, *s.in_graph.rbegin())).translation();
+  if (s.placed && s.in_graph > 0) return graph_.poses.at(key(s, s.in_graph - 1)).translation();
   if (s.hint && s.contiguous > 0) {
     return (*s.hint * s.keyframes.at(static_cast<uint32_t>(s.contiguous - 1)).T_odom_keyframe).translation();
   }

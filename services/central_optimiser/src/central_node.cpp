@@ -7,6 +7,7 @@
 #include "cdc/geometry/metrics.hpp"
 #include "cdc/graph/g2o.hpp"
 #include "cdc/runtime/logging.hpp"
+#include "cdc/runtime/memory.hpp"
 #include "cdc/runtime/stats.hpp"
 
 #include <spdlog/spdlog.h>
@@ -146,6 +147,7 @@ void CentralNode::on_world(const cdc_msg_WorldTransform& m) {
 
 void CentralNode::optimise(Clock::time_point now) {
   const UpdateStats u = core_.optimise();
+  if (u.full) runtime::release_free_memory();  // a whole-graph pass's buffers grow with the graph
   w_alive_.assert_liveliness();
   record_update_time(std::chrono::duration<double, std::milli>(Clock::now() - now).count());
   spdlog::debug("update {} (graph version {}): {} pass over {} poses and {} factors, {} iterations in {:.0f} ms, {}",

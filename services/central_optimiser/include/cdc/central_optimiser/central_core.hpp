@@ -11,9 +11,11 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <memory>
 #include <optional>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace cdc::central {
@@ -150,13 +152,36 @@ class CentralCore {
   bool settled() const noexcept { return settled_; }
 
  private:
+  // A held keyframe. Its link to the predecessor (odometry and its information) is kept only until
+  // it is in the graph, where the odometry factor carries it: a long mission holds what it needs.
+  struct Held {
+    struct Link {
+      Eigen::Isometry3d T_prev_keyframe;
+      Matrix6d information;
+    };
+    Held(int64_t stamp, const Eigen::Isometry3d& T_odom, std::unique_ptr<Link> l)
+        : stamp_ns(stamp), T_odom_keyframe(T_odom), link(std::move(l)) {}
+    Held(const Held& o) : Held(o.stamp_ns, o.T_odom_keyframe, o.link ? std::make_unique<Link>(*o.link) : nullptr) {}
+    Held(Held&&) noexcept = default;
+    Held& operator=(Held o) noexcept {
+      std::swap(stamp_ns, o.stamp_ns);
+      std::swap(T_odom_keyframe, o.T_odom_keyframe);
+      std::swap(link, o.link);
+      return *this;
+    }
+    ~Held() = default;
+    int64_t stamp_ns = 0;
+    Eigen::Isometry3d T_odom_keyframe = Eigen::Isometry3d::Identity();
+    std::unique_ptr<Link> link;
+  };
   struct Session {
     uint32_t robot = 0;
     uint32_t incarnation = 0;
-    uint32_t index = 0;                        // session number of this robot: key = (robot, index << 32 | id)
-    std::map<uint32_t, KeyframeIn> keyframes;  // held, by id: the next contiguous one is a lookup
-    uint64_t contiguous = 0;                   // ids 0 .. contiguous - 1 are all held
-    std::set<uint32_t> in_graph;               // ids 0 .. in_graph.size() - 1 (chained from 0)
+    uint32_t index = 0;                  // session number of this robot: key = (robot, index << 32 | id)
+    std::map<uint32_t, Held> keyframes;  // held, by id: the next contiguous one is a lookup
+    uint64_t contiguous = 0;             // ids 0 .. contiguous - 1 are all held
+    uint32_t in_graph = 0;               // ids 0 .. in_graph - 1 are in the graph (chained from 0)
+    bool has(uint32_t id) const { return id < in_graph; }
     bool placed = false;
     std::optional<Eigen::Isometry3d> hint;                           // T_world_robot from the robot
     Eigen::Isometry3d T_world_odom = Eigen::Isometry3d::Identity();  // once placed
@@ -174,7 +199,7 @@ class CentralCore {
   Session* current_session(uint32_t robot);
   Key key(const Session& s, uint32_t id) const { return graph::make_key(s.robot, (uint64_t{s.index} << 32) | id); }
   void hold(Session& s, const KeyframeIn& kf);
-  AddResult held_already(const KeyframeIn& held, const KeyframeIn& kf);
+  AddResult held_already(const Held& held, const KeyframeIn& kf);
   void insert_ready_keyframes(Session& s);
   void try_insert_loops();
   void place(Session& s, const Eigen::Isometry3d& T_world_odom);
