@@ -26,6 +26,7 @@ CentralNodeOptions load_options(const std::string& path) {
   o.core.max_time_per_update_s = max_time_ms * 1e-3;
   r.get_in("optimiser.window", o.core.window, 0u, 1'000'000u);
   r.get_in("optimiser.full_every", o.core.full_every, 1u, 1'000'000u);
+  r.get_in("optimiser.full_growth", o.core.full_growth, 0.0, 10.0);
   r.get_in("optimiser.full_pass_iterations", o.core.full_pass_iterations, 1, 10000);
   double full_pass_ms = o.core.full_pass_time_s * 1e3;
   r.get_in("optimiser.full_pass_time_ms", full_pass_ms, 0.1, 600000.0);

@@ -7,6 +7,7 @@
 #include "cdc/geometry/metrics.hpp"
 #include "cdc/graph/g2o.hpp"
 #include "cdc/runtime/logging.hpp"
+#include "cdc/runtime/memory.hpp"
 #include "cdc/runtime/stats.hpp"
 
 #include <spdlog/spdlog.h>
@@ -97,6 +98,7 @@ CentralNode::CentralNode(const runtime::ServiceOptions& common, const CentralNod
   keyframes_.on([this](const cdc_msg_Keyframe& m) { on_keyframe(m); });
   loops_.on([this](const cdc_msg_LoopClosure& m) { on_loop(m); });
   world_.on([this](const cdc_msg_WorldTransform& m) { on_world(m); });
+  core_.on_iteration([this] { w_alive_.assert_liveliness(); });
   spdlog::info("central optimiser up: incarnation {}, {} robots, lease {} ms, domain {}", incarnation_,
                o.core.robot_count, o.lease_ms, common.domain_id());
 }
@@ -145,6 +147,7 @@ void CentralNode::on_world(const cdc_msg_WorldTransform& m) {
 
 void CentralNode::optimise(Clock::time_point now) {
   const UpdateStats u = core_.optimise();
+  if (u.full) runtime::release_free_memory();  // a whole-graph pass's buffers grow with the graph
   w_alive_.assert_liveliness();
   record_update_time(std::chrono::duration<double, std::milli>(Clock::now() - now).count());
   spdlog::debug("update {} (graph version {}): {} pass over {} poses and {} factors, {} iterations in {:.0f} ms, {}",
