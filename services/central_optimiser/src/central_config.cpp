@@ -16,6 +16,7 @@ CentralNodeOptions load_options(const std::string& path) {
   r.get_position("central_position", pos);
   o.central_position = Eigen::Vector3d(pos[0], pos[1], pos[2]);
   r.get_in("lease_ms", o.lease_ms, 50, 60000);
+  r.get_in("hang_timeout_ms", o.hang_timeout_ms, 50, 600000);
   r.get_count("max_pending_keyframes", o.core.max_pending_keyframes, 1, 10'000'000);
   r.get_in("update_period_ms", o.update_period_ms, 1, 60000);
   r.get_in("status_period_ms", o.status_period_ms, 1, 60000);

@@ -396,9 +396,8 @@ graph::SolverOptions CentralCore::update_options() const {
 UpdateStats CentralCore::optimise() {
   graph::SolverOptions o = update_options();
   if (full_pass_due()) {
-    // A full pass is warm-started and bounded: successive passes converge, and the work loop
-    // (which asserts the central's liveliness, also between the solver's iterations) is never
-    // blocked for long.
+    // A full pass is warm-started and bounded by its iterations: successive passes converge, and
+    // the work loop is never blocked for long (on_iteration reports its progress).
     o.max_iterations = std::min(o.max_iterations, config_.full_pass_iterations);
     o.max_time_s = config_.full_pass_time_s;
     return solve_with(o);

@@ -77,7 +77,10 @@ struct CentralConfig {
   uint32_t full_every = 20;
   double full_growth = 0.1;
   int full_pass_iterations = 3;
-  double full_pass_time_s = 0.3;
+  // A bound for a slow machine, not the pass's budget: the iterations bind, so that how far a full
+  // pass gets does not depend on the machine's load (wall-time bounds cut passes short under load,
+  // each cut pass was followed by another, and the work per keyframe grew with the graph).
+  double full_pass_time_s = 2.0;
 };
 
 struct RobotEstimate {
