@@ -15,8 +15,8 @@
 
 #include <CLI/CLI.hpp>
 
-#include <cstdio>
 #include <algorithm>
+#include <cstdio>
 #include <deque>
 #include <thread>
 #include <vector>
@@ -50,7 +50,6 @@ void learn_sequences(cdc::dds::Participant& participant, std::chrono::millisecon
                 heard[r] ? "continues its back-end's sequence" : "heard no back-end", first[r], incarnations[r]);
   }
 }
-
 
 // Instances written, unregistered once they are older than the lag.
 template <class Msg>
