@@ -9,6 +9,9 @@ namespace cdc::central {
 namespace {
 
 constexpr double kAnchorInformation = 1e8;
+// A local pass that does not converge carries its touched keys to the next; beyond this many windows'
+// worth, a full pass takes them instead (the carried set would otherwise grow with every short pass).
+constexpr size_t kMaxCarriedTouched = 4;
 
 }  // namespace
 
@@ -285,10 +288,17 @@ UpdateStats CentralCore::solve_with(const graph::SolverOptions& options) {
   }
   graph::SolveResult r;
   if (config_.share_loop_information) {
-    graph::PoseGraph weighted = graph_;  // the graph keeps the loops' information as measured
+    // The graph keeps the loops' information as measured: the solve takes weighted copies of the
+    // factors, and the poses themselves (moved, not copied: a long mission's pose nodes stay where they
+    // are in the heap instead of being reallocated among the pass's transient buffers every time).
+    graph::PoseGraph weighted;
+    weighted.dimension = graph_.dimension;
+    weighted.symbol_keys = graph_.symbol_keys;
+    weighted.factors = graph_.factors;
+    weighted.poses = std::move(graph_.poses);
     graph::share_loop_information(weighted, loop_counts_);
     r = graph::solve(weighted, options);
-    graph_.poses.swap(weighted.poses);
+    graph_.poses = std::move(weighted.poses);
   } else {
     r = graph::solve(graph_, options);
   }
@@ -369,7 +379,11 @@ UpdateStats CentralCore::solve_local(const graph::SolverOptions& options) {
   ++version_;
   ++updates_since_full_;
   dirty_ = false;
-  if (st.converged) touched_.clear();
+  if (st.converged) {
+    touched_.clear();
+  } else if (touched_.size() > kMaxCarriedTouched * (size_t{config_.window} + 1)) {
+    need_full_ = true;  // passes that keep falling short: a full pass settles what they carry
+  }
   settled_ = st.converged;
   last_full_ = false;
   return st;

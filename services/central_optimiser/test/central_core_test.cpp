@@ -496,6 +496,34 @@ TEST(CentralCore, ALocalPassThatDidNotConvergeIsContinuedLocally) {
   EXPECT_GT(unsettled, 0u);
 }
 
+// Passes that keep falling short (here: one iteration each) carry their touched keys on, but not
+// without bound: beyond a few windows' worth a full pass takes them.
+TEST(CentralCore, WhatShortPassesCarryIsBounded) {
+  test::SwarmStreamOptions so;
+  so.keyframes_per_robot = 260;
+  const auto s = test::make_swarm_stream(so);
+  CentralConfig c;
+  c.max_iterations_per_update = 1;
+  c.full_every = 100'000;  // no periodic full pass
+  c.full_growth = 10.0;    // nor one for growth
+  CentralCore core(c);
+  size_t next_loop = 0, k = 0, full = 0, largest = 0;
+  for (; k < 100; ++k) feed_step(core, s, k, next_loop);
+  core.optimise_fully();
+  for (; k < 260; ++k) {
+    feed_step(core, s, k, next_loop);
+    const UpdateStats u = core.optimise();
+    if (u.full) {
+      ++full;
+    } else {
+      largest = std::max(largest, u.poses);
+    }
+  }
+  EXPECT_GE(full, 1u);
+  EXPECT_LT(largest, size_t{400}) << "poses in the largest local pass";
+  std::printf("%zu full passes, largest local pass %zu poses\n", full, largest);
+}
+
 TEST(CentralCore, OnlyLoopsWaitingForTheirKeyframesCountAgainstTheCap) {
   const auto s = test::make_swarm_stream(small());
   CentralConfig c;
