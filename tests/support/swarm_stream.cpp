@@ -67,79 +67,106 @@ Eigen::Isometry3d pose_noise(std::mt19937& rng, double sigma_t, double sigma_r) 
   return N;
 }
 
+SwarmStreamGenerator::SwarmStreamGenerator(const SwarmStreamOptions& o)
+    : o_(o),
+      rng_(o.seed),
+      W_(Eigen::Isometry3d::Identity()),
+      odo_info_(information(o.odom_sigma_t, o.odom_sigma_r)),
+      loop_info_(information(0.05, 0.005)),
+      positions_(o.robots),
+      last_truth_(o.robots),
+      last_odom_(o.robots),
+      seq_(o.robots, 0),
+      last_loop_(o.robots, 0) {
+  W_ = truth(0, 0).inverse();
+  for (uint32_t r = 0; r < o.robots; ++r) {
+    T_world_odom_.push_back(truth(r, 0));
+  }
+}
+
+// Robot `robot`'s true pose in W at its keyframe k; robots start spread along the lap.
+Eigen::Isometry3d SwarmStreamGenerator::truth(uint32_t robot, uint32_t k) const {
+  const double lap = 2 * (o_.block_w + o_.block_h);
+  const double start = lap * robot / (o_.robots + 1.0);
+  return W_ * path_pose(start + k * o_.spacing_m, o_, static_cast<int>(robot) == o_.excursion_robot);
+}
+
+// The closest earlier place within loop_radius_m: every robot's keyframes so far (this step's of the
+// robots before this one included), the robot's own recent ones excepted.
+bool SwarmStreamGenerator::find_loop(uint32_t r, uint32_t k, StreamLoop& l) const {
+  double best = o_.loop_radius_m;
+  int best_r = -1, best_k = -1;
+  const Eigen::Vector3d& here = positions_[r][k];
+  for (uint32_t q = 0; q < o_.robots; ++q) {
+    const uint32_t limit = q == r ? (k > o_.min_loop_gap ? k - o_.min_loop_gap : 0) : (q < r ? k + 1 : k);
+    for (uint32_t j = 0; j < limit; ++j) {
+      const double d = (positions_[q][j] - here).norm();
+      if (d < best) {
+        best = d;
+        best_r = static_cast<int>(q);
+        best_k = static_cast<int>(j);
+      }
+    }
+  }
+  if (best_r < 0) {
+    return false;
+  }
+  l.robot_a = static_cast<uint32_t>(best_r);
+  l.keyframe_a = static_cast<uint32_t>(best_k);
+  return true;
+}
+
+SwarmStreamGenerator::Step SwarmStreamGenerator::next() {
+  const uint32_t k = step_++;
+  Step out;
+  for (uint32_t r = 0; r < o_.robots; ++r) {
+    const Eigen::Isometry3d T_true = truth(r, k);
+    StreamKeyframe kf;
+    kf.robot = r;
+    kf.id = k;
+    kf.information = odo_info_;
+    kf.T_world_truth = T_true;
+    if (k == 0) {
+      kf.T_prev_keyframe = Eigen::Isometry3d::Identity();
+      kf.T_odom_keyframe = Eigen::Isometry3d::Identity();
+    } else {
+      kf.T_prev_keyframe = last_truth_[r].inverse() * T_true * pose_noise(rng_, o_.odom_sigma_t, o_.odom_sigma_r);
+      kf.T_odom_keyframe = last_odom_[r] * kf.T_prev_keyframe;
+    }
+    last_truth_[r] = T_true;
+    last_odom_[r] = kf.T_odom_keyframe;
+    positions_[r].push_back(T_true.translation());
+    out.keyframes.push_back(kf);
+    // At most one loop closure every loop_every keyframes per robot.
+    StreamLoop l;
+    if ((k < last_loop_[r] + o_.loop_every && k >= o_.loop_every) || !find_loop(r, k, l)) {
+      continue;
+    }
+    l.sender = r;
+    l.seq = seq_[r]++;
+    l.step = k;
+    l.robot_b = r;
+    l.keyframe_b = k;
+    const Eigen::Isometry3d T_a = truth(l.robot_a, l.keyframe_a);
+    l.T_a_b = T_a.inverse() * T_true * pose_noise(rng_, 0.05, 0.005);
+    l.information = loop_info_;
+    out.loops.push_back(l);
+    last_loop_[r] = k;
+  }
+  return out;
+}
+
 SwarmStream make_swarm_stream(const SwarmStreamOptions& o) {
-  std::mt19937 rng(o.seed);
+  SwarmStreamGenerator gen(o);
   SwarmStream out;
   out.keyframes.resize(o.robots);
-  const double lap = 2 * (o.block_w + o.block_h);
-  std::vector<std::vector<Eigen::Isometry3d>> truth(o.robots);
-  for (uint32_t r = 0; r < o.robots; ++r) {
-    const double start = lap * r / (o.robots + 1.0);  // robots start spread along the lap
-    for (uint32_t k = 0; k < o.keyframes_per_robot; ++k) {
-      truth[r].push_back(path_pose(start + k * o.spacing_m, o, static_cast<int>(r) == o.excursion_robot));
-    }
-  }
-  // W is robot 0's first pose.
-  const Eigen::Isometry3d W = truth[0][0].inverse();
-  for (auto& t : truth) {
-    for (auto& T : t) {
-      T = W * T;
-    }
-  }
-  const Matrix6d odo_info = information(o.odom_sigma_t, o.odom_sigma_r);
-  const Matrix6d loop_info = information(0.05, 0.005);
-  for (uint32_t r = 0; r < o.robots; ++r) {
-    out.T_world_odom.push_back(truth[r][0]);
-  }
-  std::vector<uint32_t> seq(o.robots, 0), last_loop(o.robots, 0);
+  out.T_world_odom = gen.T_world_odom();
   for (uint32_t k = 0; k < o.keyframes_per_robot; ++k) {
-    for (uint32_t r = 0; r < o.robots; ++r) {
-      StreamKeyframe kf;
-      kf.robot = r;
-      kf.id = k;
-      kf.information = odo_info;
-      kf.T_world_truth = truth[r][k];
-      if (k == 0) {
-        kf.T_prev_keyframe = Eigen::Isometry3d::Identity();
-        kf.T_odom_keyframe = Eigen::Isometry3d::Identity();
-      } else {
-        kf.T_prev_keyframe = truth[r][k - 1].inverse() * truth[r][k] * pose_noise(rng, o.odom_sigma_t, o.odom_sigma_r);
-        kf.T_odom_keyframe = out.keyframes[r][k - 1].T_odom_keyframe * kf.T_prev_keyframe;
-      }
-      out.keyframes[r].push_back(kf);
-      // One loop closure from this keyframe to the closest earlier place, if any.
-      if (k < last_loop[r] + o.loop_every && k >= o.loop_every) {
-        continue;
-      }
-      double best = o.loop_radius_m;
-      int best_r = -1, best_k = -1;
-      for (uint32_t q = 0; q < o.robots; ++q) {
-        const uint32_t limit = q == r ? (k > o.min_loop_gap ? k - o.min_loop_gap : 0) : (q < r ? k + 1 : k);
-        for (uint32_t j = 0; j < limit; ++j) {
-          const double d = (truth[q][j].translation() - truth[r][k].translation()).norm();
-          if (d < best) {
-            best = d;
-            best_r = static_cast<int>(q);
-            best_k = static_cast<int>(j);
-          }
-        }
-      }
-      if (best_r < 0) {
-        continue;
-      }
-      StreamLoop l;
-      l.sender = r;
-      l.seq = seq[r]++;
-      l.step = k;
-      l.robot_a = static_cast<uint32_t>(best_r);
-      l.keyframe_a = static_cast<uint32_t>(best_k);
-      l.robot_b = r;
-      l.keyframe_b = k;
-      l.T_a_b = truth[l.robot_a][l.keyframe_a].inverse() * truth[r][k] * pose_noise(rng, 0.05, 0.005);
-      l.information = loop_info;
-      out.loops.push_back(l);
-      last_loop[r] = k;
+    SwarmStreamGenerator::Step step = gen.next();
+    for (auto& kf : step.keyframes) {
+      out.keyframes[kf.robot].push_back(kf);
     }
+    out.loops.insert(out.loops.end(), step.loops.begin(), step.loops.end());
   }
   return out;
 }

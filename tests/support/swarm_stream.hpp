@@ -55,6 +55,36 @@ struct SwarmStream {
   std::vector<Eigen::Isometry3d> T_world_odom;         // truth: robot's odometry frame in W
 };
 
+// The stream produced one step at a time without end (each step: one keyframe per robot and the
+// loop closures they close), for feeders that run for hours. What it keeps grows by one position
+// per keyframe (24 bytes), for the loop search. make_swarm_stream's first steps are the same.
+class SwarmStreamGenerator {
+ public:
+  struct Step {
+    std::vector<StreamKeyframe> keyframes;  // [robot]
+    std::vector<StreamLoop> loops;
+  };
+
+  explicit SwarmStreamGenerator(const SwarmStreamOptions& options);
+  Step next();
+  uint32_t steps() const noexcept { return step_; }
+  const std::vector<Eigen::Isometry3d>& T_world_odom() const noexcept { return T_world_odom_; }
+
+ private:
+  Eigen::Isometry3d truth(uint32_t robot, uint32_t k) const;
+  bool find_loop(uint32_t robot, uint32_t k, StreamLoop& loop) const;
+
+  SwarmStreamOptions o_;
+  std::mt19937 rng_;
+  Eigen::Isometry3d W_;  // robot 0's first pose, inverted
+  Matrix6d odo_info_, loop_info_;
+  std::vector<Eigen::Isometry3d> T_world_odom_;
+  std::vector<std::vector<Eigen::Vector3d>> positions_;  // [robot][id] true positions in W
+  std::vector<Eigen::Isometry3d> last_truth_, last_odom_;
+  std::vector<uint32_t> seq_, last_loop_;
+  uint32_t step_ = 0;
+};
+
 SwarmStream make_swarm_stream(const SwarmStreamOptions& options);
 
 // A random rigid motion: translation drawn N(0, sigma_t) [m] per axis, rotation about x, y then z

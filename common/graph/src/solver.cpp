@@ -8,6 +8,7 @@
 #include <cmath>
 #include <memory>
 #include <unordered_map>
+#include <utility>
 
 namespace cdc::graph {
 namespace {
@@ -129,6 +130,19 @@ void hold_fixed(const PoseGraph& graph, const std::set<Key>& fixed, bool has_pri
   }
 }
 
+// Hands each finished iteration to SolverOptions::on_iteration; never stops the solve.
+class IterationHook : public ceres::IterationCallback {
+ public:
+  explicit IterationHook(std::function<void()> f) : f_(std::move(f)) {}
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary&) override {
+    f_();
+    return ceres::SOLVER_CONTINUE;
+  }
+
+ private:
+  std::function<void()> f_;
+};
+
 ceres::Solver::Options ceres_options(const SolverOptions& options) {
   ceres::Solver::Options sopts;
   sopts.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
@@ -196,7 +210,10 @@ SolveResult solve(PoseGraph& graph, const SolverOptions& options, const std::set
   hold_fixed(graph, fixed, has_prior, blocks, problem);
 
   ceres::Solver::Summary summary;
-  ceres::Solve(ceres_options(options), &problem, &summary);
+  ceres::Solver::Options sopts = ceres_options(options);
+  IterationHook hook(options.on_iteration);
+  if (options.on_iteration) sopts.callbacks.push_back(&hook);
+  ceres::Solve(sopts, &problem, &summary);
   from_blocks(blocks, graph);
   record_summary(summary, options.full_report, result);
   result.final_cost = objective(graph, options.objective);

@@ -16,6 +16,7 @@ CentralNodeOptions load_options(const std::string& path) {
   r.get_position("central_position", pos);
   o.central_position = Eigen::Vector3d(pos[0], pos[1], pos[2]);
   r.get_in("lease_ms", o.lease_ms, 50, 60000);
+  r.get_in("hang_timeout_ms", o.hang_timeout_ms, 50, 600000);
   r.get_count("max_pending_keyframes", o.core.max_pending_keyframes, 1, 10'000'000);
   r.get_in("update_period_ms", o.update_period_ms, 1, 60000);
   r.get_in("status_period_ms", o.status_period_ms, 1, 60000);
@@ -26,6 +27,7 @@ CentralNodeOptions load_options(const std::string& path) {
   o.core.max_time_per_update_s = max_time_ms * 1e-3;
   r.get_in("optimiser.window", o.core.window, 0u, 1'000'000u);
   r.get_in("optimiser.full_every", o.core.full_every, 1u, 1'000'000u);
+  r.get_in("optimiser.full_growth", o.core.full_growth, 0.0, 10.0);
   r.get_in("optimiser.full_pass_iterations", o.core.full_pass_iterations, 1, 10000);
   double full_pass_ms = o.core.full_pass_time_s * 1e3;
   r.get_in("optimiser.full_pass_time_ms", full_pass_ms, 0.1, 600000.0);

@@ -17,6 +17,7 @@ struct CentralNodeOptions {
   int central_on_robot = 0;   // the central rides on this robot; -1: fixed position
   Eigen::Vector3d central_position = Eigen::Vector3d::Zero();
   int lease_ms = 1000;           // liveliness lease of the results writer
+  int hang_timeout_ms = 10000;   // liveliness lapses when the work loop makes no progress this long
   int update_period_ms = 100;    // least time between optimisations
   int max_result_age_ms = 2000;  // results of an unsettled graph are held back at most this long
   int status_period_ms = 250;

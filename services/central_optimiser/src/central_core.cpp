@@ -9,17 +9,9 @@ namespace cdc::central {
 namespace {
 
 constexpr double kAnchorInformation = 1e8;
-
-int64_t highest_contiguous(const std::set<uint32_t>& ids) {
-  int64_t h = -1;
-  for (uint32_t id : ids) {
-    if (static_cast<int64_t>(id) != h + 1) {
-      break;
-    }
-    h = id;
-  }
-  return h;
-}
+// A local pass that does not converge carries its touched keys to the next; beyond this many windows'
+// worth, a full pass takes them instead (the carried set would otherwise grow with every short pass).
+constexpr size_t kMaxCarriedTouched = 4;
 
 }  // namespace
 
@@ -74,15 +66,17 @@ AddResult CentralCore::add_keyframe(const KeyframeIn& kf) {
   const bool anchor = kf.robot == 0 && s->index == 0 && kf.id == 0;
   if (anchor && !s->placed) {
     graph_.add_prior(key(*s, 0), kf.T_odom_keyframe, Matrix6d::Identity() * kAnchorInformation);
+    factors_at_[key(*s, 0)].push_back(graph_.factors.size() - 1);
     graph_.poses[key(*s, 0)] = kf.T_odom_keyframe;
-    s->in_graph.insert(0);
+    s->in_graph = 1;
+    s->keyframes.at(0).link.reset();
     s->placed = true;
     s->T_world_odom = Eigen::Isometry3d::Identity();
   }
   if (s->placed) {
     insert_ready_keyframes(*s);
   }
-  try_insert_loops();
+  if (!pending_loops_.empty()) try_insert_loops();
   dirty_ = true;
   return {};
 }
@@ -90,7 +84,7 @@ AddResult CentralCore::add_keyframe(const KeyframeIn& kf) {
 // A keyframe id names one keyframe of a robot's sequence (idl/README.md): the same keyframe again (a
 // re-send) is a duplicate; other contents under a held id (a front-end that numbered afresh under the
 // same incarnation) are refused, never taken for a duplicate.
-AddResult CentralCore::held_already(const KeyframeIn& held, const KeyframeIn& kf) {
+AddResult CentralCore::held_already(const Held& held, const KeyframeIn& kf) {
   if (held.stamp_ns == kf.stamp_ns) {
     ++counters_.keyframes_duplicate;
     return {Outcome::kDuplicate, {}};
@@ -105,7 +99,8 @@ AddResult CentralCore::held_already(const KeyframeIn& held, const KeyframeIn& kf
 // Holds kf and moves the session's contiguous end past every keyframe that now follows without a
 // gap: those stop pending. Each keyframe is passed over once, so the intake costs O(log n) each.
 void CentralCore::hold(Session& s, const KeyframeIn& kf) {
-  auto it = s.keyframes.emplace(kf.id, kf).first;
+  Held h{kf.stamp_ns, kf.T_odom_keyframe, std::make_unique<Held::Link>(Held::Link{kf.T_prev_keyframe, kf.information})};
+  auto it = s.keyframes.emplace(kf.id, std::move(h)).first;
   if (kf.id != s.contiguous) {
     ++pending_keyframes_;
     return;
@@ -118,27 +113,29 @@ void CentralCore::hold(Session& s, const KeyframeIn& kf) {
 }
 
 // Chains the held keyframes that follow the graph's newest one of the session, in id order: the
-// graph holds ids 0 .. in_graph.size() - 1, so the next one is looked up, never searched for.
+// graph holds ids 0 .. in_graph - 1, so the next one is looked up, never searched for.
 void CentralCore::insert_ready_keyframes(Session& s) {
-  for (uint64_t next = s.in_graph.size(); next < s.contiguous; ++next) {
+  for (uint64_t next = s.in_graph; next < s.contiguous; ++next) {
     const auto id = static_cast<uint32_t>(next);
-    const KeyframeIn& kf = s.keyframes.at(id);
+    Held& kf = s.keyframes.at(id);
+    const std::unique_ptr<Held::Link> link = std::move(kf.link);
+    s.in_graph = id + 1;
+    touch(s, id);
     if (id == 0) {
       graph_.poses[key(s, 0)] = s.T_world_odom * kf.T_odom_keyframe;
-      s.in_graph.insert(0);
-      touch(s, 0);
       continue;
     }
     const Key prev = key(s, id - 1), cur = key(s, id);
-    graph_.poses[cur] = graph_.poses.at(prev) * kf.T_prev_keyframe;  // chained from the optimised predecessor
-    graph_.add_between(prev, cur, kf.T_prev_keyframe, kf.information);
-    s.in_graph.insert(id);
-    touch(s, id);
+    graph_.poses[cur] = graph_.poses.at(prev) * link->T_prev_keyframe;  // chained from the optimised predecessor
+    add_between(prev, cur, link->T_prev_keyframe, link->information);
     // A backlog (a robot's re-sent keyframes after a rejoin, with the loops it missed) is more than a
     // window: a local pass holds the rest of that robot fixed, and the loops that should turn its whole
     // trajectory bend only its end. Robot 2 of the demo: its fitted T_world_robot 0.2 m and 3 mrad off
     // for 2 s of local passes, then a full pass moved its corrected newest keyframe 0.15-0.3 m.
-    if (++s.inserted_since_full > config_.window) need_full_ = true;
+    // In a long mission a robot gains `window` keyframes every few seconds: the bound grows with the
+    // session, so that steady growth pays for its full passes and a backlog still triggers one.
+    const double grown = std::max<double>(config_.window, config_.full_growth * static_cast<double>(s.in_graph));
+    if (++s.inserted_since_full > grown) need_full_ = true;
   }
 }
 
@@ -149,11 +146,14 @@ void CentralCore::place(Session& s, const Eigen::Isometry3d& T_world_odom) {
   insert_ready_keyframes(s);
 }
 
+// Tries the loops waiting for their keyframes (only those: a loop in the graph is never looked at
+// again), until none can go in; a loop that places a session may let earlier ones in.
 void CentralCore::try_insert_loops() {
   bool progress = true;
   while (progress) {
     progress = false;
-    for (StoredLoop& l : loops_) {
+    for (size_t index : pending_loops_) {
+      StoredLoop& l = loops_[index];
       if (l.in_graph || l.in.withdrawn) {
         continue;
       }
@@ -164,17 +164,17 @@ void CentralCore::try_insert_loops() {
         continue;
       }
       // Place a session the first time a loop ties it to the anchored graph.
-      if (sa->placed && !sb->placed && sa->in_graph.count(l.in.keyframe_a) != 0) {
+      if (sa->placed && !sb->placed && sa->has(l.in.keyframe_a)) {
         const Eigen::Isometry3d T_world_b = graph_.poses.at(key(*sa, l.in.keyframe_a)) * l.in.T_a_b;
         place(*sb, sb->hint.value_or(T_world_b * sb->keyframes.at(l.in.keyframe_b).T_odom_keyframe.inverse()));
         progress = true;
-      } else if (sb->placed && !sa->placed && sb->in_graph.count(l.in.keyframe_b) != 0) {
+      } else if (sb->placed && !sa->placed && sb->has(l.in.keyframe_b)) {
         const Eigen::Isometry3d T_world_a = graph_.poses.at(key(*sb, l.in.keyframe_b)) * l.in.T_a_b.inverse();
         place(*sa, sa->hint.value_or(T_world_a * sa->keyframes.at(l.in.keyframe_a).T_odom_keyframe.inverse()));
         progress = true;
       }
-      if (sa->in_graph.count(l.in.keyframe_a) != 0 && sb->in_graph.count(l.in.keyframe_b) != 0) {
-        graph_.add_between(key(*sa, l.in.keyframe_a), key(*sb, l.in.keyframe_b), l.in.T_a_b, l.in.information);
+      if (sa->has(l.in.keyframe_a) && sb->has(l.in.keyframe_b)) {
+        add_between(key(*sa, l.in.keyframe_a), key(*sb, l.in.keyframe_b), l.in.T_a_b, l.in.information);
         l.in_graph = true;
         l.factor_index = graph_.factors.size() - 1;
         touch(*sa, l.in.keyframe_a);
@@ -183,7 +183,55 @@ void CentralCore::try_insert_loops() {
         dirty_ = true;
       }
     }
+    std::erase_if(pending_loops_, [this](size_t i) { return loops_[i].in_graph || loops_[i].in.withdrawn; });
   }
+}
+
+// Every factor goes in through here: the key -> factor index and the loop counts follow the graph.
+void CentralCore::add_between(Key a, Key b, const Eigen::Isometry3d& T_a_b, const Matrix6d& information) {
+  graph_.add_between(a, b, T_a_b, information);
+  const size_t i = graph_.factors.size() - 1;
+  factors_at_[a].push_back(i);
+  factors_at_[b].push_back(i);
+  if (graph_.factors[i].kind == graph::FactorKind::kLoop) {
+    ++loop_counts_[a];
+    ++loop_counts_[b];
+  }
+  ++changes_since_full_;
+}
+
+void CentralCore::index_factors() {
+  factors_at_.clear();
+  for (size_t i = 0; i < graph_.factors.size(); ++i) {
+    const graph::Factor& f = graph_.factors[i];
+    factors_at_[f.a].push_back(i);
+    if (f.b != f.a) factors_at_[f.b].push_back(i);
+  }
+  loop_counts_ = graph::loop_counts(graph_);
+}
+
+// A withdrawn loop leaves the graph (factor indices after it shift down; withdrawals are rare).
+void CentralCore::withdraw(StoredLoop& l) {
+  if (l.in_graph) {
+    graph_.factors.erase(graph_.factors.begin() + static_cast<std::ptrdiff_t>(l.factor_index));
+    for (StoredLoop& other : loops_) {
+      if (other.in_graph && other.factor_index > l.factor_index) {
+        --other.factor_index;
+      }
+    }
+    index_factors();
+  }
+  l.in.withdrawn = true;
+  l.in_graph = false;
+  ++counters_.loops_withdrawn;
+  dirty_ = true;
+}
+
+// The sender's loop sequence numbers held, with the contiguous end moved past each one that closes a gap.
+void CentralCore::hold_loop_seq(uint32_t sender, uint32_t incarnation, uint32_t seq) {
+  Session& s = *session(sender, incarnation, true);
+  s.loop_seqs.insert(seq);
+  while (s.loop_seqs.count(static_cast<uint32_t>(s.loop_contiguous + 1)) != 0) ++s.loop_contiguous;
 }
 
 AddResult CentralCore::add_loop(const LoopIn& loop) {
@@ -197,32 +245,26 @@ AddResult CentralCore::add_loop(const LoopIn& loop) {
     for (StoredLoop& l : loops_) {
       if (!l.in.withdrawn && l.in.robot_a == loop.robot_a && l.in.keyframe_a == loop.keyframe_a &&
           l.in.robot_b == loop.robot_b && l.in.keyframe_b == loop.keyframe_b) {
-        if (l.in_graph) {
-          graph_.factors.erase(graph_.factors.begin() + static_cast<std::ptrdiff_t>(l.factor_index));
-          for (StoredLoop& other : loops_) {
-            if (other.in_graph && other.factor_index > l.factor_index) {
-              --other.factor_index;
-            }
-          }
-        }
-        l.in.withdrawn = true;
-        l.in_graph = false;
-        ++counters_.loops_withdrawn;
-        dirty_ = true;
+        withdraw(l);
       }
     }
-    session(loop.sender, loop.sender_incarnation, true)->loop_seqs.insert(loop.seq);
+    hold_loop_seq(loop.sender, loop.sender_incarnation, loop.seq);
     return {};
   }
-  if (!loop_ids_.insert({loop.sender, loop.sender_incarnation, loop.seq}).second) {
+  const auto id = std::make_tuple(loop.sender, loop.sender_incarnation, loop.seq);
+  if (loop_ids_.count(id) != 0) {
     ++counters_.loops_duplicate;
     return {Outcome::kDuplicate, {}};
   }
-  if (loops_.size() >= config_.max_pending_loops) {
+  // Refused, not held: the loop is not acknowledged, so its sender sends it again later.
+  if (pending_loops_.size() >= config_.max_pending_loops) {
     ++counters_.loops_rejected;
-    return {Outcome::kRejected, "loop store full (" + std::to_string(config_.max_pending_loops) + ")"};
+    return {Outcome::kRejected,
+            std::to_string(pending_loops_.size()) + " loops already wait for their keyframes (max_pending_loops)"};
   }
-  session(loop.sender, loop.sender_incarnation, true)->loop_seqs.insert(loop.seq);
+  loop_ids_.insert(id);
+  hold_loop_seq(loop.sender, loop.sender_incarnation, loop.seq);
+  pending_loops_.push_back(loops_.size());
   loops_.push_back({loop, false, 0});
   ++counters_.loops_accepted;
   try_insert_loops();
@@ -246,10 +288,17 @@ UpdateStats CentralCore::solve_with(const graph::SolverOptions& options) {
   }
   graph::SolveResult r;
   if (config_.share_loop_information) {
-    graph::PoseGraph weighted = graph_;  // the graph keeps the loops' information as measured
-    graph::share_loop_information(weighted);
+    // The graph keeps the loops' information as measured: the solve takes weighted copies of the
+    // factors, and the poses themselves (moved, not copied: a long mission's pose nodes stay where they
+    // are in the heap instead of being reallocated among the pass's transient buffers every time).
+    graph::PoseGraph weighted;
+    weighted.dimension = graph_.dimension;
+    weighted.symbol_keys = graph_.symbol_keys;
+    weighted.factors = graph_.factors;
+    weighted.poses = std::move(graph_.poses);
+    graph::share_loop_information(weighted, loop_counts_);
     r = graph::solve(weighted, options);
-    graph_.poses.swap(weighted.poses);
+    graph_.poses = std::move(weighted.poses);
   } else {
     r = graph::solve(graph_, options);
   }
@@ -262,17 +311,19 @@ UpdateStats CentralCore::solve_with(const graph::SolverOptions& options) {
   dirty_ = false;
   touched_.clear();
   updates_since_full_ = 0;
+  changes_since_full_ = 0;
   need_full_ = false;
   for (auto& [robot, list] : sessions_) {
     for (Session& s : list) s.inserted_since_full = 0;
   }
   settled_ = r.converged;
+  last_full_ = true;
   st.full = true;
   return st;
 }
 
-UpdateStats CentralCore::solve_local(const graph::SolverOptions& options) {
-  // Active: every touched key and the `window` keyframes before it on the same robot session.
+// Every touched key and the `window` keyframes before it on the same robot session.
+std::set<Key> CentralCore::active_keys() const {
   std::set<Key> active;
   for (Key k : touched_) {
     const uint64_t idx = graph::index_of(k);
@@ -285,36 +336,40 @@ UpdateStats CentralCore::solve_local(const graph::SolverOptions& options) {
       }
     }
   }
+  return active;
+}
+
+// The active keys and the factors through them, the keys beyond held fixed: the work is the
+// window's, whatever the size of the graph. A pass that does not converge keeps its touched keys,
+// so that the next update goes on with them.
+UpdateStats CentralCore::solve_local(const graph::SolverOptions& options) {
+  const std::set<Key> active = active_keys();
+  std::vector<size_t> through;
+  for (Key k : active) {
+    const auto it = factors_at_.find(k);
+    if (it != factors_at_.end()) through.insert(through.end(), it->second.begin(), it->second.end());
+  }
+  std::sort(through.begin(), through.end());
+  through.erase(std::unique(through.begin(), through.end()), through.end());
   graph::PoseGraph local;
   local.dimension = graph_.dimension;
   std::set<Key> fixed;
-  for (const graph::Factor& f : graph_.factors) {
-    const bool a_in = active.count(f.a) != 0, b_in = active.count(f.b) != 0;
-    if (!a_in && !b_in) {
-      continue;
-    }
+  for (size_t i : through) {
+    const graph::Factor& f = graph_.factors[i];
     local.factors.push_back(f);
     for (Key k : {f.a, f.b}) {
       local.poses[k] = graph_.poses.at(k);
-      if (active.count(k) == 0) {
-        fixed.insert(k);
-      }
+      if (active.count(k) == 0) fixed.insert(k);
     }
   }
   UpdateStats st;
   st.poses = active.size();
   st.factors = local.factors.size();
   if (!local.factors.empty()) {
-    if (config_.share_loop_information) {
-      graph::share_loop_information(local, graph::loop_counts(graph_));
-    }
-    if (fixed.empty() && local.count(graph::FactorKind::kPrior) == 0) {
-      fixed.insert(local.poses.begin()->first);
-    }
+    if (config_.share_loop_information) graph::share_loop_information(local, loop_counts_);
+    if (fixed.empty() && local.count(graph::FactorKind::kPrior) == 0) fixed.insert(local.poses.begin()->first);
     const graph::SolveResult r = graph::solve(local, options, fixed);
-    for (Key k : active) {
-      graph_.poses[k] = local.poses.at(k);
-    }
+    for (Key k : active) graph_.poses[k] = local.poses.at(k);
     st.solved = true;
     st.converged = r.converged;
     st.iterations = r.iterations;
@@ -324,20 +379,39 @@ UpdateStats CentralCore::solve_local(const graph::SolverOptions& options) {
   ++version_;
   ++updates_since_full_;
   dirty_ = false;
-  touched_.clear();
+  if (st.converged) {
+    touched_.clear();
+  } else if (touched_.size() > kMaxCarriedTouched * (size_t{config_.window} + 1)) {
+    need_full_ = true;  // passes that keep falling short: a full pass settles what they carry
+  }
   settled_ = st.converged;
+  last_full_ = false;
   return st;
 }
 
-UpdateStats CentralCore::optimise() {
+// A full pass is due for a joining robot or a backlog (need_full_), to go on with a full pass that
+// did not converge, and periodically once the graph has changed by full_growth of its size.
+bool CentralCore::full_pass_due() const {
+  if (need_full_ || (!settled_ && last_full_)) return true;
+  const double grown = config_.full_growth * static_cast<double>(graph_.poses.size());
+  return updates_since_full_ + 1 >= config_.full_every && static_cast<double>(changes_since_full_) >= grown;
+}
+
+graph::SolverOptions CentralCore::update_options() const {
   graph::SolverOptions o;
   o.max_iterations = config_.max_iterations_per_update;
   o.max_time_s = config_.max_time_per_update_s;
   o.function_tolerance = 1e-8;
   o.robust_loss_scale = config_.loop_robust_scale;
-  if (need_full_ || !settled_ || updates_since_full_ + 1 >= config_.full_every) {
-    // A full pass is warm-started and bounded: successive passes converge, and the work loop
-    // (which asserts the central's liveliness) is never blocked for long.
+  o.on_iteration = on_iteration_;
+  return o;
+}
+
+UpdateStats CentralCore::optimise() {
+  graph::SolverOptions o = update_options();
+  if (full_pass_due()) {
+    // A full pass is warm-started and bounded by its iterations: successive passes converge, and
+    // the work loop is never blocked for long (on_iteration reports its progress).
     o.max_iterations = std::min(o.max_iterations, config_.full_pass_iterations);
     o.max_time_s = config_.full_pass_time_s;
     return solve_with(o);
@@ -347,6 +421,7 @@ UpdateStats CentralCore::optimise() {
 
 UpdateStats CentralCore::optimise_fully() {
   graph::SolverOptions o;
+  o.on_iteration = on_iteration_;
   o.max_iterations = 500;
   o.function_tolerance = 1e-14;
   o.gradient_tolerance = 1e-14;
@@ -365,8 +440,8 @@ std::vector<RobotEstimate> CentralCore::estimates() const {
     RobotEstimate e;
     e.robot = robot;
     e.incarnation = s.incarnation;
-    if (s.placed && !s.in_graph.empty()) {
-      for (uint32_t id : s.in_graph) {
+    if (s.placed && s.in_graph > 0) {
+      for (uint32_t id = 0; id < s.in_graph; ++id) {
         e.poses.emplace_back(id, graph_.poses.at(key(s, id)));
       }
       // W from the robot's odometry frame (paper eq. 1-2), fitted to all its keyframes in the graph
@@ -400,7 +475,7 @@ std::vector<Acknowledgement> CentralCore::acknowledgements() const {
       a.robot = robot;
       a.incarnation = s.incarnation;
       a.highest_contiguous_keyframe = static_cast<int64_t>(s.contiguous) - 1;
-      a.highest_contiguous_loop_seq = highest_contiguous(s.loop_seqs);
+      a.highest_contiguous_loop_seq = s.loop_contiguous;
       out.push_back(a);
     }
   }
@@ -411,7 +486,7 @@ std::optional<Eigen::Vector3d> CentralCore::newest_position(uint32_t robot) cons
   auto it = sessions_.find(robot);
   if (it == sessions_.end() || it->second.empty()) return std::nullopt;
   const Session& s = it->second.back();
-  if (s.placed && !s.in_graph.empty()) return graph_.poses.at(key(s, *s.in_graph.rbegin())).translation();
+  if (s.placed && s.in_graph > 0) return graph_.poses.at(key(s, s.in_graph - 1)).translation();
   if (s.hint && s.contiguous > 0) {
     return (*s.hint * s.keyframes.at(static_cast<uint32_t>(s.contiguous - 1)).T_odom_keyframe).translation();
   }

@@ -7,6 +7,7 @@
 #include "cdc/geometry/metrics.hpp"
 #include "cdc/graph/g2o.hpp"
 #include "cdc/runtime/logging.hpp"
+#include "cdc/runtime/memory.hpp"
 #include "cdc/runtime/stats.hpp"
 
 #include <spdlog/spdlog.h>
@@ -68,12 +69,13 @@ void log_result(uint64_t version, const RobotEstimate& e) {
 
 }  // namespace
 
-// The optimiser's liveliness is asserted from the work loop (a hung optimiser lapses too), on a topic of
-// its own that every robot's monitor reads. It also carries the central's status, written every status
-// period: a robot's Cyclone brings a writer whose lease lapsed back to life on data, not on assertions,
-// so without data a robot cut off for less than the participant lease (10 s) would never see the
-// central alive again when the link returned. Each robot's results go in the robot's own partition, so
-// that a robot receives only its own poses (the map reads all).
+// The optimiser's liveliness is asserted by a watchdog thread every quarter lease while the work loop has
+// made progress within hang_timeout_ms (a hung optimiser lapses too; a whole-graph pass of a long
+// mission on a loaded machine does not), on a topic of its own that every robot's monitor reads. It also carries the
+// central's status, written every status period: a robot's Cyclone brings a writer whose lease lapsed back to life on
+// data, not on assertions, so without data a robot cut off for less than the participant lease (10 s) would never see
+// the central alive again when the link returned. Each robot's results go in the robot's own partition, so that a robot
+// receives only its own poses (the map reads all).
 CentralNode::CentralNode(const runtime::ServiceOptions& common, const CentralNodeOptions& o)
     : o_(o),
       incarnation_(draw_incarnation()),
@@ -97,14 +99,32 @@ CentralNode::CentralNode(const runtime::ServiceOptions& common, const CentralNod
   keyframes_.on([this](const cdc_msg_Keyframe& m) { on_keyframe(m); });
   loops_.on([this](const cdc_msg_LoopClosure& m) { on_loop(m); });
   world_.on([this](const cdc_msg_WorldTransform& m) { on_world(m); });
+  core_.on_iteration([this] { progressed(); });
+  progressed();
+  watchdog_ = std::thread([this] { watch(); });
   spdlog::info("central optimiser up: incarnation {}, {} robots, lease {} ms, domain {}", incarnation_,
                o.core.robot_count, o.lease_ms, common.domain_id());
+}
+
+CentralNode::~CentralNode() {
+  stopping_ = true;
+  if (watchdog_.joinable()) watchdog_.join();
+}
+
+void CentralNode::watch() {
+  const auto period = std::chrono::milliseconds(std::max(10, o_.lease_ms / 4));
+  const int64_t hang_ns = int64_t{o_.hang_timeout_ms} * 1'000'000;
+  while (!stopping_) {
+    const int64_t now = std::chrono::steady_clock::now().time_since_epoch().count();
+    if (now - progress_ns_.load() < hang_ns) w_alive_.assert_liveliness();
+    std::this_thread::sleep_for(period);
+  }
 }
 
 void CentralNode::spin() {
   const auto tick = std::chrono::milliseconds(std::max(10, o_.lease_ms / 5));
   while (service_.wait(tick)) {
-    w_alive_.assert_liveliness();
+    progressed();
     take_inputs();
     const auto now = Clock::now();
     if (schedule_.update_due(core_.dirty(), core_.settled(), now)) optimise(now);
@@ -120,9 +140,9 @@ void CentralNode::spin() {
 // after each: a flood waits in the readers' history, not in the work loop.
 void CentralNode::take_inputs() {
   keyframes_.poll(1024);
-  w_alive_.assert_liveliness();
+  progressed();
   loops_.poll(1024);
-  w_alive_.assert_liveliness();
+  progressed();
   world_.poll();
 }
 
@@ -145,7 +165,8 @@ void CentralNode::on_world(const cdc_msg_WorldTransform& m) {
 
 void CentralNode::optimise(Clock::time_point now) {
   const UpdateStats u = core_.optimise();
-  w_alive_.assert_liveliness();
+  if (u.full) runtime::release_free_memory();  // a whole-graph pass's buffers grow with the graph
+  progressed();
   record_update_time(std::chrono::duration<double, std::milli>(Clock::now() - now).count());
   spdlog::debug("update {} (graph version {}): {} pass over {} poses and {} factors, {} iterations in {:.0f} ms, {}",
                 schedule_.updates() + 1, core_.version(), u.full ? "full" : "local", u.poses, u.factors, u.iterations,

@@ -1,5 +1,5 @@
 // DDS shell of the central optimiser: validated keyframes, loops and world hints in; optimised poses
-// (liveliness-monitored writer, asserted from the work loop), acknowledgements and the central's
+// (liveliness-monitored writer, asserted while the work loop progresses), acknowledgements and the central's
 // status out. The graph is CentralCore's.
 #pragma once
 
@@ -15,8 +15,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include <atomic>
+#include <chrono>
 #include <deque>
 #include <optional>
+#include <thread>
 #include <vector>
 
 namespace cdc::central {
@@ -24,6 +27,9 @@ namespace cdc::central {
 class CentralNode {
  public:
   CentralNode(const runtime::ServiceOptions& common, const CentralNodeOptions& options);
+  ~CentralNode();
+  CentralNode(const CentralNode&) = delete;
+  CentralNode& operator=(const CentralNode&) = delete;
   // Works until shutdown is asked for.
   void spin();
   // The final optimisation over the whole graph, then --graph-out and --stats-out.
@@ -32,6 +38,8 @@ class CentralNode {
 
  private:
   void take_inputs();
+  void progressed() { progress_ns_.store(std::chrono::steady_clock::now().time_since_epoch().count()); }
+  void watch();
   void on_keyframe(const cdc_msg_Keyframe& m);
   void on_loop(const cdc_msg_LoopClosure& m);
   void on_world(const cdc_msg_WorldTransform& m);
@@ -63,7 +71,10 @@ class CentralNode {
   bool acks_dirty_ = false;
   std::vector<cdc_msg_KeyframePose> pose_storage_;
   static constexpr size_t kUpdateTimesKept = 4096;
-  std::vector<double> update_ms_;  // wall time of the most recent updates [ms]
+  std::vector<double> update_ms_;        // wall time of the most recent updates [ms]
+  std::atomic<int64_t> progress_ns_{0};  // steady clock at the work loop's latest progress
+  std::atomic<bool> stopping_{false};
+  std::thread watchdog_;  // asserts liveliness while the work loop progresses (declared last: started last)
 };
 
 }  // namespace cdc::central

@@ -33,6 +33,17 @@ void feed_in_order(CentralCore& core, const test::SwarmStream& s) {
   }
 }
 
+// Feeds step k of the stream (every robot's keyframe k, then the loops of that step); next_loop
+// walks the stream's loops.
+void feed_step(CentralCore& core, const test::SwarmStream& s, size_t k, size_t& next_loop) {
+  for (const auto& robot : s.keyframes) {
+    EXPECT_EQ(core.add_keyframe(to_in(robot[k])).outcome, Outcome::kAccepted);
+  }
+  while (next_loop < s.loops.size() && s.loops[next_loop].step <= k) {
+    EXPECT_EQ(core.add_loop(to_in(s.loops[next_loop++])).outcome, Outcome::kAccepted);
+  }
+}
+
 double max_position_error(const CentralCore& core, const test::SwarmStream& s) {
   double worst = 0;
   for (const RobotEstimate& e : core.estimates()) {
@@ -419,6 +430,136 @@ TEST(CentralCore, ABacklogLongerThanTheWindowIsOptimisedWhole) {
     EXPECT_LT(off_m, 0.05);
     EXPECT_LT(off_mrad, 0.5);
   }
+}
+
+}  // namespace
+}  // namespace cdc::central
+
+namespace cdc::central {
+namespace {
+
+// A long mission: a robot gains `window` keyframes every few updates, which must not buy a full
+// pass each time (that costs O(graph) per window of keyframes, O(graph^2) over the mission). Full
+// passes follow growth by full_growth of the graph, and a local pass's work is the window's.
+TEST(CentralCore, FullPassesFollowGrowthInProportionToTheGraph) {
+  test::SwarmStreamOptions so;
+  so.keyframes_per_robot = 600;
+  const auto s = test::make_swarm_stream(so);
+  CentralConfig c;  // window 30, full_growth 0.1
+  CentralCore core(c);
+  size_t next_loop = 0, k = 0;
+  for (; k < 500; ++k) feed_step(core, s, k, next_loop);
+  core.optimise_fully();
+  // 40 keyframes per robot (more than the window, fewer than 10 % of each robot's 500) and their
+  // loops: below 10 % of the graph's 1,500 poses.
+  size_t full = 0;
+  for (; k < 540; ++k) {
+    feed_step(core, s, k, next_loop);
+    const UpdateStats u = core.optimise();
+    full += u.full ? 1u : 0u;
+    if (!u.full) {
+      EXPECT_LT(u.factors, size_t{4} * (c.window + 1) * 3) << "local pass after step " << k;
+    }
+  }
+  EXPECT_EQ(full, 0u);
+  // Growth past 10 % of the graph brings one.
+  for (; k < 600 && full == 0; ++k) {
+    feed_step(core, s, k, next_loop);
+    full += core.optimise().full ? 1u : 0u;
+  }
+  EXPECT_EQ(full, 1u);
+  EXPECT_GT(k, size_t{540});
+  std::printf("first full pass after step %zu (graph %zu poses)\n", k - 1, core.graph().poses.size());
+}
+
+TEST(CentralCore, ALocalPassThatDidNotConvergeIsContinuedLocally) {
+  test::SwarmStreamOptions so;
+  so.keyframes_per_robot = 120;
+  const auto s = test::make_swarm_stream(so);
+  CentralConfig c;
+  c.max_iterations_per_update = 1;
+  c.full_every = 1000;  // no periodic full pass in these 20 updates
+  CentralCore core(c);
+  size_t next_loop = 0, k = 0;
+  for (; k < 100; ++k) feed_step(core, s, k, next_loop);
+  core.optimise_fully();
+  size_t unsettled = 0;
+  for (; k < 120; ++k) {
+    feed_step(core, s, k, next_loop);
+    const bool was_settled = core.settled();
+    const UpdateStats u = core.optimise();
+    if (!was_settled) {
+      ++unsettled;
+      EXPECT_FALSE(u.full) << "after an unconverged local pass, step " << k;
+    }
+  }
+  EXPECT_GT(unsettled, 0u);
+}
+
+// Passes that keep falling short (here: one iteration each) carry their touched keys on, but not
+// without bound: beyond a few windows' worth a full pass takes them.
+TEST(CentralCore, WhatShortPassesCarryIsBounded) {
+  test::SwarmStreamOptions so;
+  so.keyframes_per_robot = 260;
+  const auto s = test::make_swarm_stream(so);
+  CentralConfig c;
+  c.max_iterations_per_update = 1;
+  c.full_every = 100'000;  // no periodic full pass
+  c.full_growth = 10.0;    // nor one for growth
+  CentralCore core(c);
+  size_t next_loop = 0, k = 0, full = 0, largest = 0;
+  for (; k < 100; ++k) feed_step(core, s, k, next_loop);
+  core.optimise_fully();
+  for (; k < 260; ++k) {
+    feed_step(core, s, k, next_loop);
+    const UpdateStats u = core.optimise();
+    if (u.full) {
+      ++full;
+    } else {
+      largest = std::max(largest, u.poses);
+    }
+  }
+  EXPECT_GE(full, 1u);
+  EXPECT_LT(largest, size_t{400}) << "poses in the largest local pass";
+  std::printf("%zu full passes, largest local pass %zu poses\n", full, largest);
+}
+
+TEST(CentralCore, OnlyLoopsWaitingForTheirKeyframesCountAgainstTheCap) {
+  const auto s = test::make_swarm_stream(small());
+  CentralConfig c;
+  c.max_pending_loops = 4;
+  CentralCore core(c);
+  feed_in_order(core, s);  // every loop of the stream in the graph: more than 4
+  ASSERT_GT(s.loops.size(), 4u);
+  LoopIn l = to_in(s.loops[0]);
+  l.sender = 1;
+  l.robot_a = 1;
+  l.robot_b = 0;
+  for (uint32_t i = 0; i < 5; ++i) {
+    l.seq = 1000 + i;
+    l.keyframe_a = 300 + i;  // not held: the loop waits
+    EXPECT_EQ(core.add_loop(l).outcome, i < 4 ? Outcome::kAccepted : Outcome::kRejected) << i;
+  }
+  // The refused loop was not held: sent again once there is room, it is taken, not a duplicate.
+  KeyframeIn next = to_in(s.keyframes[1].back());
+  for (uint32_t id = 250; id <= 300; ++id) {
+    next.id = id;
+    next.stamp_ns += 1000;
+    core.add_keyframe(next);
+  }
+  EXPECT_EQ(core.add_loop(l).outcome, Outcome::kAccepted);
+  EXPECT_EQ(core.counters().loops_rejected, 1u);
+}
+
+TEST(CentralCore, EverySolverIterationIsReported) {
+  const auto s = test::make_swarm_stream(small());
+  CentralCore core(CentralConfig{});
+  feed_in_order(core, s);
+  int calls = 0;
+  core.on_iteration([&calls] { ++calls; });
+  const UpdateStats u = core.optimise_fully();
+  EXPECT_GT(u.iterations, 0);
+  EXPECT_GE(calls, u.iterations);
 }
 
 }  // namespace

@@ -119,6 +119,13 @@ class Writer {
   // Disposes the instance the sample's key fields name.
   void dispose(const T& sample) { check(dds_dispose(writer_.handle(), &sample), "dispose on '" + topic_name_ + "'"); }
 
+  // Unregisters the instance the sample's key fields name: the writer and its readers stop keeping
+  // it (samples not yet acknowledged are still delivered). For keyed streams whose every sample is a
+  // new instance (keyframes, loop closures), which would otherwise stay registered for good.
+  void unregister(const T& sample) {
+    check(dds_unregister_instance(writer_.handle(), &sample), "unregister on '" + topic_name_ + "'");
+  }
+
   // Tells readers this writer is alive (MANUAL_BY_TOPIC liveliness); writes do this too.
   void assert_liveliness() {
     check(dds_assert_liveliness(writer_.handle()), "assert liveliness on '" + topic_name_ + "'");

@@ -4,6 +4,7 @@
 
 #include "cdc/graph/pose_graph.hpp"
 
+#include <functional>
 #include <set>
 #include <string>
 #include <vector>
@@ -34,6 +35,9 @@ struct SolverOptions {
   // rejected step.
   double initial_trust_region_radius = 1e12;
   bool full_report = false;  // fill SolveResult::report with Ceres' full report
+  // Called after every iteration, on the solving thread: a service asserts its liveliness from it
+  // while a large graph is solved.
+  std::function<void()> on_iteration;
 };
 
 struct SolveResult {

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "cdc/dds/participant.hpp"
+#include "cdc/runtime/memory.hpp"
 
 #include <cstdint>
 #include <functional>
@@ -76,6 +77,7 @@ int service_main(int argc, char** argv, const ServiceSpec& spec, ServiceOptions&
 template <class Node, class... Args>
 int run_node(const ServiceSpec& spec, const ServiceOptions& o, const std::string& config_level, Args&&... args) {
   start_logging(spec, o, config_level);
+  return_large_blocks();
   Node node(std::forward<Args>(args)...);
   node.spin();
   node.finish();

@@ -9,10 +9,13 @@
 #include <Eigen/Geometry>
 
 #include <cstdint>
+#include <functional>
 #include <map>
+#include <memory>
 #include <optional>
 #include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace cdc::central {
@@ -57,18 +60,27 @@ struct CentralConfig {
   // Loops through one keyframe share its cloud's errors: each loop's information is divided by the
   // most loops either of its keyframes takes part in (graph::share_loop_information).
   bool share_loop_information = true;
+  // Loops held waiting for their keyframes (loops in the graph do not count).
   size_t max_pending_loops = 100'000;
   // Keyframes held beyond a gap in their robot session's ids (waiting for a predecessor), over all
   // sessions. One beyond the cap is refused: it is not acknowledged, so a real one is sent again.
   size_t max_pending_keyframes = 10'000;
   // Incremental updates re-optimise what changed (new keyframes, loop ends) plus this many
-  // preceding keyframes of the same robot, the rest held fixed; every full_every updates (and
-  // whenever a robot joins the world, after any update that did not converge, and once a robot has
-  // gained more than `window` keyframes since the last full pass) the whole graph is re-optimised.
+  // preceding keyframes of the same robot, the rest held fixed; a local update that does not
+  // converge is continued by the next. The whole graph is re-optimised when a robot joins the world,
+  // after a full pass that did not converge, once a robot has gained more than
+  // max(window, full_growth x its keyframes) since the last full pass, and every full_every updates
+  // once the graph has changed (keyframes and loops inserted) by full_growth of its size. A full
+  // pass costs O(graph) and comes after O(graph) changes: the work per keyframe stays bounded as the
+  // mission grows.
   uint32_t window = 30;
   uint32_t full_every = 20;
+  double full_growth = 0.1;
   int full_pass_iterations = 3;
-  double full_pass_time_s = 0.3;
+  // A bound for a slow machine, not the pass's budget: the iterations bind, so that how far a full
+  // pass gets does not depend on the machine's load (wall-time bounds cut passes short under load,
+  // each cut pass was followed by another, and the work per keyframe grew with the graph).
+  double full_pass_time_s = 2.0;
 };
 
 struct RobotEstimate {
@@ -117,6 +129,8 @@ class CentralCore {
   // graph, or all of it every full_every updates, and at every update while the graph is not
   // settled.
   UpdateStats optimise();
+  // Called after every solver iteration (the node asserts its liveliness from it).
+  void on_iteration(std::function<void()> f) { on_iteration_ = std::move(f); }
   // Solves to convergence (no budget), for final results.
   UpdateStats optimise_fully();
 
@@ -141,17 +155,41 @@ class CentralCore {
   bool settled() const noexcept { return settled_; }
 
  private:
+  // A held keyframe. Its link to the predecessor (odometry and its information) is kept only until
+  // it is in the graph, where the odometry factor carries it: a long mission holds what it needs.
+  struct Held {
+    struct Link {
+      Eigen::Isometry3d T_prev_keyframe;
+      Matrix6d information;
+    };
+    Held(int64_t stamp, const Eigen::Isometry3d& T_odom, std::unique_ptr<Link> l)
+        : stamp_ns(stamp), T_odom_keyframe(T_odom), link(std::move(l)) {}
+    Held(const Held& o) : Held(o.stamp_ns, o.T_odom_keyframe, o.link ? std::make_unique<Link>(*o.link) : nullptr) {}
+    Held(Held&&) noexcept = default;
+    Held& operator=(Held o) noexcept {
+      std::swap(stamp_ns, o.stamp_ns);
+      std::swap(T_odom_keyframe, o.T_odom_keyframe);
+      std::swap(link, o.link);
+      return *this;
+    }
+    ~Held() = default;
+    int64_t stamp_ns = 0;
+    Eigen::Isometry3d T_odom_keyframe = Eigen::Isometry3d::Identity();
+    std::unique_ptr<Link> link;
+  };
   struct Session {
     uint32_t robot = 0;
     uint32_t incarnation = 0;
-    uint32_t index = 0;                        // session number of this robot: key = (robot, index << 32 | id)
-    std::map<uint32_t, KeyframeIn> keyframes;  // held, by id: the next contiguous one is a lookup
-    uint64_t contiguous = 0;                   // ids 0 .. contiguous - 1 are all held
-    std::set<uint32_t> in_graph;               // ids 0 .. in_graph.size() - 1 (chained from 0)
+    uint32_t index = 0;                  // session number of this robot: key = (robot, index << 32 | id)
+    std::map<uint32_t, Held> keyframes;  // held, by id: the next contiguous one is a lookup
+    uint64_t contiguous = 0;             // ids 0 .. contiguous - 1 are all held
+    uint32_t in_graph = 0;               // ids 0 .. in_graph - 1 are in the graph (chained from 0)
+    bool has(uint32_t id) const { return id < in_graph; }
     bool placed = false;
     std::optional<Eigen::Isometry3d> hint;                           // T_world_robot from the robot
     Eigen::Isometry3d T_world_odom = Eigen::Isometry3d::Identity();  // once placed
     std::set<uint32_t> loop_seqs;                                    // loops sent by this session
+    int64_t loop_contiguous = -1;                                    // seqs 0 .. loop_contiguous are all held
     uint32_t inserted_since_full = 0;  // keyframes put in the graph since the last full pass
   };
   struct StoredLoop {
@@ -164,20 +202,33 @@ class CentralCore {
   Session* current_session(uint32_t robot);
   Key key(const Session& s, uint32_t id) const { return graph::make_key(s.robot, (uint64_t{s.index} << 32) | id); }
   void hold(Session& s, const KeyframeIn& kf);
-  AddResult held_already(const KeyframeIn& held, const KeyframeIn& kf);
+  AddResult held_already(const Held& held, const KeyframeIn& kf);
   void insert_ready_keyframes(Session& s);
   void try_insert_loops();
   void place(Session& s, const Eigen::Isometry3d& T_world_odom);
   UpdateStats solve_with(const graph::SolverOptions& options);
   UpdateStats solve_local(const graph::SolverOptions& options);
   void touch(const Session& s, uint32_t id) { touched_.insert(key(s, id)); }
+  void add_between(Key a, Key b, const Eigen::Isometry3d& T_a_b, const Matrix6d& information);
+  void index_factors();
+  void withdraw(StoredLoop& l);
+  void hold_loop_seq(uint32_t sender, uint32_t incarnation, uint32_t seq);
+  std::set<Key> active_keys() const;
+  bool full_pass_due() const;
+  graph::SolverOptions update_options() const;
 
   CentralConfig config_;
   std::map<uint32_t, std::vector<Session>> sessions_;  // per robot, by arrival of incarnations
   std::vector<StoredLoop> loops_;
+  std::vector<size_t> pending_loops_;                            // loops_ not in the graph and not withdrawn
   size_t pending_keyframes_ = 0;                                 // held beyond a gap, over all sessions
   std::set<std::tuple<uint32_t, uint32_t, uint32_t>> loop_ids_;  // (sender, incarnation, seq)
   graph::PoseGraph graph_;
+  std::map<Key, std::vector<size_t>> factors_at_;  // key -> indices of graph_.factors through it
+  std::map<Key, int> loop_counts_;                 // key -> loop factors through it (graph::loop_counts)
+  uint64_t changes_since_full_ = 0;                // keyframes and loops inserted since the last full pass
+  bool last_full_ = false;                         // the last update was a full pass
+  std::function<void()> on_iteration_;
   uint64_t version_ = 0;
   bool dirty_ = false;
   std::set<Key> touched_;  // keys changed since the last update
