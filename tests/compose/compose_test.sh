@@ -19,6 +19,7 @@ log() { echo "compose_test: $(date -u +%T) $*"; }
 dc() { docker-compose -p "$project" -f "$repo/docker-compose.yml" "$@"; }
 
 preflight() {
+  [[ ${CDC_NO_DOCKER:-0} != 1 ]] || skip "CDC_NO_DOCKER=1: no container engine set up"
   [[ $(id -u) -eq 0 ]] || skip "needs root to run a Docker engine"
   command -v dockerd > /dev/null && command -v docker-compose > /dev/null ||
     skip "no dockerd or docker-compose (deploy/install-deps.sh installs docker.io and docker-compose)"
