@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # A private Docker engine for the compose test: dockerd with a daemon.json of its own, whose state, socket,
 # pid file and containerd live under one directory, whose bridge and address pools lie in 198.19.0.0/16
-# (the compose network is 198.18.1.0/24), and which never touches a system Docker. `stop` stops only the
+# (the compose network is 198.18.1.0/24), and which never touches a system Docker (where a system containerd
+# answers, dockerd shares it under containerd namespaces of its own). `stop` stops only the
 # daemon this script started (by the PID in its pid file) and removes the bridge and iptables chains it made.
 set -euo pipefail
 
@@ -33,6 +34,8 @@ write_config() {
   "exec-root": "$DIR/exec",
   "pidfile": "$DIR/dockerd.pid",
   "hosts": ["unix://$(sock)"],
+  "containerd-namespace": "cdc-moby",
+  "containerd-plugins-namespace": "cdc-plugins",
   "bridge": "$BRIDGE",
   "default-address-pools": [{"base": "198.19.128.0/17", "size": 24}],
   "ip6tables": false,
