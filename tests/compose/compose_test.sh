@@ -6,6 +6,7 @@
 # the central) switched to DISTRIBUTED on a liveliness lapse, because its radio emulator cut its links, and
 # back after the final rendezvous; every robot's ATE under 0.5 % of its length; and `docker-compose down`
 # leaves no container, network, bridge or iptables rule behind.
+# The run's mode timeline and ATE per robot stay in BUILD_DIR/compose-summary.txt.
 # Usage: compose_test.sh REPO BUILD_DIR (CDC_DATA_DIR: KITTI ground truth; CDC_DOCKER_DIR: the engine's folder)
 set -euo pipefail
 repo=$(cd "$1" && pwd) build=$(cd "$2" && pwd)
@@ -107,7 +108,8 @@ main() {
   rendezvous
   stop_and_remove
   python3 "$repo/tests/compose/check_results.py" --results "$CDC_RESULTS" --dataset "$CDC_DATASET" \
-    --eval "$build/common/eval/cdc-eval" --robots 3 --central-robot 0 || fail "results (above)"
+    --eval "$build/common/eval/cdc-eval" --robots 3 --central-robot 0 | tee "$build/compose-summary.txt" ||
+    fail "results (above)"
   log "passed in $((SECONDS - t0)) s"
   rm -rf "$work"
 }
