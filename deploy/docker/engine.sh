@@ -112,17 +112,30 @@ stop() {
   fi
   rm -f "$DIR/dockerd.pid"
   ip link show "$BRIDGE" >/dev/null 2>&1 && ip link del "$BRIDGE"
-  remove_chains
-  restore_host_state
+  if [[ -n $(pgrep -x dockerd || true) ]]; then
+    # Another dockerd (a system Docker) shares the DOCKER chains and needs forwarding: only this engine's rules go.
+    remove_rules "$BRIDGE|198\.19\."
+    rm -f "$DIR/host-state"
+  else
+    remove_rules "DOCKER|$BRIDGE|198\.19\."
+    remove_chains
+    restore_host_state
+  fi
 }
 
-# dockerd leaves its chains, the jumps to them and its bridge's forward and masquerade rules at exit: every
-# rule naming a DOCKER chain, this engine's bridge or its address range goes, then the chains themselves.
-remove_chains() {
-  local table rule chain
+# dockerd leaves its chains, the jumps to them and its bridge's forward and masquerade rules at exit.
+# Deletes every filter and nat rule matching the extended regular expression $1.
+remove_rules() {
+  local table rule
   for table in filter nat; do
-    iptables -t "$table" -S | grep -E '^-A .*(DOCKER|'"$BRIDGE"'|198\.19\.)' | sed 's/^-A/-D/' |
+    iptables -t "$table" -S | grep -E "^-A .*($1)" | sed 's/^-A/-D/' |
       while read -r rule; do eval "iptables -t $table $rule"; done
+  done
+}
+
+remove_chains() {
+  local table chain
+  for table in filter nat; do
     for chain in DOCKER DOCKER-USER DOCKER-ISOLATION-STAGE-1 DOCKER-ISOLATION-STAGE-2; do
       iptables -t "$table" -F "$chain" 2>/dev/null || true
     done
