@@ -20,7 +20,8 @@ commands:
 
 options:
   --preset NAME     CMake preset: dev, release, asan, ci (default: ci for test, dev for build)
-  -L LABEL          test: run only tests with this ctest label (unit, slow, integration, dds, data, format, fuzz)
+  -L LABEL          test: run only tests with this ctest label (unit, slow, integration, dds, data, format, fuzz,
+                    compose)
   -R REGEX          test: run only tests whose name matches
   --out DIR         demo: results folder
   --network MODE    demo: auto (default), netns or loopback
@@ -29,6 +30,8 @@ options:
 environment:
   CDC_DATA_DIR      reference data folder (default ../shared/data); tests needing it skip without it
   CDC_NO_NETNS=1    test: do not enter a private network namespace
+  CDC_NO_DOCKER=1   test: no container engine set-up (the compose test skips)
+  CDC_DOCKER_DIR    test: the private engine's folder (default /var/tmp/cdc-docker; its image cache stays)
 USAGE
 }
 
@@ -74,6 +77,38 @@ run_isolated() {
   fi
 }
 
+# The compose test's container engine (tests/compose), set up on the host network before the tests enter
+# their namespace: the only step that reaches Debian's package registry (the base image and the runtime
+# libraries layer). Starts a private dockerd (deploy/docker/engine.sh) unless one runs, and stops only
+# what it started. Where no engine can run, the compose test says so and skips.
+ENGINE_STARTED=0
+compose_setup() {
+  local build_dir=$1 engine="$ROOT/deploy/docker/engine.sh"
+  if [ "${CDC_NO_DOCKER:-0}" = 1 ] || [ "$(id -u)" -ne 0 ] || ! command -v dockerd >/dev/null; then
+    log "notice: no container engine here (not root, no dockerd or CDC_NO_DOCKER=1): the compose test skips"
+    return
+  fi
+  if ! "$engine" status; then
+    "$engine" start || { log "notice: dockerd did not start: the compose test fails"; return; }
+    ENGINE_STARTED=1
+  fi
+  local stage
+  stage=$(mktemp -d)
+  if DOCKER_HOST=$("$engine" host) "$ROOT/deploy/docker/base-image.sh" &&
+    "$ROOT/deploy/docker/stage.sh" "$build_dir" "$stage/ctx" &&
+    DOCKER_HOST=$("$engine" host) docker build -q -f deploy/docker/Dockerfile.host --target libs \
+      -t cdc-slam-libs:host "$stage/ctx" >/dev/null; then
+    log "container engine ready, runtime libraries image cdc-slam-libs:host built"
+  else
+    log "notice: the compose test's images could not be made: it fails"
+  fi
+  rm -rf "$stage"
+}
+
+compose_teardown() {
+  if [ "$ENGINE_STARTED" = 1 ]; then "$ROOT/deploy/docker/engine.sh" stop; ENGINE_STARTED=0; fi
+}
+
 cmd=${1:-help}
 shift || true
 preset=""
@@ -101,6 +136,8 @@ case "$cmd" in
     ensure_deps
     preset=${preset:-ci}
     configure_and_build "$preset"
+    trap compose_teardown EXIT
+    compose_setup "build/$preset"
     log "running tests"
     run_isolated ctest --preset "$preset" -j "$(nproc)" "${ctest_args[@]}"
     log "test run finished in $(( $(date +%s) - start )) s"

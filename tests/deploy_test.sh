@@ -65,6 +65,17 @@ if command -v docker-compose > /dev/null; then
     [[ -n $(find "$build" -name "$b" -type f -perm -u+x -print -quit) ]] || fail "compose runs $b, which the build does not make"
   done
   grep -q '^RUN ./cdc build --preset release' "$repo/deploy/docker/Dockerfile" || fail "the Dockerfile does not build with ./cdc build"
+  # The compose file is the generator's for three robots; the generator's file for five validates too.
+  diff <("$repo/deploy/docker/compose-gen.sh" --robots 3) "$repo/docker-compose.yml" > /dev/null ||
+    fail "docker-compose.yml differs from 'deploy/docker/compose-gen.sh --robots 3'"
+  "$repo/deploy/docker/compose-gen.sh" --robots 5 --out "$tmp/five/docker-compose.yml" 2> /dev/null &&
+    fail "compose-gen.sh wrote into a missing folder"
+  mkdir -p "$tmp/five"
+  "$repo/deploy/docker/compose-gen.sh" --robots 5 --out "$tmp/five/docker-compose.yml"
+  (cd "$tmp/five" && docker-compose config -q) || fail "the five-robot compose file does not validate"
+  grep -q '198.18.1.24' "$tmp/five/swarm-config/cyclonedds.xml" || fail "the five-robot DDS peers miss robot 4"
+  if "$repo/deploy/docker/compose-gen.sh" --robots 0 2> "$tmp/err"; then fail "zero robots accepted"; fi
+  grep -q "from 1 to 50" "$tmp/err" || fail "no reason for a bad number of robots"
 else
   echo "docker-compose not installed (deploy/install-deps.sh installs it): compose checks not run" >&2
   exit 77

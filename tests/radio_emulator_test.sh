@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # deploy/docker/radio-emulator.sh in a private network namespace of its own (unshare --net): it drops
-# the node's traffic to a peer exactly during the out-of-range period of the timeline, and leaves no
-# rule behind when it stops. Usage: radio_emulator_test.sh REPO
+# the node's traffic to a peer exactly during the out-of-range period of the timeline (wall time, and the
+# sim time of a player's clock file), lifts every cut at the rendezvous (SIGUSR1), and leaves no rule behind
+# when it stops. Usage: radio_emulator_test.sh REPO
 set -euo pipefail
 repo=$1
 if [[ $(id -u) -ne 0 ]] || ! command -v iptables > /dev/null || ! unshare --net true 2> /dev/null; then
@@ -30,6 +31,23 @@ kill -TERM \$pid
 wait \$pid || true
 [[ -z \$(iptables -S | grep DROP || true) ]] || { echo "FAIL: rules left behind"; iptables -S; exit 1; }
 grep -q "out of range of 1" "$tmp/radio.log" && grep -q "back in range of 1" "$tmp/radio.log" || { echo "FAIL: log"; exit 1; }
+# Sim time from a player's clock file ('<stamp ns> <sweeps>'); SIGUSR1 lifts every cut for good.
+echo "0 0" > "$tmp/clock"
+"$repo/deploy/docker/radio-emulator.sh" --me 0 --periods "$tmp/periods.csv" --ip 1=198.18.5.2 --ip 2=198.18.5.3 \
+  --clock "$tmp/clock" > "$tmp/radio2.log" 2>&1 &
+pid=\$!
+sleep 0.8
+has 198.18.5.2 && { echo "FAIL: blocked at clock 0"; exit 1; }
+echo "2000000000 20" > "$tmp/clock"
+sleep 1
+has 198.18.5.2 || { echo "FAIL: not blocked at clock 2 s"; cat "$tmp/radio2.log"; exit 1; }
+kill -USR1 \$pid
+sleep 1
+has 198.18.5.2 && { echo "FAIL: still blocked after the rendezvous"; exit 1; }
+has 198.18.5.3 && { echo "FAIL: 1-2 still blocked after the rendezvous"; exit 1; }
+kill -TERM \$pid
+wait \$pid || true
+grep -q "rendezvous" "$tmp/radio2.log" || { echo "FAIL: rendezvous not logged"; exit 1; }
 echo "radio emulator OK"
 INNER
 unshare --net bash "$tmp/inner.sh"
