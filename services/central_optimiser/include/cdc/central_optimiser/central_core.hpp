@@ -136,6 +136,8 @@ class CentralCore {
 
   // Robots placed in the world, with their current incarnation's keyframes.
   std::vector<RobotEstimate> estimates() const;
+  // One robot's estimate; nullopt while it is not in the world.
+  std::optional<RobotEstimate> estimate(uint32_t robot) const;
   std::vector<Acknowledgement> acknowledgements() const;
   // The anchored graph (for writing g2o and comparing optima).
   const graph::PoseGraph& graph() const noexcept { return graph_; }
