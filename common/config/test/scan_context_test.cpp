@@ -1,10 +1,9 @@
 #include "cdc/config/scan_context.hpp"
+#include "temp_dir.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include <unistd.h>
-#include <filesystem>
 #include <fstream>
 #include <string>
 
@@ -13,31 +12,32 @@ namespace {
 
 using ::testing::HasSubstr;
 
-std::string write(const std::string& name, const std::string& text) {
-  const auto p = std::filesystem::temp_directory_path() / (name + std::to_string(::getpid()) + ".yaml");
-  std::ofstream(p) << text;
-  return p.string();
-}
+class ScanContextKeys : public test::TempDirTest {
+ protected:
+  ScanContextKeys() : TempDirTest("scan_context_keys") {}
+  // A YAML file in the test's folder holding `text`.
+  std::string yaml(const std::string& text) const {
+    std::ofstream(path("service.yaml")) << text;
+    return path("service.yaml");
+  }
+};
 
-TEST(ScanContextKeys, ReadTheGridAndLeaveTheSensorHeight) {
-  const std::string path = write("sc_keys", "scan_context:\n  rings: 10\n  sectors: 30\n  max_range_m: 50\n");
+TEST_F(ScanContextKeys, ReadTheGridAndLeaveTheSensorHeight) {
+  Reader r(yaml("scan_context:\n  rings: 10\n  sectors: 30\n  max_range_m: 50\n"));
   lidar::ScanContextParams p;
   p.sensor_height_m = 1.5;
-  Reader r(path);
   read_scan_context(r, p);
   EXPECT_NO_THROW(r.finish());
   EXPECT_EQ(p.rings, 10);
   EXPECT_EQ(p.sectors, 30);
   EXPECT_DOUBLE_EQ(p.max_range_m, 50.0);
   EXPECT_DOUBLE_EQ(p.sensor_height_m, 1.5);
-  std::filesystem::remove(path);
 }
 
-TEST(ScanContextKeys, RefuseAGridOutOfRangeAndKeepTheDefaults) {
-  const std::string path = write("sc_bad", "scan_context:\n  rings: 0\n  sectors: 3\n  max_range_m: .nan\n");
+TEST_F(ScanContextKeys, RefuseAGridOutOfRangeAndKeepTheDefaults) {
+  Reader r(yaml("scan_context:\n  rings: 0\n  sectors: 3\n  max_range_m: .nan\n"));
   const lidar::ScanContextParams defaults;
   lidar::ScanContextParams p;
-  Reader r(path);
   read_scan_context(r, p);
   try {
     r.finish();
@@ -50,7 +50,6 @@ TEST(ScanContextKeys, RefuseAGridOutOfRangeAndKeepTheDefaults) {
   EXPECT_EQ(p.rings, defaults.rings);
   EXPECT_EQ(p.sectors, defaults.sectors);
   EXPECT_DOUBLE_EQ(p.max_range_m, defaults.max_range_m);
-  std::filesystem::remove(path);
 }
 
 }  // namespace
