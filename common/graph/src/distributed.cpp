@@ -248,10 +248,19 @@ struct Postbox {
   uint64_t bytes_each = 0;
   uint64_t copies_each = 0;  // > 0: every estimate goes to this many robots, else to its audience
 
+  bool parallel = false;  // robots read what was sent before the round (block Jacobi)
+  std::map<Key, Value> delivered;
+
+  void begin_round() {
+    if (parallel) {
+      delivered = latest;
+    }
+  }
   std::map<Key, Value> inbox(const DistributedRobot& robot) const {
     std::map<Key, Value> in;
+    const std::map<Key, Value>& from = parallel ? delivered : latest;
     for (Key k : robot.needed()) {
-      if (auto it = latest.find(k); it != latest.end()) {
+      if (auto it = from.find(k); it != from.end()) {
         in.emplace(k, it->second);
       }
     }
@@ -281,6 +290,7 @@ template <class Value, class Step, class Separators>
 std::pair<int, bool> run_stage(std::vector<DistributedRobot>& team, Postbox<Value>& box, int max_rounds,
                                double tolerance, DistributedResult& result, Step step, Separators separators) {
   for (int round = 1; round <= max_rounds; ++round) {
+    box.begin_round();
     double change = 0.0;
     uint64_t bytes = 0;
     for (DistributedRobot& robot : team) {
@@ -328,12 +338,14 @@ std::vector<Factor> coarse_factors(const PoseGraph& graph, size_t robots, Distri
 double pose_round(std::vector<DistributedRobot>& team, Postbox<Eigen::Isometry3d>& box,
                   const std::vector<Factor>* coarse, const PoseGraph& graph, const DistributedOptions& options,
                   DistributedResult& result) {
+  box.begin_round();
+  const TwoStageOptions& o = options.two_stage;
+  const double gamma = o.parallel ? std::min(o.pose_over_relaxation, 1.0) : o.pose_over_relaxation;
   double change = 0.0;
   uint64_t bytes = 0;
   for (DistributedRobot& robot : team) {
     const auto t0 = std::chrono::steady_clock::now();
-    change =
-        std::max(change, robot.pose_round(box.inbox(robot), options.local, options.two_stage.pose_over_relaxation));
+    change = std::max(change, robot.pose_round(box.inbox(robot), options.local, gamma));
     result.compute_s[robot.robot()] += seconds_since(t0);
     bytes += box.post(robot, coarse != nullptr ? robot.coarse_separators() : robot.pose_separators(), result);
   }
@@ -365,7 +377,7 @@ double pose_round(std::vector<DistributedRobot>& team, Postbox<Eigen::Isometry3d
 void refine_poses(PoseGraph& graph, std::vector<DistributedRobot>& team, const DistributedOptions& options,
                   DistributedResult& result) {
   const bool coarse = options.two_stage.coarse && team.size() > 1;
-  Postbox<Eigen::Isometry3d> box{{}, kSeparatorPoseBytes, coarse ? team.size() - 1 : 0};
+  Postbox<Eigen::Isometry3d> box{{}, kSeparatorPoseBytes, coarse ? team.size() - 1 : 0, options.two_stage.parallel, {}};
   for (const DistributedRobot& r : team) {
     for (const auto& [k, T] : r.pose_separators()) {
       box.latest[k] = T;
@@ -456,8 +468,8 @@ DistributedResult solve_distributed_two_stage(PoseGraph& graph, const Distribute
   }
   // The first round of a linear stage starts from values not yet consistent between robots: no
   // over-relaxation there.
-  const auto omega = [&](int round) { return round == 1 ? 1.0 : o.linear_over_relaxation; };
-  Postbox<Eigen::Matrix3d> rotations{{}, kSeparatorRotationBytes};
+  const auto omega = [&](int round) { return round == 1 || o.parallel ? 1.0 : o.linear_over_relaxation; };
+  Postbox<Eigen::Matrix3d> rotations{{}, kSeparatorRotationBytes, 0, o.parallel, {}};
   result.rotation_rounds =
       run_stage(
           team, rotations, std::min(o.max_rotation_rounds, options.max_rounds), o.rotation_tolerance, result,
@@ -469,7 +481,7 @@ DistributedResult solve_distributed_two_stage(PoseGraph& graph, const Distribute
   for (DistributedRobot& r : team) {
     r.end_rotations(rotations.inbox(r));
   }
-  Postbox<Eigen::Vector3d> translations{{}, kSeparatorTranslationBytes};
+  Postbox<Eigen::Vector3d> translations{{}, kSeparatorTranslationBytes, 0, o.parallel, {}};
   result.translation_rounds =
       run_stage(
           team, translations, std::min(o.max_translation_rounds, options.max_rounds - result.rounds),

@@ -8,11 +8,16 @@
 #include <Eigen/SparseCholesky>
 
 #include <algorithm>
+#include <limits>
 
 namespace cdc::graph {
 namespace {
 
 using detail::LinearTerm;
+
+// The change a round reports when nothing ties the robot's block to the world yet (no neighbour
+// value received, no gauge, no prior): the stage is not done.
+constexpr double kNotPlaced = std::numeric_limits<double>::infinity();
 using Blocks = std::map<Key, Eigen::MatrixXd>;
 using Triplets = std::vector<Eigen::Triplet<double>>;
 
@@ -181,7 +186,7 @@ double DistributedRobot::rotation_round(const SeparatorRotations& received, doub
   }
   const std::optional<Blocks> x = solve_linear(rotation_terms_, unknown, known, 3);
   if (!x) {
-    return 0.0;
+    return kNotPlaced;
   }
   double change = 0.0;
   for (const auto& [k, xk] : *x) {
@@ -246,7 +251,7 @@ double DistributedRobot::translation_round(const SeparatorTranslations& received
   }
   const std::optional<Blocks> x = solve_linear(translation_terms_, unknown, known, 1);
   if (!x) {
-    return 0.0;
+    return kNotPlaced;
   }
   double change = 0.0;
   for (const auto& [k, xk] : *x) {
@@ -306,7 +311,7 @@ PoseBlock pose_block(const std::vector<Factor>& factors, const std::map<Key, Eig
 double DistributedRobot::pose_round(const SeparatorPoses& received, const SolverOptions& options, double gamma) {
   PoseBlock block = pose_block(factors_, poses_, needed_, received, gauge_, dimension_);
   if (!block.placed) {
-    return 0.0;  // nothing places this robot yet
+    return kNotPlaced;
   }
   solve(block.graph, options, block.fixed);
   double max_change = 0.0;

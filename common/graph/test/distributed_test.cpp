@@ -174,6 +174,17 @@ TEST(Distributed, TwoStageRemovesTheBendThatBlockGaussSeidelLeaves) {
   EXPECT_EQ(r.rounds, r.rotation_rounds + r.translation_rounds + static_cast<int>(r.objective_per_round.size()) - 1);
 }
 
+// All robots at once (block Jacobi), as robots that wait for nobody would run it.
+TEST(Distributed, TwoStageConvergesWithParallelUpdates) {
+  const PoseGraph central = centralized(lattice_robots());
+  PoseGraph g = lattice_robots();
+  DistributedOptions options;
+  options.two_stage.parallel = true;
+  const DistributedResult r = solve_distributed_two_stage(g, options);
+  EXPECT_TRUE(r.converged);
+  EXPECT_LT(largest_deviation(central, g), 0.01);
+}
+
 TEST(Distributed, TwoStageWithoutTheCoarseStepLeavesTheBend) {
   const PoseGraph central = centralized(lattice_robots());
   PoseGraph g = lattice_robots();

@@ -27,6 +27,7 @@ using Clock = std::chrono::steady_clock;
 struct Options {
   std::string input, out_path, init = "chordal";
   bool json = false, sesync_weights = false, verbose = false, distributed = false, share_loops = false;
+  bool parallel = false;
   int max_rounds = 30;
   std::string method = "two-stage";
   double tilt_scale = 1.0;
@@ -71,6 +72,9 @@ void add_options(CLI::App& app, Options& o) {
                          " its own chordal estimate) or block-gs (block Gauss-Seidel on poses from a rigid placement"
                          " of the robots)",
                          CLI::IsMember({"two-stage", "block-gs"}));
+  app.add_flag("--parallel", o.parallel,
+               "distributed two-stage: all robots update at once from the previous round's estimates (block Jacobi)"
+               " instead of one after the other");
   cdc::base::add_setting(app, "--over-relaxation", o.over_relaxation,
                          "distributed block-gs: over-relaxation factor gamma (1 = Gauss-Seidel)",
                          cdc::config::cli_range(0.1, 1.99));
@@ -202,6 +206,7 @@ graph::DistributedResult solve_distributed(const Options& o, const graph::Solver
   dopts.max_rounds = o.max_rounds;
   dopts.local = local;
   dopts.over_relaxation = o.over_relaxation;
+  dopts.two_stage.parallel = o.parallel;
   if (o.method == "two-stage") {
     return graph::solve_distributed_two_stage(solution, dopts);
   }

@@ -35,6 +35,11 @@ struct TwoStageOptions {
   // The coarse step after every round of stage 3 (coarse_corrections). It needs every robot's
   // separator poses, so each robot sends its separators to all robots instead of its neighbours.
   bool coarse = true;
+  // All robots update at once from the estimates sent in the previous round (block Jacobi, what
+  // robots do when nobody waits for anybody) instead of one after the other in the order of their
+  // ids (block Gauss-Seidel). Parallel updates take no over-relaxation (factors above 1 are used
+  // as 1): block Jacobi over-relaxed diverges on strongly coupled robots.
+  bool parallel = false;
 };
 
 struct DistributedOptions {

@@ -68,7 +68,9 @@ class DistributedRobot {
 
   // Stage 1. One round of the rotation relaxation with the received separator rotations; the own
   // values move `omega` of the way to the block solution (1: Gauss-Seidel). Returns the largest
-  // change of an own M (Frobenius norm).
+  // change of an own M (Frobenius norm); infinity when nothing places the robot yet (no neighbour
+  // value received, no gauge, no prior: the round leaves it as it is). The same holds for the
+  // other stages' rounds.
   double rotation_round(const SeparatorRotations& received, double omega);
   SeparatorRotations rotation_separators() const;
   // Ends stage 1: projects the own relaxed rotations and the neighbours' last ones onto SO(3).
