@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <memory>
+#include <set>
+#include <utility>
 
 namespace cdc::graph {
 namespace {
@@ -71,14 +73,18 @@ struct Correction {
   }
 };
 
-// The gauge pose is a group of its own that stays put; its robot's other poses move together.
-constexpr uint32_t kGaugeGroup = ~uint32_t{0};
+// A coarse group: a robot's poses but the pinned ones (no key), or one pinned pose (its key).
+using Group = std::pair<uint32_t, std::optional<Key>>;
 
 // The coarse problem: one correction per group, the residuals of the factors between groups.
 class CoarseProblem {
  public:
-  CoarseProblem(std::optional<Key> gauge, const SolverOptions& options, int dimension)
-      : gauge_(gauge), options_(options), dimension_(dimension), problem_(problem_options()) {
+  CoarseProblem(std::optional<Key> gauge, std::set<Key> pinned, const SolverOptions& options, int dimension)
+      : gauge_(gauge),
+        pinned_(std::move(pinned)),
+        options_(options),
+        dimension_(dimension),
+        problem_(problem_options()) {
     if (options.robust_loss_scale > 0) {
       robust_ = std::make_unique<ceres::CauchyLoss>(options.robust_loss_scale);
     }
@@ -102,19 +108,22 @@ class CoarseProblem {
                               f.robust ? robust_.get() : nullptr, ca.t, ca.q, cb.t, cb.q);
   }
 
-  std::map<uint32_t, Eigen::Isometry3d> solve() {
-    std::map<uint32_t, Eigen::Isometry3d> out;
+  CoarseCorrections solve() {
+    CoarseCorrections out;
     if (c_.empty()) {
       return out;
     }
-    // The gauge group stays; when no factor reaches the gauge pose, its robot stays instead.
-    const uint32_t fixed = c_.count(kGaugeGroup) != 0 || !gauge_ ? kGaugeGroup : robot_of(*gauge_);
-    for (auto& [r, x] : c_) {
+    // The gauge pose stays; when no factor reaches it, its robot stays instead.
+    std::optional<Group> fixed;
+    if (gauge_) {
+      fixed = c_.count(group(*gauge_)) != 0 ? group(*gauge_) : Group{robot_of(*gauge_), std::nullopt};
+    }
+    for (auto& [g, x] : c_) {
       problem_.SetManifold(x.q, dimension_ == 2 ? static_cast<ceres::Manifold*>(&yaw_only_) : &quaternion_);
       if (dimension_ == 2) {
         problem_.SetManifold(x.t, &planar_translation_);
       }
-      if (r == fixed) {
+      if (g == fixed) {
         problem_.SetParameterBlockConstant(x.t);
         problem_.SetParameterBlockConstant(x.q);
       }
@@ -127,10 +136,15 @@ class CoarseProblem {
     so.logging_type = ceres::SILENT;
     ceres::Solver::Summary summary;
     ceres::Solve(so, &problem_, &summary);
-    for (const auto& [r, x] : c_) {
-      if (r != kGaugeGroup) {
-        out[r] = x.pose();
+    for (const auto& [g, x] : c_) {
+      if (!g.second) {
+        out.robots[g.first] = x.pose();
+      } else {
+        out.pinned[*g.second] = x.pose();  // the gauge's is the identity: it is held constant
       }
+    }
+    if (gauge_) {
+      out.pinned[*gauge_] = Eigen::Isometry3d::Identity();
     }
     return out;
   }
@@ -142,25 +156,42 @@ class CoarseProblem {
     po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
     return po;
   }
-  uint32_t group(Key k) const { return gauge_ && k == *gauge_ ? kGaugeGroup : robot_of(k); }
+  Group group(Key k) const { return {robot_of(k), pinned_.count(k) != 0 ? std::optional<Key>(k) : std::nullopt}; }
 
   std::optional<Key> gauge_;
+  std::set<Key> pinned_;
   SolverOptions options_;
   int dimension_;
   std::unique_ptr<ceres::LossFunction> robust_;
   ceres::EigenQuaternionManifold quaternion_;
   ceres::SubsetManifold planar_translation_{3, {2}};
   ceres::AutoDiffManifold<detail::YawOnlyQuaternion, 4, 1> yaw_only_;
-  std::map<uint32_t, Correction> c_;  // stable addresses: the problem holds pointers into them
-  ceres::Problem problem_;            // declared last: destroyed before what it borrows
+  std::map<Group, Correction> c_;  // stable addresses: the problem holds pointers into them
+  ceres::Problem problem_;         // declared last: destroyed before what it borrows
 };
 
 }  // namespace
 
-std::map<uint32_t, Eigen::Isometry3d> coarse_corrections(const std::vector<Factor>& factors,
-                                                         const SeparatorPoses& poses, std::optional<Key> gauge,
-                                                         const SolverOptions& options, int dimension) {
-  CoarseProblem problem(gauge, options, dimension);
+Eigen::Isometry3d CoarseCorrections::of(Key key) const {
+  if (auto p = pinned.find(key); p != pinned.end()) {
+    return p->second;
+  }
+  auto r = robots.find(robot_of(key));
+  return r != robots.end() ? r->second : Eigen::Isometry3d::Identity();
+}
+
+CoarseCorrections coarse_corrections(const std::vector<Factor>& factors, const SeparatorPoses& poses,
+                                     std::optional<Key> gauge, const SolverOptions& options, int dimension) {
+  std::set<Key> pinned;
+  if (gauge) {
+    pinned.insert(*gauge);
+  }
+  for (const Factor& f : factors) {
+    if (f.kind == FactorKind::kPrior) {
+      pinned.insert(f.a);
+    }
+  }
+  CoarseProblem problem(gauge, std::move(pinned), options, dimension);
   for (const Factor& f : factors) {
     const auto a = poses.find(f.a), b = poses.find(f.b);
     if (a != poses.end() && b != poses.end()) {

@@ -316,14 +316,22 @@ void write_poses(const std::vector<DistributedRobot>& team, PoseGraph& graph) {
   }
 }
 
-// The factors of the coarse problem (inter-robot factors and priors); each robot sends the ones it
-// is the first end of, once, to every robot that does not hold them yet.
+// The factors of the coarse problem (inter-robot factors, priors, factors at the gauge or at a
+// pose with a prior); each robot sends the ones it is the first end of, once, to every robot that
+// does not hold them yet.
 std::vector<Factor> coarse_factors(const PoseGraph& graph, size_t robots, DistributedResult& result, uint64_t& bytes) {
-  std::vector<Factor> out;
-  const std::optional<Key> gauge = gauge_of(graph);
+  std::set<Key> pinned;
+  if (const std::optional<Key> gauge = gauge_of(graph)) {
+    pinned.insert(*gauge);
+  }
   for (const Factor& f : graph.factors) {
-    const bool at_gauge = gauge && (f.a == *gauge || f.b == *gauge);
-    if (f.kind == FactorKind::kPrior || f.inter_robot() || at_gauge) {
+    if (f.kind == FactorKind::kPrior) {
+      pinned.insert(f.a);
+    }
+  }
+  std::vector<Factor> out;
+  for (const Factor& f : graph.factors) {
+    if (f.inter_robot() || pinned.count(f.a) != 0 || pinned.count(f.b) != 0) {
       out.push_back(f);
       const uint64_t b = (robots - (f.inter_robot() ? 2 : 1)) * kFactorBytes;
       result.bytes_sent[robot_of(f.a)] += b;
@@ -360,14 +368,10 @@ double pose_round(std::vector<DistributedRobot>& team, Postbox<Eigen::Isometry3d
   const double coarse_s = seconds_since(t0);
   for (DistributedRobot& robot : team) {
     result.compute_s[robot.robot()] += coarse_s;  // every robot solves the same coarse problem
-    if (auto it = C.find(robot.robot()); it != C.end()) {
-      change = std::max(change, robot.move(it->second));
-    }
+    change = std::max(change, robot.move(C));
   }
   for (auto& [k, T] : box.latest) {
-    if (auto it = C.find(robot_of(k)); it != C.end() && k != gauge) {
-      T = it->second * T;  // what every robot does to the separator poses it holds
-    }
+    T = C.of(k) * T;  // what every robot does to the separator poses it holds
   }
   return change;
 }

@@ -151,8 +151,22 @@ DistributedRobot::DistributedRobot(const PoseGraph& graph, uint32_t robot, std::
       poses_.emplace(k, T);  // poses no intra-robot factor reaches keep their value
     }
   }
+  for (const Factor& f : factors_) {
+    for (Key k : {f.a, f.b}) {
+      if (robot_of(k) == robot) {
+        linked_.insert(k);
+        poses_.emplace(k, Eigen::Isometry3d::Identity());  // named by a factor only: placed by the rounds
+      }
+    }
+  }
   if (gauge && robot_of(*gauge) == robot && poses_.count(*gauge) != 0) {
     gauge_ = gauge;
+    pinned_.insert(*gauge);
+  }
+  for (const Factor& f : factors_) {
+    if (f.kind == FactorKind::kPrior) {
+      pinned_.insert(f.a);
+    }
   }
   for (const auto& [k, T] : poses_) {
     relaxed_[k] = T.rotation();
@@ -177,9 +191,9 @@ double DistributedRobot::rotation_round(const SeparatorRotations& received, doub
     }
   }
   std::vector<Key> unknown;
-  for (const auto& [k, M] : relaxed_) {
+  for (Key k : linked_) {
     if (gauge_ && k == *gauge_) {
-      known[k] = M.transpose();
+      known[k] = relaxed_.at(k).transpose();
     } else {
       unknown.push_back(k);
     }
@@ -242,9 +256,9 @@ double DistributedRobot::translation_round(const SeparatorTranslations& received
     }
   }
   std::vector<Key> unknown;
-  for (const auto& [k, T] : poses_) {
+  for (Key k : linked_) {
     if (gauge_ && k == *gauge_) {
-      known[k] = T.translation().transpose();
+      known[k] = poses_.at(k).translation().transpose();
     } else {
       unknown.push_back(k);
     }
@@ -323,17 +337,17 @@ double DistributedRobot::pose_round(const SeparatorPoses& received, const Solver
   return max_change;
 }
 
-double DistributedRobot::move(const Eigen::Isometry3d& C_world_new_old) {
+double DistributedRobot::move(const CoarseCorrections& corrections) {
   double max_change = 0.0;
-  for (auto& [k, T] : poses_) {
-    if (gauge_ && k == *gauge_) {
-      continue;
-    }
-    const Eigen::Isometry3d next = C_world_new_old * T;
-    max_change = std::max(max_change, (next.translation() - T.translation()).norm());
+  for (Key k : linked_) {
+    const Eigen::Isometry3d C = corrections.of(k);
+    Eigen::Isometry3d& T = poses_.at(k);
+    const Eigen::Isometry3d next = C * T;
+    max_change =
+        std::max({max_change, (next.translation() - T.translation()).norm(), Eigen::AngleAxisd(C.rotation()).angle()});
     T = next;
   }
-  return std::max(max_change, Eigen::AngleAxisd(C_world_new_old.rotation()).angle());
+  return max_change;
 }
 
 SeparatorPoses DistributedRobot::pose_separators() const {
@@ -346,11 +360,9 @@ SeparatorPoses DistributedRobot::pose_separators() const {
 
 SeparatorPoses DistributedRobot::coarse_separators() const {
   SeparatorPoses out = pose_separators();
-  if (!gauge_) {
-    return out;
-  }
   for (const Factor& f : factors_) {
-    if ((f.a == *gauge_ || f.b == *gauge_) && !f.inter_robot()) {  // the other ends send their own
+    // The other ends of inter-robot factors send their own.
+    if (!f.inter_robot() && (pinned_.count(f.a) != 0 || pinned_.count(f.b) != 0)) {
       out[f.a] = poses_.at(f.a);
       out[f.b] = poses_.at(f.b);
     }

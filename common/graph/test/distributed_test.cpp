@@ -185,6 +185,32 @@ TEST(Distributed, TwoStageConvergesWithParallelUpdates) {
   EXPECT_LT(largest_deviation(central, g), 0.01);
 }
 
+// A pose no factor names stays where it is and does not hold the others up.
+TEST(Distributed, TwoStageLeavesAPoseWithoutFactorsAlone) {
+  PoseGraph g = lattice_robots();
+  const Eigen::Isometry3d lone = pose(50, 0, 0, 1);
+  g.poses[make_key(1, 99)] = lone;
+  const DistributedResult r = solve_distributed_two_stage(g, DistributedOptions{});
+  EXPECT_TRUE(r.converged);
+  EXPECT_TRUE(g.poses.at(make_key(1, 99)).isApprox(lone));
+  EXPECT_LT(largest_deviation(centralized(lattice_robots()), g), 0.01);
+}
+
+// With priors there is no gauge pose: the priors hold the map in every stage and in the coarse step.
+TEST(Distributed, TwoStageFollowsPriors) {
+  const auto with_priors = [] {
+    PoseGraph g = lattice_robots();
+    g.add_prior(make_key(0, 0), pose(0, 0, 0, 0), Matrix6d::Identity() * 1e4);
+    g.add_prior(make_key(3, 0), pose(4, 4, 0, 0.3), Matrix6d::Identity());  // a second, soft one
+    return g;
+  };
+  const PoseGraph central = centralized(with_priors());
+  PoseGraph g = with_priors();
+  const DistributedResult r = solve_distributed_two_stage(g, DistributedOptions{});
+  EXPECT_TRUE(r.converged);
+  EXPECT_LT(largest_deviation(central, g), 0.01);
+}
+
 TEST(Distributed, TwoStageWithoutTheCoarseStepLeavesTheBend) {
   const PoseGraph central = centralized(lattice_robots());
   PoseGraph g = lattice_robots();

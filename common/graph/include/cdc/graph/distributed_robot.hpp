@@ -53,6 +53,16 @@ struct LinearTerm {
 };
 }  // namespace detail
 
+// The corrections of the coarse step: one rigid move per robot, and one of its own per pinned pose
+// (a pose with a prior; the gauge pose is pinned too and stays put).
+struct CoarseCorrections {
+  std::map<uint32_t, Eigen::Isometry3d> robots;  // C_world_new_old of each robot's other poses
+  std::map<Key, Eigen::Isometry3d> pinned;       // C_world_new_old of each pinned pose (gauge: identity)
+
+  // The correction of pose `key` (identity for what the step did not reach).
+  Eigen::Isometry3d of(Key key) const;
+};
+
 class DistributedRobot {
  public:
   // Takes robot's poses (current values of graph.poses, used as the starting point of its own
@@ -84,12 +94,12 @@ class DistributedRobot {
   // pose moves `gamma` of the way to the block solution. Returns the largest change [m, rad].
   double pose_round(const SeparatorPoses& received, const SolverOptions& options, double gamma);
   SeparatorPoses pose_separators() const;
-  // What the coarse step needs from this robot: the separator poses, and the gauge pose with the
-  // poses it shares a factor with.
+  // What the coarse step needs from this robot: the separator poses, and the pinned poses (the
+  // gauge, the poses with a prior) with the own poses they share a factor with.
   SeparatorPoses coarse_separators() const;
-  // Moves every own pose but the gauge rigidly: T <- C * T (the robot's share of a coarse
-  // correction). Returns the largest change [m, rad].
-  double move(const Eigen::Isometry3d& C_world_new_old);
+  // Applies the robot's share of the coarse step to every own pose a factor names: T <- C * T.
+  // Returns the largest change [m, rad].
+  double move(const CoarseCorrections& corrections);
 
   // The own poses T_world_key (after stage 2: rotations and translations of stages 1-2).
   const std::map<Key, Eigen::Isometry3d>& poses() const noexcept { return poses_; }
@@ -102,21 +112,23 @@ class DistributedRobot {
   std::vector<detail::LinearTerm> rotation_terms_;
   std::vector<detail::LinearTerm> translation_terms_;  // built when stage 1 ends
   std::map<Key, Eigen::Isometry3d> poses_;
-  std::map<Key, Eigen::Matrix3d> relaxed_;              // stage 1 unknowns M
+  std::set<Key> linked_;                    // own keys some factor names (the unknowns of the linear stages)
+  std::set<Key> pinned_;                    // own gauge and own poses with a prior
+  std::map<Key, Eigen::Matrix3d> relaxed_;  // stage 1 unknowns M
   std::map<Key, Eigen::Matrix3d> neighbour_rotations_;  // projected, after stage 1
   std::map<Key, std::set<uint32_t>> audience_;
   std::set<Key> needed_;
 };
 
-// The robot-level (coarse) problem of stage 3: one rigid correction C_r per robot, every own pose
-// moving as T <- C_r T, except the gauge pose, which stays put. Solves for the corrections that
-// minimise `factors` (the inter-robot factors, priors and the factors at the gauge pose; the others
-// do not change under such moves) from `poses`, the current estimates of the poses they name.
-// Block solves leave the errors that span several robots (a bend or turn of the whole map made of
-// nearly rigid moves of each robot) to shrink slowly; this step removes them in one solve of
-// 6 unknowns per robot. Every robot can solve it from the same data and get the same corrections.
-std::map<uint32_t, Eigen::Isometry3d> coarse_corrections(const std::vector<Factor>& factors,
-                                                         const SeparatorPoses& poses, std::optional<Key> gauge,
-                                                         const SolverOptions& options, int dimension);
+// The robot-level (coarse) problem of stage 3: every robot's poses move rigidly, T <- C_r T,
+// except the pinned poses (the gauge, which stays put, and each pose with a prior, which moves on
+// its own). Solves for the corrections that minimise `factors` (the inter-robot factors, the priors
+// and the factors at pinned poses; the others do not change under such moves) from `poses`, the
+// current estimates of the poses they name. Block solves leave the errors that span several robots
+// (a bend or turn of the whole map made of nearly rigid moves of each robot, or of the map about a
+// pinned pose) to shrink slowly; this step removes them in one solve of 6 unknowns per robot and
+// pinned pose. Every robot can solve it from the same data and get the same corrections.
+CoarseCorrections coarse_corrections(const std::vector<Factor>& factors, const SeparatorPoses& poses,
+                                     std::optional<Key> gauge, const SolverOptions& options, int dimension);
 
 }  // namespace cdc::graph
