@@ -292,7 +292,7 @@ void print_distributed_text(const nlohmann::json& d) {
       d["max_deviation_m"].get<double>(), d["max_rotation_deviation_rad"].get<double>(),
       d["distributed_time_s"].get<double>());
   for (const auto& [robot, b] : d["bytes_per_robot"].items()) {
-    std::printf("  robot %s sent %llu bytes of separator estimates (%.0f per round)\n", robot.c_str(),
+    std::printf("  robot %s sent %llu bytes (%.0f per round)\n", robot.c_str(),
                 static_cast<unsigned long long>(b.get<uint64_t>()),
                 d["bytes_per_robot_per_round"][robot].get<double>());
   }
