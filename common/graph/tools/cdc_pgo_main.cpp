@@ -11,6 +11,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -26,7 +27,9 @@ using Clock = std::chrono::steady_clock;
 struct Options {
   std::string input, out_path, init = "chordal";
   bool json = false, sesync_weights = false, verbose = false, distributed = false, share_loops = false;
+  bool parallel = false;
   int max_rounds = 30;
+  std::string method = "two-stage";
   double tilt_scale = 1.0;
   double over_relaxation = graph::DistributedOptions{}.over_relaxation;
   int max_iterations = 100;
@@ -64,8 +67,16 @@ void add_options(CLI::App& app, Options& o) {
   app.add_flag("--distributed", o.distributed,
                "also run the distributed algorithm (robots = top byte of the keys; exchanges separator poses only)"
                " and compare it with the centralized solution");
+  cdc::base::add_setting(app, "--distributed-method", o.method,
+                         "distributed: two-stage (rotations, then translations, then poses; each robot starts from"
+                         " its own chordal estimate) or block-gs (block Gauss-Seidel on poses from a rigid placement"
+                         " of the robots)",
+                         CLI::IsMember({"two-stage", "block-gs"}));
+  app.add_flag("--parallel", o.parallel,
+               "distributed two-stage: all robots update at once from the previous round's estimates (block Jacobi)"
+               " instead of one after the other");
   cdc::base::add_setting(app, "--over-relaxation", o.over_relaxation,
-                         "distributed: over-relaxation factor gamma (1 = Gauss-Seidel)",
+                         "distributed block-gs: over-relaxation factor gamma (1 = Gauss-Seidel)",
                          cdc::config::cli_range(0.1, 1.99));
   cdc::base::add_setting(app, "--max-rounds", o.max_rounds, "distributed: round limit", cdc::config::cli_range(1, 1e6));
   app.add_flag("--verbose", o.verbose, "print the solver's full report to stderr");
@@ -138,22 +149,31 @@ void print_report(const graph::SolveResult& r) {
 }
 
 // The first round whose objective is within 1 % of the centralized one; -1 if none is.
-int rounds_to_1pct(const std::vector<double>& objective_per_round, double f_central) {
-  for (size_t i = 0; i < objective_per_round.size(); ++i) {
-    if (objective_per_round[i] <= 1.01 * f_central) {
-      return static_cast<int>(i);
+int rounds_to_1pct(const graph::DistributedResult& r, double f_central) {
+  for (size_t i = 0; i < r.objective_per_round.size(); ++i) {
+    if (r.objective_per_round[i] <= 1.01 * f_central) {
+      return r.objective_first_round + static_cast<int>(i);
     }
   }
   return -1;
 }
 
-// RMS distance between the positions of the same keys in two graphs [m].
-double position_rmse(const graph::PoseGraph& reference, const graph::PoseGraph& other) {
-  double se = 0.0;
+// Position and rotation deviations of the same keys between two graphs: RMS and largest [m], largest [rad].
+struct Deviation {
+  double rms_m = 0, max_m = 0, max_rad = 0;
+};
+
+Deviation deviation(const graph::PoseGraph& reference, const graph::PoseGraph& other) {
+  Deviation d;
   for (const auto& [k, T] : reference.poses) {
-    se += (other.poses.at(k).translation() - T.translation()).squaredNorm();
+    const Eigen::Isometry3d& U = other.poses.at(k);
+    const double e = (U.translation() - T.translation()).norm();
+    d.rms_m += e * e;
+    d.max_m = std::max(d.max_m, e);
+    d.max_rad = std::max(d.max_rad, Eigen::AngleAxisd(T.rotation().transpose() * U.rotation()).angle());
   }
-  return std::sqrt(se / static_cast<double>(reference.poses.size()));
+  d.rms_m = std::sqrt(d.rms_m / static_cast<double>(reference.poses.size()));
+  return d;
 }
 
 // Bytes each robot sent, initialisation and rounds together, keyed by the robot's number as text.
@@ -170,6 +190,32 @@ nlohmann::json bytes_per_robot(const graph::DistributedResult& init, graph::Dist
   return bytes;
 }
 
+// Time each robot spent on its own solves [s], keyed by the robot's number as text (two-stage only).
+nlohmann::json compute_per_robot(const graph::DistributedResult& r) {
+  nlohmann::json out = nlohmann::json::object();
+  for (const auto& [robot, s] : r.compute_s) {
+    out[std::to_string(robot)] = s;
+  }
+  return out;
+}
+
+// Runs the distributed algorithm --distributed-method names on the graph as read.
+graph::DistributedResult solve_distributed(const Options& o, const graph::SolverOptions& local,
+                                           graph::PoseGraph& solution, graph::DistributedResult& init) {
+  graph::DistributedOptions dopts;
+  dopts.max_rounds = o.max_rounds;
+  dopts.local = local;
+  dopts.over_relaxation = o.over_relaxation;
+  dopts.two_stage.parallel = o.parallel;
+  if (o.method == "two-stage") {
+    return graph::solve_distributed_two_stage(solution, dopts);
+  }
+  if (!graph::initialise_distributed(solution, &init)) {
+    throw std::runtime_error(o.input + ": some robot shares no inter-robot factor with the others");
+  }
+  return graph::solve_distributed(solution, dopts);
+}
+
 // Runs the distributed algorithm from the input file and compares it with the centralized solution
 // `central` (objective f_central); returns its figures and leaves its solution in `solution`.
 nlohmann::json run_distributed(const Options& o, const graph::SolverOptions& local, const graph::PoseGraph& central,
@@ -177,24 +223,31 @@ nlohmann::json run_distributed(const Options& o, const graph::SolverOptions& loc
   solution = read_graph(o.input);
   graph::DistributedResult init;
   const auto d0 = Clock::now();
-  if (!graph::initialise_distributed(solution, &init)) {
-    throw std::runtime_error(o.input + ": some robot shares no inter-robot factor with the others");
-  }
-  graph::DistributedOptions dopts;
-  dopts.max_rounds = o.max_rounds;
-  dopts.local = local;
-  dopts.over_relaxation = o.over_relaxation;
-  graph::DistributedResult dr = graph::solve_distributed(solution, dopts);
+  graph::DistributedResult dr = solve_distributed(o, local, solution, init);
   const double dist_s = seconds_since(d0);
   const double f_dist = dr.objective_per_round.back();
-  return {{"rounds", dr.rounds},
-          {"converged", dr.converged},
-          {"rounds_to_1pct", rounds_to_1pct(dr.objective_per_round, f_central)},
+  const Deviation dev = deviation(central, solution);
+  const nlohmann::json bytes = bytes_per_robot(init, dr);
+  nlohmann::json per_round;
+  for (const auto& [robot, b] : bytes.items()) {
+    per_round[robot] = static_cast<double>(b.get<uint64_t>()) / std::max(dr.rounds, 1);
+  }
+  return {{"distributed_method", o.method},
+          {"rounds", dr.rounds},
+          {"rotation_rounds", dr.rotation_rounds},
+          {"translation_rounds", dr.translation_rounds},
+          {"distributed_converged", dr.converged},
+          {"rounds_to_1pct", rounds_to_1pct(dr, f_central)},
           {"distributed_objective", f_dist},
           {"centralized_objective", f_central},
           {"gap_to_centralized", (f_dist - f_central) / f_central},
-          {"ate_to_centralized_m", position_rmse(central, solution)},
-          {"bytes_per_robot", bytes_per_robot(init, dr)},
+          {"ate_to_centralized_m", dev.rms_m},
+          {"max_deviation_m", dev.max_m},
+          {"max_rotation_deviation_rad", dev.max_rad},
+          {"bytes_per_robot", bytes},
+          {"bytes_per_robot_per_round", per_round},
+          {"bytes_per_round", dr.bytes_per_round},
+          {"compute_s_per_robot", compute_per_robot(dr)},
           {"objective_per_round", dr.objective_per_round},
           {"distributed_time_s", dist_s}};
 }
@@ -231,13 +284,17 @@ void print_json(const Options& o, const graph::PoseGraph& g, const Summary& s) {
 
 void print_distributed_text(const nlohmann::json& d) {
   std::printf(
-      "distributed      %d rounds (1%% of centralized after %d), objective %.6g, gap %.2e, ATE to "
-      "centralized %.4g m\n",
-      d["rounds"].get<int>(), d["rounds_to_1pct"].get<int>(), d["distributed_objective"].get<double>(),
-      d["gap_to_centralized"].get<double>(), d["ate_to_centralized_m"].get<double>());
+      "distributed      %s, %d rounds (%d rotation, %d translation; 1%% of centralized after %d), objective "
+      "%.6g, gap %.2e, deviation from centralized RMS %.4g m, largest %.4g m, %.3g rad, %.3f s\n",
+      d["distributed_method"].get<std::string>().c_str(), d["rounds"].get<int>(), d["rotation_rounds"].get<int>(),
+      d["translation_rounds"].get<int>(), d["rounds_to_1pct"].get<int>(), d["distributed_objective"].get<double>(),
+      d["gap_to_centralized"].get<double>(), d["ate_to_centralized_m"].get<double>(),
+      d["max_deviation_m"].get<double>(), d["max_rotation_deviation_rad"].get<double>(),
+      d["distributed_time_s"].get<double>());
   for (const auto& [robot, b] : d["bytes_per_robot"].items()) {
-    std::printf("  robot %s sent %llu bytes of separator poses\n", robot.c_str(),
-                static_cast<unsigned long long>(b.get<uint64_t>()));
+    std::printf("  robot %s sent %llu bytes (%.0f per round)\n", robot.c_str(),
+                static_cast<unsigned long long>(b.get<uint64_t>()),
+                d["bytes_per_robot_per_round"][robot].get<double>());
   }
 }
 
