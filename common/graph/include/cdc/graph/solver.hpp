@@ -19,6 +19,31 @@ enum class Objective {
 // Sparse Cholesky library behind Ceres' SPARSE_NORMAL_CHOLESKY.
 enum class SparseBackend { kSuiteSparse, kEigen, kCxSparse };
 
+// Graduated non-convexity (Yang, Antonante, Tzoumas and Carlone, RA-L 2020) with the truncated
+// least-squares surrogate, on the factors marked robust (loop closures, intra- and inter-robot);
+// odometry and priors stay quadratic. A weight w_i in [0, 1] scales each robust factor's squared
+// residual s_i = r_i^T Omega_i r_i. From the least-squares solution (every w_i = 1), mu starts at
+// c^2 / (2 max s_i - c^2) and grows by mu_step per round; each round sets
+//   w_i = 1                                   for s_i <= mu / (mu + 1) c^2
+//   w_i = c sqrt(mu (mu + 1) / s_i) - mu      between
+//   w_i = 0                                   for s_i >= (mu + 1) / mu c^2
+// and re-solves the weighted problem from the previous solution. As mu grows the surrogate tends to
+// the truncated cost min(s_i, c^2), and the weights to 0 (outlier) or 1 (inlier).
+struct GncOptions {
+  bool enabled = false;
+  // c^2: a loop whose squared weighted residual exceeds it at the solution is an outlier
+  // (the chi-square quantile of 6 DoF at 99 %).
+  double inlier_threshold = 16.81;
+  double mu_step = 1.4;
+  int max_rounds = 100;
+  // Rounds stop once every weight is within this of 0 or 1.
+  double weight_tolerance = 1e-4;
+  // Where the rounds start: the least-squares solution (every weight 1), or the initial values as
+  // given (from odometry alone, the wrong loops stand out; at a least-squares solution they have
+  // pulled the poses towards themselves).
+  bool least_squares_start = false;
+};
+
 struct SolverOptions {
   SparseBackend sparse_backend = SparseBackend::kSuiteSparse;
   Objective objective = Objective::kFullInformation;
@@ -28,6 +53,7 @@ struct SolverOptions {
   double gradient_tolerance = 1e-12;
   double parameter_tolerance = 1e-12;
   double robust_loss_scale = 0.0;  // > 0: Cauchy loss with this scale on factors marked robust
+  GncOptions gnc;                  // enabled: GNC weights on factors marked robust instead of Cauchy
   int threads = 1;
   // Levenberg-Marquardt's initial trust-region radius (1 / initial damping). Ceres' default is
   // 1e4; from a good initial estimate (chordal) nearly Gauss-Newton steps converge in a few
@@ -41,17 +67,26 @@ struct SolverOptions {
 };
 
 struct SolveResult {
-  bool converged = false;
-  bool failed = false;  // Ceres gave up (a linear solver failure, a cost that is not finite): no solution
-  int iterations = 0;
+  bool converged = false;  // Ceres converged (with GNC: in its last round)
+  bool failed = false;     // Ceres gave up (a linear solver failure, a cost that is not finite): no solution
+  int iterations = 0;      // Ceres iterations, summed over GNC's rounds
   double time_s = 0;
-  double initial_cost = 0;  // objective before, without the 1/2 factor
-  double final_cost = 0;    // objective after, without the 1/2 factor
+  double initial_cost = 0;  // objective before, without the 1/2 factor, every factor at full weight
+  double final_cost = 0;    // objective after, without the 1/2 factor, every factor at full weight
   std::string message;      // Ceres' termination message
   std::string report;       // Ceres' full report when requested
-  // Per iteration (0 = start): solver time since the start [s] and Ceres' cost (with its 1/2).
+  // Per iteration (0 = start): solver time since the start [s] and Ceres' cost (with its 1/2);
+  // with GNC, every round's iterations in turn, each round's cost with its weights.
   std::vector<std::pair<double, double>> trace;
+  // GNC only (empty and 0 otherwise): the final weight of every factor of the graph, in its order
+  // (1 for factors not marked robust), and the number of rounds after the least-squares solve.
+  std::vector<double> weights;
+  int gnc_rounds = 0;
+  bool gnc_converged = false;  // every weight ended within weight_tolerance of 0 or 1
 };
+
+// Weights above this count as accepted loops.
+inline constexpr double kGncAcceptedWeight = 0.5;
 
 // Optimises graph.poses in place. Keys in `fixed` stay constant; when the graph has no prior and
 // nothing is fixed, the first pose is held fixed (gauge).
