@@ -256,6 +256,9 @@ void run_gnc(const PoseGraph& graph, const GncOptions& o, const ceres::Solver::O
     return;
   }
   double mu = c2 / (2.0 * s_max - c2);
+  // Rounds whose weights are still moving need no tight convergence; the last one gets it.
+  ceres::Solver::Options round = sopts;
+  round.function_tolerance = std::max(sopts.function_tolerance, o.round_function_tolerance);
   while (result.gnc_rounds < o.max_rounds) {
     bool settled = true;
     for (size_t i = 0; i < w.size(); ++i) {
@@ -264,7 +267,7 @@ void run_gnc(const PoseGraph& graph, const GncOptions& o, const ceres::Solver::O
         settled = settled && std::min(w[i], 1.0 - w[i]) <= o.weight_tolerance;
       }
     }
-    run_solve(sopts, full_report, problem, result);
+    run_solve(settled ? sopts : round, full_report, problem, result);
     ++result.gnc_rounds;
     if (result.failed) return;
     if (settled) {

@@ -42,6 +42,9 @@ struct GncOptions {
   // given (from odometry alone, the wrong loops stand out; at a least-squares solution they have
   // pulled the poses towards themselves).
   bool least_squares_start = false;
+  // Relative cost change at which a round whose weights are not yet settled stops (the final
+  // round uses SolverOptions::function_tolerance).
+  double round_function_tolerance = 1e-6;
 };
 
 struct SolverOptions {
