@@ -87,9 +87,13 @@ void add_options(CLI::App& app, Options& o) {
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-graph::PoseGraph read_graph(const std::string& input, graph::G2oReadReport* report = nullptr) {
+// With SE-Sync's weights only tau and kappa of each information matter: they must be positive, the
+// full 6x6 need not be positive definite.
+graph::PoseGraph read_graph(const std::string& input, bool isotropic_information,
+                            graph::G2oReadReport* report = nullptr) {
   graph::G2oReadOptions options;
   options.report = report;
+  options.isotropic_information = isotropic_information;
   return std::filesystem::is_directory(input) ? graph::read_g2o_folder(input, options)
                                               : graph::read_g2o(input, options);
 }
@@ -99,6 +103,10 @@ void note_vertices(const std::string& input, const graph::G2oReadReport& r) {
   if (r.implicit_vertices > 0) {
     std::fprintf(stderr, "cdc-pgo: %s declares no VERTEX lines: all %zu poses are initialised from the edges\n",
                  input.c_str(), r.implicit_vertices);
+  }
+  if (r.parallel_edges > 0) {
+    std::fprintf(stderr, "cdc-pgo: %s: %zu edges link two poses another edge already links; each is a factor\n",
+                 input.c_str(), r.parallel_edges);
   }
   if (r.conflicting_vertices > 0) {
     std::fprintf(stderr,
@@ -219,7 +227,7 @@ nlohmann::json bytes_per_robot(const graph::DistributedResult& init, graph::Dist
 // `central` (objective f_central); returns its figures and leaves its solution in `solution`.
 nlohmann::json run_distributed(const Options& o, const graph::SolverOptions& local, const graph::PoseGraph& central,
                                double f_central, graph::PoseGraph& solution) {
-  solution = read_graph(o.input);
+  solution = read_graph(o.input, o.sesync_weights);
   graph::DistributedResult init;
   const auto d0 = Clock::now();
   if (!graph::initialise_distributed(solution, &init)) {
@@ -276,6 +284,9 @@ void print_json(const Options& o, const graph::PoseGraph& g, const Summary& s) {
                    {"poses", g.poses.size()},
                    {"factors", g.factors.size()},
                    {"implicit_vertices", s.read.implicit_vertices},
+                   {"conflicting_vertices", s.read.conflicting_vertices},
+                   {"duplicate_edges", s.read.duplicate_edges},
+                   {"parallel_edges", s.read.parallel_edges},
                    {"init", s.init.used},
                    {"init_requested", s.init.requested},
                    {"objective", o.sesync_weights ? "sesync" : "full_information"},
@@ -337,7 +348,7 @@ void print_text(const Options& o, const graph::PoseGraph& g, const Summary& s) {
 // and prints the figures.
 void run(const Options& o) {
   graph::G2oReadReport read;
-  graph::PoseGraph g = read_graph(o.input, &read);
+  graph::PoseGraph g = read_graph(o.input, o.sesync_weights, &read);
   note_vertices(o.input, read);
   if (o.share_loops) {
     graph::share_loop_information(g);
