@@ -119,4 +119,16 @@ TEST(PgoTool, DistributedReachesOnePercentOfCentralizedWithinThirtyRounds) {
   }
 }
 
+// --init file on a graph without VERTEX lines runs odometry chaining and says so in its output.
+TEST(PgoTool, InitFromAFileWithoutVerticesSaysItChainsOdometry) {
+  const std::string path = data_dir() + "/pose-graphs/2d/manhattan.g2o";
+  if (!fs::exists(path)) {
+    GTEST_SKIP() << "reference data absent: " << path;
+  }
+  const auto j = run_pgo(path + " --init file --max-iterations 1 --json");
+  EXPECT_EQ(j["init_requested"], "file");
+  EXPECT_EQ(j["init"], "odometry");
+  EXPECT_THAT(j["init_note"].get<std::string>(), ::testing::HasSubstr("no vertices"));
+}
+
 }  // namespace
