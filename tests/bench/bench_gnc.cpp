@@ -133,8 +133,9 @@ nlohmann::json run_case(const Benchmark& b, const PoseGraph& clean, const PoseGr
   const double ratio = rmse / odo;
   std::printf(
       "%-10s %4zu wrong loops: RMS %.4g m = %.3f %% of odometry-only (%.4g m); %zu wrong accepted, %zu "
-      "true rejected; %d rounds, %d iterations, %.2f s\n",
-      b.name.c_str(), n, rmse, 100.0 * ratio, odo, wrong_accepted, true_rejected, r.gnc_rounds, r.iterations, r.time_s);
+      "true rejected; c^2 %.3g, %d rounds, %d iterations, %.2f s\n",
+      b.name.c_str(), n, rmse, 100.0 * ratio, odo, wrong_accepted, true_rejected, r.gnc_threshold, r.gnc_rounds,
+      r.iterations, r.time_s);
   return {{"benchmark", b.name},
           {"wrong_loops", n},
           {"rmse_m", rmse},
@@ -145,6 +146,7 @@ nlohmann::json run_case(const Benchmark& b, const PoseGraph& clean, const PoseGr
           {"true_loops", clean.count(FactorKind::kLoop)},
           {"true_rejected", true_rejected},
           {"gnc_rounds", r.gnc_rounds},
+          {"gnc_threshold", r.gnc_threshold},
           {"gnc_converged", r.gnc_converged},
           {"iterations", r.iterations},
           {"solve_time_s", r.time_s}};
@@ -164,6 +166,7 @@ int main(int argc, char** argv) {
   app.add_option("--seed", s.seed, "random seed (each count uses seed + count)")->capture_default_str();
   app.add_option("--threshold", s.gnc.inlier_threshold, "GNC inlier threshold c^2")->capture_default_str();
   app.add_option("--mu-step", s.gnc.mu_step, "GNC mu growth per round")->capture_default_str();
+  app.add_flag("--calibrate", s.gnc.calibrate_threshold, "scale the threshold by the accepted loops' residuals");
   app.add_flag("--least-squares-start", s.gnc.least_squares_start, "start GNC from the least-squares solution");
   app.add_option("--bound", s.bound, "largest passing ratio to the odometry-only error")->capture_default_str();
   app.add_option("--write-dir", s.write_dir, "write each corrupted graph (g2o) into this folder");

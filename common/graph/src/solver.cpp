@@ -279,6 +279,43 @@ void run_gnc(const PoseGraph& graph, const GncOptions& o, const ceres::Solver::O
   }
 }
 
+// The median squared residual s of the loops of weight above kGncAcceptedWeight (1 if none).
+double accepted_median(const PoseGraph& graph, ceres::Problem& problem, const std::vector<ceres::ResidualBlockId>& ids,
+                       const std::vector<double>& w) {
+  const std::vector<double> s = squared_residuals(graph, problem, ids);
+  std::vector<double> accepted;
+  for (size_t i = 0; i < s.size(); ++i) {
+    if (graph.factors[i].robust && w[i] > kGncAcceptedWeight) accepted.push_back(s[i]);
+  }
+  if (accepted.empty()) return 1.0;
+  const auto mid = accepted.begin() + static_cast<std::ptrdiff_t>(accepted.size() / 2);
+  std::nth_element(accepted.begin(), mid, accepted.end());
+  return *mid;
+}
+
+// GNC from the poses in `blocks`; with calibrate_threshold, a second pass from the same start when
+// the accepted loops' median residual puts the threshold below half of inlier_threshold.
+void solve_gnc(const PoseGraph& graph, const GncOptions& gnc, const ceres::Solver::Options& sopts, bool full_report,
+               ceres::Problem& problem, const std::vector<ceres::ResidualBlockId>& ids, PoseBlocks& blocks,
+               std::vector<double>& w, SolveResult& result) {
+  const PoseBlocks start = blocks;
+  GncOptions pass = gnc;
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    if (attempt > 0) {
+      for (auto& [k, b] : blocks) b = start.at(k);  // the problem keeps the blocks' addresses
+      std::fill(w.begin(), w.end(), 1.0);
+      result.gnc_converged = false;
+    }
+    if (pass.least_squares_start) run_solve(sopts, full_report, problem, result);
+    if (!result.failed) run_gnc(graph, pass, sopts, full_report, problem, ids, w, result);
+    result.gnc_threshold = pass.inlier_threshold;
+    if (result.failed || !gnc.calibrate_threshold || attempt > 0) return;
+    const double calibrated = gnc.median_ratio * accepted_median(graph, problem, ids, w);
+    if (calibrated >= 0.5 * gnc.inlier_threshold) return;
+    pass.inlier_threshold = calibrated;
+  }
+}
+
 double objective(const PoseGraph& g, Objective o) {
   return o == Objective::kSeSync ? sesync_objective(g) : full_information_cost(g);
 }
@@ -312,12 +349,11 @@ SolveResult solve(PoseGraph& graph, const SolverOptions& options, const std::set
   ceres::Solver::Options sopts = ceres_options(options);
   IterationHook hook(options.on_iteration);
   if (options.on_iteration) sopts.callbacks.push_back(&hook);
-  if (!options.gnc.enabled || options.gnc.least_squares_start) {
-    run_solve(sopts, options.full_report, problem, result);
-  }
-  if (options.gnc.enabled && !result.failed) {
-    run_gnc(graph, options.gnc, sopts, options.full_report, problem, ids, losses.weights, result);
+  if (options.gnc.enabled) {
+    solve_gnc(graph, options.gnc, sopts, options.full_report, problem, ids, blocks, losses.weights, result);
     result.weights = losses.weights;
+  } else {
+    run_solve(sopts, options.full_report, problem, result);
   }
   from_blocks(blocks, graph);
   result.final_cost = objective(graph, options.objective);

@@ -19,10 +19,26 @@ Eigen::Isometry3d pose(const Eigen::Vector3d& t, const Eigen::Vector3d& rotation
   return T;
 }
 
-// Three turns of a helix (radius 5 m, 20 poses a turn), odometry and loops one turn apart, with
-// noise that matches their information (0.02 m, 0.01 rad); then `wrong` loops between random
-// poses with random relative poses (metres off). The truth is returned in `truth`.
-PoseGraph noisy_helix_with_wrong_loops(int wrong, std::vector<Eigen::Isometry3d>& truth) {
+// Three turns of a helix (radius 5 m, 20 poses a turn), odometry and loops one turn apart. Loops
+// carry information of 0.02 m and 0.01 rad and noise loop_noise times that; odometry carries
+// information odometry_sigma times theirs and noise that matches it. Then `wrong` loops between
+// random poses: with wrong_offset 0 at random relative poses (metres off), otherwise the true
+// relative pose moved by wrong_offset [m] in a random direction. The truth is returned in `truth`.
+struct Helix {
+  int wrong = 0;
+  double loop_noise = 1.0;
+  double odometry_sigma = 1.0;
+  double wrong_offset = 0.0;
+};
+
+Matrix6d information(double sigma_t, double sigma_r) {
+  Matrix6d info = Matrix6d::Identity();
+  info.topLeftCorner<3, 3>() *= 1.0 / (sigma_t * sigma_t);
+  info.bottomRightCorner<3, 3>() *= 1.0 / (sigma_r * sigma_r);
+  return info;
+}
+
+PoseGraph noisy_helix(const Helix& h, std::vector<Eigen::Isometry3d>& truth) {
   std::mt19937 rng(7);
   std::normal_distribution<double> n01;
   const int turn = 20, n = 3 * turn;
@@ -30,28 +46,37 @@ PoseGraph noisy_helix_with_wrong_loops(int wrong, std::vector<Eigen::Isometry3d>
     const double a = 2.0 * M_PI * i / turn;
     truth.push_back(pose({5 * std::cos(a), 5 * std::sin(a), 0.3 * i}, {0, 0, a + M_PI / 2}));
   }
-  Matrix6d info = Matrix6d::Identity();
-  info.topLeftCorner<3, 3>() *= 1.0 / (0.02 * 0.02);
-  info.bottomRightCorner<3, 3>() *= 1.0 / (0.01 * 0.01);
-  auto noisy = [&](const Eigen::Isometry3d& T) {
-    return T * pose({0.02 * n01(rng), 0.02 * n01(rng), 0.02 * n01(rng)},
-                    {0.01 * n01(rng), 0.01 * n01(rng), 0.01 * n01(rng)});
+  auto noisy = [&](const Eigen::Isometry3d& T, double st, double sr) {
+    return T * pose({st * n01(rng), st * n01(rng), st * n01(rng)}, {sr * n01(rng), sr * n01(rng), sr * n01(rng)});
   };
+  const double so = h.odometry_sigma, sl = h.loop_noise;
   PoseGraph g;
   auto key = [](int i) { return make_key(0, static_cast<uint64_t>(i)); };
-  auto at = [&](int i) { return truth[static_cast<size_t>(i)]; };
-  for (int i = 0; i + 1 < n; ++i) g.add_between(key(i), key(i + 1), noisy(at(i).inverse() * at(i + 1)), info);
-  for (int i = 0; i + turn < n; i += 2)
-    g.add_between(key(i), key(i + turn), noisy(at(i).inverse() * at(i + turn)), info);
+  auto rel = [&](int i, int j) { return truth[static_cast<size_t>(i)].inverse() * truth[static_cast<size_t>(j)]; };
+  for (int i = 0; i + 1 < n; ++i) {
+    g.add_between(key(i), key(i + 1), noisy(rel(i, i + 1), 0.02 * so, 0.01 * so), information(0.02 * so, 0.01 * so));
+  }
+  for (int i = 0; i + turn < n; i += 2) {
+    g.add_between(key(i), key(i + turn), noisy(rel(i, i + turn), 0.02 * sl, 0.01 * sl), information(0.02, 0.01));
+  }
   std::uniform_int_distribution<int> pick(0, n - 1);
   std::uniform_real_distribution<double> u(-4.0, 4.0);
-  for (int added = 0; added < wrong;) {
+  for (int added = 0; added < h.wrong;) {
     const int a = pick(rng), b = pick(rng);
     if (std::abs(a - b) < 2) continue;
-    g.add_between(key(a), key(b), pose({u(rng), u(rng), u(rng)}, {u(rng) / 2, u(rng) / 2, u(rng) / 2}), info);
+    const Eigen::Isometry3d random = pose({u(rng), u(rng), u(rng)}, {u(rng) / 2, u(rng) / 2, u(rng) / 2});
+    const Eigen::Vector3d direction = Eigen::Vector3d(n01(rng), n01(rng), n01(rng)).normalized();
+    const Eigen::Isometry3d nearly = rel(a, b) * pose(h.wrong_offset * direction, {0, 0, 0});
+    g.add_between(key(a), key(b), h.wrong_offset == 0.0 ? random : nearly, information(0.02, 0.01));
     ++added;
   }
   return g;
+}
+
+PoseGraph noisy_helix_with_wrong_loops(int wrong, std::vector<Eigen::Isometry3d>& truth) {
+  Helix h;
+  h.wrong = wrong;
+  return noisy_helix(h, truth);
 }
 
 // Initial values from the odometry alone, the first pose at the truth.
@@ -128,6 +153,44 @@ TEST(Gnc, WithoutWrongLoopsItIsLeastSquares) {
   const SolveResult r = solve(g, o);
   for (double w : r.weights) EXPECT_EQ(w, 1.0);
   EXPECT_LT(max_difference(g, clean_optimum()), 1e-6);
+}
+
+// Loops whose information is 20 times more pessimistic than their noise (s 400 times smaller than it
+// says) on stiff odometry, and wrong loops 7.5 cm off: within the default threshold (s = 14 < 16.81),
+// so GNC keeps them; scaled to the accepted loops' median residual, the threshold rejects them.
+TEST(Gnc, ACalibratedThresholdRejectsWrongLoopsThatPessimisticInformationHides) {
+  std::vector<Eigen::Isometry3d> truth;
+  Helix h;
+  h.wrong = 3;
+  h.loop_noise = 0.05;
+  h.odometry_sigma = 0.001;  // odometry so stiff that its drift adds little to the loops' residuals
+  h.wrong_offset = 0.075;
+  const PoseGraph corrupted = noisy_helix(h, truth);
+  const size_t first_wrong = corrupted.factors.size() - static_cast<size_t>(h.wrong);
+  auto solve_with = [&](bool calibrate, size_t& wrong_accepted, size_t& true_rejected) {
+    PoseGraph g = corrupted;
+    initialise_from_odometry_alone(g, truth[0]);
+    SolverOptions o;
+    o.gnc.enabled = true;
+    o.gnc.calibrate_threshold = calibrate;
+    const SolveResult r = solve(g, o);
+    wrong_accepted = true_rejected = 0;
+
+    for (size_t i = 0; i < g.factors.size(); ++i) {
+      if (g.factors[i].kind != FactorKind::kLoop) continue;
+      const bool accepted = r.weights[i] > kGncAcceptedWeight;
+      wrong_accepted += i >= first_wrong && accepted ? 1u : 0u;
+      true_rejected += i < first_wrong && !accepted ? 1u : 0u;
+    }
+    return r;
+  };
+  size_t wrong_accepted = 0, true_rejected = 0;
+  EXPECT_EQ(solve_with(false, wrong_accepted, true_rejected).gnc_threshold, GncOptions{}.inlier_threshold);
+  EXPECT_GT(wrong_accepted, 0u) << "the default threshold keeps loops its information cannot tell apart";
+  const SolveResult r = solve_with(true, wrong_accepted, true_rejected);
+  EXPECT_LT(r.gnc_threshold, 0.5 * GncOptions{}.inlier_threshold);
+  EXPECT_EQ(wrong_accepted, 0u);
+  EXPECT_LE(true_rejected, 1u);
 }
 
 }  // namespace

@@ -45,6 +45,14 @@ struct GncOptions {
   // Relative cost change at which a round whose weights are not yet settled stops (the final
   // round uses SolverOptions::function_tolerance).
   double round_function_tolerance = 1e-6;
+  // The threshold assumes information that matches the measurements' noise. Where the information
+  // is far more pessimistic (loops that fit 100 times better than it says), a wrong loop that a
+  // long, flexible trajectory can bend to costs less than c^2 and is accepted. With
+  // calibrate_threshold, once the rounds settle, c^2 becomes median_ratio times the accepted loops'
+  // median s (a residual 10 times the median one, for the default), and GNC runs again from the
+  // same start, when that is below half of inlier_threshold (never above it).
+  bool calibrate_threshold = false;
+  double median_ratio = 100.0;
 };
 
 struct SolverOptions {
@@ -84,7 +92,8 @@ struct SolveResult {
   // GNC only (empty and 0 otherwise): the final weight of every factor of the graph, in its order
   // (1 for factors not marked robust), and the number of rounds after the least-squares solve.
   std::vector<double> weights;
-  int gnc_rounds = 0;
+  int gnc_rounds = 0;          // over both passes with calibrate_threshold
+  double gnc_threshold = 0;    // the threshold c^2 of the last pass
   bool gnc_converged = false;  // every weight ended within weight_tolerance of 0 or 1
 };
 
