@@ -28,6 +28,7 @@ struct Options {
   std::string robust = "none";
   double robust_scale = 3.0;
   double gnc_threshold = graph::GncOptions{}.inlier_threshold;
+  bool gnc_calibrate = false;
   bool json = false, sesync_weights = false, verbose = false, distributed = false, share_loops = false;
   int max_rounds = 30;
   double tilt_scale = 1.0;
@@ -54,6 +55,9 @@ void add_options(CLI::App& app, Options& o) {
   cdc::base::add_setting(app, "--gnc-threshold", o.gnc_threshold,
                          "--robust gnc: squared weighted residual r^T Omega r above which a loop is an outlier",
                          cdc::config::cli_range(1e-6, 1e12));
+  app.add_flag("--gnc-calibrate", o.gnc_calibrate,
+               "--robust gnc: when the accepted loops fit far better than their information says, lower the "
+               "threshold to 100 times their median squared residual and run GNC again");
   app.add_flag("--sesync-weights", o.sesync_weights,
                "optimise SE-Sync's isotropic chordal objective instead of the full-information cost");
   app.add_flag("--share-loops", o.share_loops,
@@ -180,6 +184,7 @@ graph::SolverOptions solver_options(const Options& o) {
   if (o.robust == "cauchy") opts.robust_loss_scale = o.robust_scale;
   opts.gnc.enabled = o.robust == "gnc";
   opts.gnc.inlier_threshold = o.gnc_threshold;
+  opts.gnc.calibrate_threshold = o.gnc_calibrate;
   return opts;
 }
 
@@ -272,11 +277,9 @@ nlohmann::json gnc_json(const graph::PoseGraph& g, const graph::SolveResult& r) 
       accepted += r.weights[i] > graph::kGncAcceptedWeight ? 1u : 0u;
     }
   }
-  return {{"gnc_rounds", r.gnc_rounds},
-          {"gnc_converged", r.gnc_converged},
-          {"loops", loops},
-          {"loops_accepted", accepted},
-          {"loops_rejected", loops - accepted}};
+  return {{"gnc_rounds", r.gnc_rounds},       {"gnc_threshold", r.gnc_threshold},
+          {"gnc_converged", r.gnc_converged}, {"loops", loops},
+          {"loops_accepted", accepted},       {"loops_rejected", loops - accepted}};
 }
 
 void print_json(const Options& o, const graph::PoseGraph& g, const Summary& s) {
