@@ -115,7 +115,13 @@ bool same_pose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   return (a.matrix() - b.matrix()).cwiseAbs().maxCoeff() <= 1e-6 * scale;
 }
 
-void check_information(LineReader& r, const Matrix6d& info, int dimension, bool isotropic) {
+bool positive_definite(const Matrix6d& info) {
+  return Eigen::SelfAdjointEigenSolver<Matrix6d>(info).eigenvalues().minCoeff() > 0.0;
+}
+
+// Fails unless the information is positive definite or, with `isotropic`, gives positive SE-Sync
+// weights. Returns whether it is positive definite.
+bool check_information(LineReader& r, const Matrix6d& info, int dimension, bool isotropic) {
   if (isotropic) {
     Factor f;
     f.information = info;
@@ -124,13 +130,14 @@ void check_information(LineReader& r, const Matrix6d& info, int dimension, bool 
       r.fail("information gives no positive isotropic weights (tau " + std::to_string(w.tau) + ", kappa " +
              std::to_string(w.kappa) + ")");
     }
-    return;
+    return positive_definite(info);
   }
   Eigen::SelfAdjointEigenSolver<Matrix6d> es(info);
   if (es.eigenvalues().minCoeff() <= 0.0) {
     r.fail("information matrix is not positive definite (smallest eigenvalue " +
            std::to_string(es.eigenvalues().minCoeff()) + ")");
   }
+  return true;
 }
 
 // Where a file's records go: the graph, and the edges already read from other robots' files
@@ -172,7 +179,7 @@ struct Target {
 
   // An edge another file listed alike is the same measurement (both robots list an inter-robot
   // edge): kept once. Any other edge between the same two poses is a measurement of its own.
-  void add_edge(Key a, Key b, const Eigen::Isometry3d& T, const Matrix6d& info) {
+  void add_edge(Key a, Key b, const Eigen::Isometry3d& T, const Matrix6d& info, bool definite) {
     std::vector<EdgeRecord>& same_ends = edges[{a, b}];
     const bool listed_elsewhere = std::any_of(same_ends.begin(), same_ends.end(), [&](const EdgeRecord& e) {
       return e.file != file && same_pose(e.T, T) && (e.info - info).cwiseAbs().maxCoeff() <= 1e-9 * info.norm();
@@ -182,6 +189,7 @@ struct Target {
       return;
     }
     if (!same_ends.empty() || edges.count({b, a}) != 0) ++report.parallel_edges;
+    if (!definite) ++report.indefinite_information;
     same_ends.push_back({file, T, info});
     graph.add_between(a, b, T, info);
   }
@@ -228,8 +236,8 @@ void read_edge_se3(LineReader& r, Target& target) {
   }
   r.expect_end();
   check_edge_ends(r, a, b);
-  check_information(r, info, 3, target.isotropic_information);
-  target.add_edge(a, b, T, info);
+  const bool definite = check_information(r, info, 3, target.isotropic_information);
+  target.add_edge(a, b, T, info, definite);
 }
 
 // EDGE_SE2: (dx, dy, dtheta) and the upper triangle of its 3x3 information, lifted into 3D.
@@ -255,8 +263,8 @@ void read_edge_se2(LineReader& r, Target& target) {
   info(1, 5) = info(5, 1) = i23;
   info(5, 5) = i33;
   info(2, 2) = info(3, 3) = info(4, 4) = kPlanarLiftInformation;
-  check_information(r, info, 2, target.isotropic_information);
-  target.add_edge(a, b, planar(dx, dy, dth), info);
+  const bool definite = check_information(r, info, 2, target.isotropic_information);
+  target.add_edge(a, b, planar(dx, dy, dth), info, definite);
 }
 
 // The records read, each with its reader and the dimension it speaks of.

@@ -260,7 +260,9 @@ void run_gnc(const PoseGraph& graph, const GncOptions& o, const ceres::Solver::O
   ceres::Solver::Options round = sopts;
   round.function_tolerance = std::max(sopts.function_tolerance, o.round_function_tolerance);
   while (result.gnc_rounds < o.max_rounds) {
-    bool settled = true;
+    // Settled: every weight 0 or 1 with mu past 1. At a small mu every weight may be near 0
+    // (all residuals far above c^2 at the start) without any decision taken.
+    bool settled = mu >= 1.0;
     for (size_t i = 0; i < w.size(); ++i) {
       if (graph.factors[i].robust) {
         w[i] = tls_weight(s[i], c2, mu);

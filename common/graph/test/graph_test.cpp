@@ -458,8 +458,11 @@ TEST_F(G2oFiles, IndefiniteInformationWithPositiveIsotropicWeightsIsReadForSeSyn
               ::testing::ThrowsMessage<G2oError>(::testing::HasSubstr("not positive definite")));
   G2oReadOptions options;
   options.isotropic_information = true;
+  G2oReadReport report;
+  options.report = &report;
   const PoseGraph g = read_g2o(path("indef.g2o"), options);
   ASSERT_EQ(g.factors.size(), 1u);
+  EXPECT_EQ(report.indefinite_information, 1u);
   const IsotropicWeights w = isotropic_weights(g.factors[0], 3);
   EXPECT_DOUBLE_EQ(w.tau, 1.0);
   EXPECT_DOUBLE_EQ(w.kappa, 0.5);

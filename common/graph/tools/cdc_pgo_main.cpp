@@ -282,6 +282,12 @@ nlohmann::json gnc_json(const graph::PoseGraph& g, const graph::SolveResult& r) 
           {"loops_accepted", accepted},       {"loops_rejected", loops - accepted}};
 }
 
+// The full-information cost, or null where some information is not positive definite (read for
+// SE-Sync's weights only): a sum of indefinite quadratic forms is no cost.
+nlohmann::json full_cost(const graph::G2oReadReport& read, double cost) {
+  return read.indefinite_information > 0 ? nlohmann::json(nullptr) : nlohmann::json(cost);
+}
+
 void print_json(const Options& o, const graph::PoseGraph& g, const Summary& s) {
   nlohmann::json j{{"file", o.input},
                    {"poses", g.poses.size()},
@@ -290,6 +296,7 @@ void print_json(const Options& o, const graph::PoseGraph& g, const Summary& s) {
                    {"conflicting_vertices", s.read.conflicting_vertices},
                    {"duplicate_edges", s.read.duplicate_edges},
                    {"parallel_edges", s.read.parallel_edges},
+                   {"indefinite_information", s.read.indefinite_information},
                    {"init", s.init.used},
                    {"init_requested", s.init.requested},
                    {"objective", o.sesync_weights ? "sesync" : "full_information"},
@@ -299,9 +306,9 @@ void print_json(const Options& o, const graph::PoseGraph& g, const Summary& s) {
                    {"init_time_s", s.init_s},
                    {"solve_time_s", s.solve.time_s},
                    {"time_s", s.total_s},
-                   {"initial_cost", s.initial_full},
+                   {"initial_cost", full_cost(s.read, s.initial_full)},
                    {"initial_sesync_objective", s.initial_sesync},
-                   {"cost", s.full},
+                   {"cost", full_cost(s.read, s.full)},
                    {"sesync_objective", s.sesync}};
   if (!s.init.note.empty()) j["init_note"] = s.init.note;
   if (o.robust == "cauchy") j["robust_scale"] = o.robust_scale;
@@ -334,7 +341,12 @@ void print_text(const Options& o, const graph::PoseGraph& g, const Summary& s) {
   }
   std::printf("iterations       %d (%s)\n", s.solve.iterations, s.solve.message.c_str());
   std::printf("time             %.3f s (init %.3f s, solve %.3f s)\n", s.total_s, s.init_s, s.solve.time_s);
-  std::printf("cost             %.6g (full information, no 1/2)\n", s.full);
+  if (s.read.indefinite_information > 0) {
+    std::printf("cost             none (%zu edges' information is not positive definite)\n",
+                s.read.indefinite_information);
+  } else {
+    std::printf("cost             %.6g (full information, no 1/2)\n", s.full);
+  }
   std::printf("sesync_objective %.6g\n", s.sesync);
   if (o.robust == "gnc") {
     const nlohmann::json j = gnc_json(g, s.solve);

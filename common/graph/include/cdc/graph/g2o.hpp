@@ -33,6 +33,9 @@ struct G2oReadReport {
   // file): each is kept as a factor of its own.
   size_t parallel_edges = 0;
   size_t skipped_lines = 0;  // lines skipped as malformed (G2oReadOptions::skip_malformed)
+  // Edges whose information is not positive definite, read for their isotropic weights
+  // (G2oReadOptions::isotropic_information): the full-information cost means nothing for them.
+  size_t indefinite_information = 0;
 };
 
 struct G2oReadOptions {

@@ -35,7 +35,7 @@ struct GncOptions {
   // (the chi-square quantile of 6 DoF at 99 %).
   double inlier_threshold = 16.81;
   double mu_step = 1.4;
-  int max_rounds = 100;
+  int max_rounds = 200;
   // Rounds stop once every weight is within this of 0 or 1.
   double weight_tolerance = 1e-4;
   // Where the rounds start: the least-squares solution (every weight 1), or the initial values as
