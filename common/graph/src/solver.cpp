@@ -295,14 +295,15 @@ double accepted_median(const PoseGraph& graph, ceres::Problem& problem, const st
   return *mid;
 }
 
-// GNC from the poses in `blocks`; with calibrate_threshold, a second pass from the same start when
-// the accepted loops' median residual puts the threshold below half of inlier_threshold.
+// GNC from the poses in `blocks`; with calibrate_threshold, another pass from the same start while
+// the accepted loops' median residual puts the threshold below half of the last pass's (wrong loops
+// accepted in a pass bend the poses and inflate that median, so one pass may not be enough).
 void solve_gnc(const PoseGraph& graph, const GncOptions& gnc, const ceres::Solver::Options& sopts, bool full_report,
                ceres::Problem& problem, const std::vector<ceres::ResidualBlockId>& ids, PoseBlocks& blocks,
                std::vector<double>& w, SolveResult& result) {
   const PoseBlocks start = blocks;
   GncOptions pass = gnc;
-  for (int attempt = 0; attempt < 2; ++attempt) {
+  for (int attempt = 0; attempt <= gnc.max_calibrations; ++attempt) {
     if (attempt > 0) {
       for (auto& [k, b] : blocks) b = start.at(k);  // the problem keeps the blocks' addresses
       std::fill(w.begin(), w.end(), 1.0);
@@ -311,9 +312,9 @@ void solve_gnc(const PoseGraph& graph, const GncOptions& gnc, const ceres::Solve
     if (pass.least_squares_start) run_solve(sopts, full_report, problem, result);
     if (!result.failed) run_gnc(graph, pass, sopts, full_report, problem, ids, w, result);
     result.gnc_threshold = pass.inlier_threshold;
-    if (result.failed || !gnc.calibrate_threshold || attempt > 0) return;
+    if (result.failed || !gnc.calibrate_threshold) return;
     const double calibrated = gnc.median_ratio * accepted_median(graph, problem, ids, w);
-    if (calibrated >= 0.5 * gnc.inlier_threshold) return;
+    if (calibrated >= 0.5 * pass.inlier_threshold) return;
     pass.inlier_threshold = calibrated;
   }
 }

@@ -22,13 +22,15 @@ enum class SparseBackend { kSuiteSparse, kEigen, kCxSparse };
 // Graduated non-convexity (Yang, Antonante, Tzoumas and Carlone, RA-L 2020) with the truncated
 // least-squares surrogate, on the factors marked robust (loop closures, intra- and inter-robot);
 // odometry and priors stay quadratic. A weight w_i in [0, 1] scales each robust factor's squared
-// residual s_i = r_i^T Omega_i r_i. From the least-squares solution (every w_i = 1), mu starts at
-// c^2 / (2 max s_i - c^2) and grows by mu_step per round; each round sets
+// residual s_i = r_i^T Omega_i r_i (with the solve's objective). From the initial values (or the
+// least-squares solution), mu starts at c^2 / (2 max s_i - c^2) and grows by mu_step per round; each
+// round sets
 //   w_i = 1                                   for s_i <= mu / (mu + 1) c^2
 //   w_i = c sqrt(mu (mu + 1) / s_i) - mu      between
 //   w_i = 0                                   for s_i >= (mu + 1) / mu c^2
 // and re-solves the weighted problem from the previous solution. As mu grows the surrogate tends to
-// the truncated cost min(s_i, c^2), and the weights to 0 (outlier) or 1 (inlier).
+// the truncated cost min(s_i, c^2), and the weights to 0 (outlier) or 1 (inlier). Off by default: a
+// service switches it on for the solves that need it (each round is a full solve).
 struct GncOptions {
   bool enabled = false;
   // c^2: a loop whose squared weighted residual exceeds it at the solution is an outlier
@@ -36,7 +38,7 @@ struct GncOptions {
   double inlier_threshold = 16.81;
   double mu_step = 1.4;
   int max_rounds = 200;
-  // Rounds stop once every weight is within this of 0 or 1.
+  // Rounds stop once every weight is within this of 0 or 1 and mu has reached 1.
   double weight_tolerance = 1e-4;
   // Where the rounds start: the least-squares solution (every weight 1), or the initial values as
   // given (from odometry alone, the wrong loops stand out; at a least-squares solution they have
@@ -50,9 +52,11 @@ struct GncOptions {
   // long, flexible trajectory can bend to costs less than c^2 and is accepted. With
   // calibrate_threshold, once the rounds settle, c^2 becomes median_ratio times the accepted loops'
   // median s (a residual 10 times the median one, for the default), and GNC runs again from the
-  // same start, when that is below half of inlier_threshold (never above it).
+  // same start, when that is below half of the last threshold (never above inlier_threshold), at
+  // most max_calibrations times.
   bool calibrate_threshold = false;
   double median_ratio = 100.0;
+  int max_calibrations = 4;
 };
 
 struct SolverOptions {
