@@ -146,4 +146,37 @@ TEST(PgoTool, BlockGaussSeidelReachesOnePercentOfCentralizedCost) {
   EXPECT_LT(j["gap_to_centralized"].get<double>(), 0.01);
 }
 
+// --init file on a graph without VERTEX lines runs odometry chaining and says so in its output.
+TEST(PgoTool, InitFromAFileWithoutVerticesSaysItChainsOdometry) {
+  const std::string path = data_dir() + "/pose-graphs/2d/manhattan.g2o";
+  if (!fs::exists(path)) {
+    GTEST_SKIP() << "reference data absent: " << path;
+  }
+  const auto j = run_pgo(path + " --init file --max-iterations 1 --json");
+  EXPECT_EQ(j["init_requested"], "file");
+  EXPECT_EQ(j["init"], "odometry");
+  EXPECT_THAT(j["init_note"].get<std::string>(), ::testing::HasSubstr("no vertices"));
+}
+
+// A graph whose information is not positive definite but gives positive SE-Sync weights (as cubicle's):
+// refused for the full-information cost, solved with --sesync-weights, where that cost is reported as none.
+TEST(PgoTool, SeSyncWeightsAcceptIndefiniteInformationAndReportNoFullCost) {
+  const std::string file =
+      (fs::temp_directory_path() / ("cdc_pgo_indef_" + std::to_string(::getpid()) + ".g2o")).string();
+  const std::string q = " 0 0 0 1", definite = " 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n";
+  const std::string indefinite = " 1 0 0 5 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n";  // eigenvalue 1 - 5 < 0
+  std::ofstream(file) << "EDGE_SE3:QUAT 0 1 1 0 0" << q << definite << "EDGE_SE3:QUAT 1 2 1 0 0" << q << definite
+                      << "EDGE_SE3:QUAT 0 2 2.1 0 0" << q << indefinite;
+  const auto refused = cdc::test::run_command(std::string(std::getenv("CDC_PGO_BIN")) + " " + file + " --json");
+  EXPECT_NE(refused.exit_code, 0);
+  EXPECT_THAT(refused.output, ::testing::HasSubstr("not positive definite"));
+  const auto j = run_pgo(file + " --sesync-weights --init odometry --json");
+  fs::remove(file);
+  EXPECT_EQ(j["indefinite_information"], 1);
+  EXPECT_TRUE(j["cost"].is_null());
+  EXPECT_TRUE(j["initial_cost"].is_null());
+  EXPECT_GT(j["sesync_objective"].get<double>(), 0.0);
+  EXPECT_LT(j["sesync_objective"].get<double>(), j["initial_sesync_objective"].get<double>());
+}
+
 }  // namespace
