@@ -69,6 +69,7 @@ int run_memory(uint32_t per_robot) {
   cdc::central::CentralCore core(cdc::central::CentralConfig{});
   size_t next_loop = 0;
   std::vector<double> kf, rss, heap;
+  double chunk_cpu = cpu_ms();
   for (uint32_t k = 0; k < per_robot; ++k) {
     for (const auto& robot : stream.keyframes) core.add_keyframe(cdc::test::to_central(robot[k]));
     while (next_loop < stream.loops.size() && stream.loops[next_loop].step <= k) {
@@ -80,8 +81,9 @@ int run_memory(uint32_t per_robot) {
       kf.push_back(static_cast<double>(core.graph().poses.size()));
       rss.push_back(r);
       heap.push_back(h);
-      std::printf("%6.0f keyframes %6zu factors: resident %7.1f MB, heap in use %7.1f MB\n", kf.back(),
-                  core.graph().factors.size(), r, h);
+      std::printf("%6.0f keyframes %6zu factors: resident %7.1f MB, heap in use %7.1f MB, %.2f ms CPU per keyframe\n",
+                  kf.back(), core.graph().factors.size(), r, h, (cpu_ms() - chunk_cpu) / (250.0 * 3));
+      chunk_cpu = cpu_ms();
     }
   }
   const size_t half = kf.size() / 2;
@@ -138,7 +140,7 @@ int main(int argc, char** argv) {
   core.optimise_fully();
   std::vector<double> ms, cpu;
   std::vector<int> iterations;
-  std::vector<double> solver_ms, local_ms, full_ms;
+  std::vector<double> solver_ms, local_ms, full_ms, local_factors;
   cdc::central::KeyframeIn hostile = cdc::test::to_central(stream.keyframes[1][0]);
   uint32_t flooded = 0;
   double flood_s = 0;
@@ -158,6 +160,7 @@ int main(int argc, char** argv) {
     iterations.push_back(st.iterations);
     solver_ms.push_back(st.time_s * 1e3);
     (st.full ? full_ms : local_ms).push_back(ms.back());
+    if (!st.full) local_factors.push_back(static_cast<double>(st.factors));
   }
   nlohmann::json j{{"keyframes", core.graph().poses.size()},
                    {"factors", core.graph().factors.size()},
@@ -171,6 +174,7 @@ int main(int argc, char** argv) {
                    {"ceres_ms_median", pct(solver_ms, 0.5)},
                    {"local_updates", local_ms.size()},
                    {"local_update_ms_median", local_ms.empty() ? 0.0 : pct(local_ms, 0.5)},
+                   {"local_factors_median", local_factors.empty() ? 0.0 : pct(local_factors, 0.5)},
                    {"full_updates", full_ms.size()},
                    {"full_update_ms_median", full_ms.empty() ? 0.0 : pct(full_ms, 0.5)},
                    {"flood_keyframes", flooded},

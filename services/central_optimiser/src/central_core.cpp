@@ -12,6 +12,8 @@ constexpr double kAnchorInformation = 1e8;
 // A local pass that does not converge carries its touched keys to the next; beyond this many windows'
 // worth, a full pass takes them instead (the carried set would otherwise grow with every short pass).
 constexpr size_t kMaxCarriedTouched = 4;
+// Loops from an active key to keys held fixed that a local pass takes, per key (local_factors).
+constexpr size_t kMaxAnchorsPerKey = 4;
 
 }  // namespace
 
@@ -339,18 +341,33 @@ std::set<Key> CentralCore::active_keys() const {
   return active;
 }
 
-// The active keys and the factors through them, the keys beyond held fixed: the work is the
-// window's, whatever the size of the graph. A pass that does not converge keeps its touched keys,
-// so that the next update goes on with them.
-UpdateStats CentralCore::solve_local(const graph::SolverOptions& options) {
-  const std::set<Key> active = active_keys();
+// The factors of a local pass: every factor between two active keys, and of those that tie an active
+// key to a fixed one (loops to earlier laps), the kMaxAnchorsPerKey most recent per key. A place
+// revisited lap after lap gathers a loop per visit; all of them would make each local pass grow with
+// the mission, while a few recent ones hold the window as well (the full passes take them all).
+std::vector<size_t> CentralCore::local_factors(const std::set<Key>& active) const {
   std::vector<size_t> through;
   for (Key k : active) {
     const auto it = factors_at_.find(k);
-    if (it != factors_at_.end()) through.insert(through.end(), it->second.begin(), it->second.end());
+    if (it == factors_at_.end()) continue;
+    size_t anchors = 0;
+    for (auto i = it->second.rbegin(); i != it->second.rend(); ++i) {  // newest first
+      const graph::Factor& f = graph_.factors[*i];
+      const bool inside = active.count(f.a) != 0 && active.count(f.b) != 0;
+      if (inside || f.kind != graph::FactorKind::kLoop || anchors++ < kMaxAnchorsPerKey) through.push_back(*i);
+    }
   }
   std::sort(through.begin(), through.end());
   through.erase(std::unique(through.begin(), through.end()), through.end());
+  return through;
+}
+
+// The active keys and the factors through them (local_factors), the keys beyond held fixed: the work
+// is the window's, whatever the size of the graph. A pass that does not converge keeps its touched
+// keys, so that the next update goes on with them.
+UpdateStats CentralCore::solve_local(const graph::SolverOptions& options) {
+  const std::set<Key> active = active_keys();
+  const std::vector<size_t> through = local_factors(active);
   graph::PoseGraph local;
   local.dimension = graph_.dimension;
   std::set<Key> fixed;

@@ -216,6 +216,7 @@ class CentralCore {
   void withdraw(StoredLoop& l);
   void hold_loop_seq(uint32_t sender, uint32_t incarnation, uint32_t seq);
   std::set<Key> active_keys() const;
+  std::vector<size_t> local_factors(const std::set<Key>& active) const;
   bool full_pass_due() const;
   graph::SolverOptions update_options() const;
 
