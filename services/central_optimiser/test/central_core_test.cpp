@@ -482,6 +482,32 @@ TEST(CentralCore, FullPassesFollowGrowthInProportionToTheGraph) {
   std::printf("first full pass after step %zu (graph %zu poses)\n", k - 1, core.graph().poses.size());
 }
 
+// A place revisited lap after lap gathers a loop per visit. A local pass takes only a few of the
+// loops that tie its keys to earlier laps, so that its work grows little with the laps driven (with
+// all of them: 196 factors after 2 laps, 321 after 6).
+TEST(CentralCore, LocalPassesGrowLittleWithTheLapsDriven) {
+  CentralConfig c;
+  c.max_time_per_update_s = 60.0;  // the iteration cap binds, whatever the machine's load
+  c.full_every = 100'000;          // local passes only in the measured steps
+  const auto median_local_factors = [&c](uint32_t warm_up) {
+    WarmMission m(warm_up + 20, c, warm_up);
+    auto& [s, core, k, next_loop] = m;
+    std::vector<size_t> factors;
+    for (; k < warm_up + 20; ++k) {
+      feed_step(core, s, k, next_loop);
+      const UpdateStats u = core.optimise();
+      if (!u.full) factors.push_back(u.factors);
+    }
+    std::sort(factors.begin(), factors.end());
+    return factors.empty() ? size_t{0} : factors[factors.size() / 2];
+  };
+  const size_t two_laps = median_local_factors(450);  // 200 keyframes a lap
+  const size_t six_laps = median_local_factors(1250);
+  std::printf("median local pass: %zu factors after 2 laps, %zu after 6\n", two_laps, six_laps);
+  ASSERT_GT(two_laps, 0u);
+  EXPECT_LT(static_cast<double>(six_laps), 1.5 * static_cast<double>(two_laps));
+}
+
 TEST(CentralCore, ALocalPassThatDidNotConvergeIsContinuedLocally) {
   CentralConfig c;
   c.max_iterations_per_update = 1;
