@@ -1,18 +1,25 @@
 // cdc-bench-central: time of one incremental central-optimiser update (warm start, bounded
 // iterations) on a 3-robot graph of 3,000 keyframes, as new keyframes and loops arrive. With --flood
 // N, N keyframes of robot 1 whose ids never become contiguous arrive spread over the timed updates
-// (a hostile writer): their intake time is reported, and the updates are timed under it.
-// Last output line: one JSON object.
+// (a hostile writer): their intake time is reported, and the updates are timed under it. With
+// --memory, the graph grows instead to --keyframes-per-robot with one update per step, the heap held
+// the way the node holds it (runtime::return_large_blocks, free pages returned after whole-graph
+// passes), and the heap in use and the resident memory are reported per keyframe over the second
+// half. Last output line: one JSON object.
 #include "cdc/central_optimiser/central_core.hpp"
+#include "cdc/runtime/memory.hpp"
 #include "stream_to_central.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <malloc.h>
+#include <unistd.h>
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <ctime>
+#include <fstream>
 #include <iostream>
 
 namespace {
@@ -29,6 +36,71 @@ double pct(std::vector<double> v, double p) {
   return v[static_cast<size_t>(p * static_cast<double>(v.size() - 1))];
 }
 
+// Resident memory of the process [MB] and the heap in use by the program [MB].
+std::pair<double, double> memory_mb() {
+  long pages_total = 0, pages_resident = 0;
+  std::ifstream("/proc/self/statm") >> pages_total >> pages_resident;
+  const struct mallinfo2 m = mallinfo2();
+  const double page_mb = static_cast<double>(sysconf(_SC_PAGESIZE)) / (1024.0 * 1024.0);
+  return {static_cast<double>(pages_resident) * page_mb,
+          static_cast<double>(m.uordblks + m.hblkhd) / (1024.0 * 1024.0)};
+}
+
+// Least-squares slope of y over x.
+double slope(const std::vector<double>& x, const std::vector<double>& y) {
+  const double n = static_cast<double>(x.size());
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  for (size_t i = 0; i < x.size(); ++i) {
+    sx += x[i];
+    sy += y[i];
+    sxx += x[i] * x[i];
+    sxy += x[i] * y[i];
+  }
+  const double d = n * sxx - sx * sx;
+  return d == 0.0 ? 0.0 : (n * sxy - sx * sy) / d;
+}
+
+int run_memory(uint32_t per_robot) {
+  cdc::runtime::return_large_blocks();
+  cdc::test::SwarmStreamOptions o;
+  o.robots = 3;
+  o.keyframes_per_robot = per_robot;
+  const auto stream = cdc::test::make_swarm_stream(o);
+  cdc::central::CentralCore core(cdc::central::CentralConfig{});
+  size_t next_loop = 0;
+  std::vector<double> kf, rss, heap;
+  double chunk_cpu = cpu_ms();
+  for (uint32_t k = 0; k < per_robot; ++k) {
+    for (const auto& robot : stream.keyframes) core.add_keyframe(cdc::test::to_central(robot[k]));
+    while (next_loop < stream.loops.size() && stream.loops[next_loop].step <= k) {
+      core.add_loop(cdc::test::to_central(stream.loops[next_loop++]));
+    }
+    if (core.optimise().full) cdc::runtime::release_free_memory();
+    if ((k + 1) % 250 == 0) {
+      const auto [r, h] = memory_mb();
+      kf.push_back(static_cast<double>(core.graph().poses.size()));
+      rss.push_back(r);
+      heap.push_back(h);
+      std::printf("%6.0f keyframes %6zu factors: resident %7.1f MB, heap in use %7.1f MB, %.2f ms CPU per keyframe\n",
+                  kf.back(), core.graph().factors.size(), r, h, (cpu_ms() - chunk_cpu) / (250.0 * 3));
+      chunk_cpu = cpu_ms();
+    }
+  }
+  const size_t half = kf.size() / 2;
+  const std::vector<double> x(kf.begin() + static_cast<long>(half), kf.end());
+  const double rss_kb = slope(x, {rss.begin() + static_cast<long>(half), rss.end()}) * 1024.0;
+  const double heap_kb = slope(x, {heap.begin() + static_cast<long>(half), heap.end()}) * 1024.0;
+  std::printf("second half: resident %.2f KB and heap %.2f KB per keyframe\n", rss_kb, heap_kb);
+  nlohmann::json j{{"keyframes", core.graph().poses.size()},
+                   {"factors", core.graph().factors.size()},
+                   {"rss_mb_end", rss.empty() ? 0.0 : rss.back()},
+                   {"heap_mb_end", heap.empty() ? 0.0 : heap.back()},
+                   {"rss_kb_per_keyframe", rss_kb},
+                   {"heap_kb_per_keyframe", heap_kb}};
+  std::cout << j.dump() << '\n';
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -40,7 +112,10 @@ int main(int argc, char** argv) {
   app.add_option("--updates", updates, "timed updates (one keyframe per robot each)")->capture_default_str();
   app.add_option("--flood", flood, "non-contiguous keyframes of robot 1 spread over the timed updates")
       ->capture_default_str();
+  bool memory = false;
+  app.add_flag("--memory", memory, "grow the graph to --keyframes-per-robot and report memory per keyframe");
   CLI11_PARSE(app, argc, argv);
+  if (memory) return run_memory(per_robot);
 
   cdc::test::SwarmStreamOptions o;
   o.robots = 3;
@@ -65,7 +140,7 @@ int main(int argc, char** argv) {
   core.optimise_fully();
   std::vector<double> ms, cpu;
   std::vector<int> iterations;
-  std::vector<double> solver_ms, local_ms, full_ms;
+  std::vector<double> solver_ms, local_ms, full_ms, local_factors;
   cdc::central::KeyframeIn hostile = cdc::test::to_central(stream.keyframes[1][0]);
   uint32_t flooded = 0;
   double flood_s = 0;
@@ -85,6 +160,7 @@ int main(int argc, char** argv) {
     iterations.push_back(st.iterations);
     solver_ms.push_back(st.time_s * 1e3);
     (st.full ? full_ms : local_ms).push_back(ms.back());
+    if (!st.full) local_factors.push_back(static_cast<double>(st.factors));
   }
   nlohmann::json j{{"keyframes", core.graph().poses.size()},
                    {"factors", core.graph().factors.size()},
@@ -98,6 +174,7 @@ int main(int argc, char** argv) {
                    {"ceres_ms_median", pct(solver_ms, 0.5)},
                    {"local_updates", local_ms.size()},
                    {"local_update_ms_median", local_ms.empty() ? 0.0 : pct(local_ms, 0.5)},
+                   {"local_factors_median", local_factors.empty() ? 0.0 : pct(local_factors, 0.5)},
                    {"full_updates", full_ms.size()},
                    {"full_update_ms_median", full_ms.empty() ? 0.0 : pct(full_ms, 0.5)},
                    {"flood_keyframes", flooded},

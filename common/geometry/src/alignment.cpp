@@ -56,21 +56,49 @@ Eigen::Isometry3d apply(const Alignment& a, const Eigen::Isometry3d& pose) {
 }
 
 Alignment align_poses(const std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>>& a_b, double arm_m) {
-  if (a_b.empty() || !(arm_m > 0.0)) {
-    return Alignment{};
+  PoseAligner aligner(arm_m);
+  for (const auto& [a, b] : a_b) aligner.add(a, b);
+  return aligner.solve();
+}
+
+void PoseAligner::add_point(const Eigen::Vector3d& src, const Eigen::Vector3d& dst) {
+  points_ += 1.0;
+  sum_src_ += src;
+  sum_dst_ += dst;
+  sum_dst_src_ += dst * src.transpose();
+}
+
+void PoseAligner::add(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  ++pairs_;
+  add_point(a.translation(), b.translation());
+  for (int axis = 0; axis < 3; ++axis) {
+    add_point(a * (arm_m_ * Eigen::Vector3d::Unit(axis)), b * (arm_m_ * Eigen::Vector3d::Unit(axis)));
   }
-  const Eigen::Index n = static_cast<Eigen::Index>(a_b.size()) * 4;
-  Eigen::Matrix3Xd src(3, n), dst(3, n);
-  Eigen::Index c = 0;
-  for (const auto& [a, b] : a_b) {
-    src.col(c) = a.translation();
-    dst.col(c++) = b.translation();
-    for (int axis = 0; axis < 3; ++axis) {
-      src.col(c) = a * (arm_m * Eigen::Vector3d::Unit(axis));
-      dst.col(c++) = b * (arm_m * Eigen::Vector3d::Unit(axis));
-    }
+}
+
+// Umeyama's rigid fit from the sums: the centred cross-covariance is sum(d s^T) / n - mu_d mu_s^T.
+Alignment PoseAligner::solve() const {
+  Alignment out;
+  if (pairs_ == 0 || !(arm_m_ > 0.0)) {
+    return out;
   }
-  return align_umeyama(src, dst, false);
+  const Eigen::Vector3d mu_src = sum_src_ / points_;
+  const Eigen::Vector3d mu_dst = sum_dst_ / points_;
+  const Eigen::Matrix3d sigma = sum_dst_src_ / points_ - mu_dst * mu_src.transpose();
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(sigma, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::Vector3d sv = svd.singularValues();
+  if (sv(1) < 1e-12 * std::max(1.0, sv(0))) {
+    return out;
+  }
+  Eigen::Matrix3d S = Eigen::Matrix3d::Identity();
+  if (svd.matrixU().determinant() * svd.matrixV().determinant() < 0.0) {
+    S(2, 2) = -1.0;
+  }
+  const Eigen::Matrix3d R = svd.matrixU() * S * svd.matrixV().transpose();
+  out.T_dst_src.linear() = R;
+  out.T_dst_src.translation() = mu_dst - R * mu_src;
+  out.ok = true;
+  return out;
 }
 
 }  // namespace cdc::geometry

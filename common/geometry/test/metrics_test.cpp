@@ -90,6 +90,34 @@ TEST(Alignment, PosesOfAStraightTrajectoryGiveTheFullTransform) {
   EXPECT_FALSE(align_poses(pairs, 0.0).ok);
 }
 
+TEST(Alignment, StreamedPosesGiveTheFitOfAllTheirPoints) {
+  // Far from the origin and noisy, so that the sums' cancellation would show: the streamed fit equals
+  // Umeyama's over the same points (positions and the three axis points of each pose).
+  const Eigen::Isometry3d T = Eigen::Translation3d(-300, 850, 12) * Eigen::Isometry3d(from_rpy(0.02, 0.04, -2.1));
+  PoseAligner aligner(0.5);
+  Eigen::Matrix3Xd src(3, 4 * 200), dst(3, 4 * 200);
+  for (int i = 0; i < 200; ++i) {
+    const Eigen::Isometry3d a = Eigen::Translation3d(1000 + 3.0 * i, -500 + 0.02 * i * i, 0.1 * std::sin(i)) *
+                                Eigen::Isometry3d(from_rpy(0.01 * std::cos(i), 0, 0.03 * i));
+    const Eigen::Isometry3d b = Eigen::Translation3d(0.01 * std::sin(3 * i), 0.02 * std::cos(i), 0) * T * a;
+    aligner.add(a, b);
+    for (int k = 0; k < 4; ++k) {
+      const Eigen::Vector3d arm =
+          k == 0 ? Eigen::Vector3d::Zero() : Eigen::Vector3d(0.5 * Eigen::Vector3d::Unit(k - 1));
+      src.col(4 * i + k) = a * arm;
+      dst.col(4 * i + k) = b * arm;
+    }
+  }
+  EXPECT_EQ(aligner.pairs(), 200u);
+  const Alignment streamed = aligner.solve();
+  const Alignment direct = align_umeyama(src, dst, false);
+  ASSERT_TRUE(streamed.ok);
+  ASSERT_TRUE(direct.ok);
+  EXPECT_LT((streamed.T_dst_src.matrix() - direct.T_dst_src.matrix()).norm(), 1e-6);
+  EXPECT_LT((streamed.T_dst_src.matrix() - T.matrix()).norm(), 0.05);
+  EXPECT_FALSE(PoseAligner().solve().ok);
+}
+
 TEST(Alignment, PosesFitTheWholeTrajectoryNotItsFirstPose) {
   // b bends away from a towards its end (drift corrected): the fit spreads the difference over the
   // trajectory instead of holding the first pose and swinging the far end.

@@ -2,12 +2,15 @@
 
 #include "cdc/graph/initialise.hpp"
 #include "cdc/graph/objective.hpp"
+#include "relax.hpp"
 #include "residuals.hpp"
 
 #include <Eigen/Cholesky>
 
 #include <algorithm>
+#include <chrono>
 #include <set>
+#include <utility>
 
 namespace cdc::graph {
 namespace {
@@ -212,16 +215,194 @@ double relax_towards(PoseGraph& graph, uint32_t r, const PoseGraph& solution, do
     if (robot_of(k) != r) {
       continue;
     }
-    const Eigen::Isometry3d old = graph.poses.at(k);
-    Eigen::Isometry3d next = Eigen::Isometry3d::Identity();
-    next.translation() = old.translation() + g * (T.translation() - old.translation());
-    const Eigen::AngleAxisd step(old.rotation().transpose() * T.rotation());
-    next.linear() = old.rotation() * Eigen::AngleAxisd(g * step.angle(), step.axis()).toRotationMatrix();
-    const double dt = (next.translation() - old.translation()).norm();
-    max_change = std::max({max_change, dt, g * step.angle()});
-    graph.poses[k] = next;
+    double change = 0.0;
+    graph.poses[k] = detail::relax_pose(graph.poses.at(k), T, g, &change);
+    max_change = std::max(max_change, change);
   }
   return max_change;
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// The gauge of a graph without priors: its smallest key.
+std::optional<Key> gauge_of(const PoseGraph& g) {
+  std::optional<Key> gauge;
+  for (const Factor& f : g.factors) {
+    if (f.kind == FactorKind::kPrior) {
+      return std::nullopt;
+    }
+    gauge = std::min({gauge.value_or(f.a), f.a, f.b});
+  }
+  if (!g.poses.empty()) {
+    gauge = std::min(gauge.value_or(g.poses.begin()->first), g.poses.begin()->first);
+  }
+  return gauge;
+}
+
+// Simulated radio of one stage: the latest estimate of every separator sent so far, and the bytes.
+template <class Value>
+struct Postbox {
+  std::map<Key, Value> latest;
+  uint64_t bytes_each = 0;
+  uint64_t copies_each = 0;  // > 0: every estimate goes to this many robots, else to its audience
+
+  bool parallel = false;  // robots read what was sent before the round (block Jacobi)
+  std::map<Key, Value> delivered;
+
+  void begin_round() {
+    if (parallel) {
+      delivered = latest;
+    }
+  }
+  std::map<Key, Value> inbox(const DistributedRobot& robot) const {
+    std::map<Key, Value> in;
+    const std::map<Key, Value>& from = parallel ? delivered : latest;
+    for (Key k : robot.needed()) {
+      if (auto it = from.find(k); it != from.end()) {
+        in.emplace(k, it->second);
+      }
+    }
+    return in;
+  }
+  // Posts the robot's separator estimates, one copy per robot that needs each; returns the bytes.
+  uint64_t post(const DistributedRobot& robot, const std::map<Key, Value>& values, DistributedResult& acc) {
+    uint64_t bytes = 0;
+    for (const auto& [k, v] : values) {
+      latest[k] = v;
+      const auto audience = robot.audience().find(k);
+      const uint64_t copies = copies_each > 0                      ? copies_each
+                              : audience != robot.audience().end() ? audience->second.size()
+                                                                   : 0;
+      acc.poses_sent[robot.robot()] += copies;
+      bytes += copies * bytes_each;
+    }
+    acc.bytes_sent[robot.robot()] += bytes;
+    return bytes;
+  }
+};
+
+// Runs rounds of one stage until the largest change falls below `tolerance` or `max_rounds` pass.
+// step(robot, inbox, round) updates a robot and returns its largest change; separators(robot) is
+// what it sends. Returns the rounds run and whether the tolerance was met.
+template <class Value, class Step, class Separators>
+std::pair<int, bool> run_stage(std::vector<DistributedRobot>& team, Postbox<Value>& box, int max_rounds,
+                               double tolerance, DistributedResult& result, Step step, Separators separators) {
+  for (int round = 1; round <= max_rounds; ++round) {
+    box.begin_round();
+    double change = 0.0;
+    uint64_t bytes = 0;
+    for (DistributedRobot& robot : team) {
+      const auto t0 = std::chrono::steady_clock::now();
+      change = std::max(change, step(robot, box.inbox(robot), round));
+      result.compute_s[robot.robot()] += seconds_since(t0);
+      bytes += box.post(robot, separators(robot), result);
+    }
+    result.bytes_per_round.push_back(bytes);
+    ++result.rounds;
+    if (change < tolerance) {
+      return {round, true};
+    }
+  }
+  return {max_rounds, false};
+}
+
+void write_poses(const std::vector<DistributedRobot>& team, PoseGraph& graph) {
+  for (const DistributedRobot& robot : team) {
+    for (const auto& [k, T] : robot.poses()) {
+      graph.poses[k] = T;
+    }
+  }
+}
+
+// The factors of the coarse problem (inter-robot factors, priors, factors at the gauge or at a
+// pose with a prior); each robot sends the ones it is the first end of, once, to every robot that
+// does not hold them yet.
+std::vector<Factor> coarse_factors(const PoseGraph& graph, size_t robots, DistributedResult& result, uint64_t& bytes) {
+  std::set<Key> pinned;
+  if (const std::optional<Key> gauge = gauge_of(graph)) {
+    pinned.insert(*gauge);
+  }
+  for (const Factor& f : graph.factors) {
+    if (f.kind == FactorKind::kPrior) {
+      pinned.insert(f.a);
+    }
+  }
+  std::vector<Factor> out;
+  for (const Factor& f : graph.factors) {
+    if (f.inter_robot() || pinned.count(f.a) != 0 || pinned.count(f.b) != 0) {
+      out.push_back(f);
+      const uint64_t b = (robots - (f.inter_robot() ? 2 : 1)) * kFactorBytes;
+      result.bytes_sent[robot_of(f.a)] += b;
+      bytes += b;
+    }
+  }
+  return out;
+}
+
+// One round of stage 3: block solves in robot order, then (with the coarse step) the rigid
+// corrections every robot computes from all separator poses. Returns the largest change.
+double pose_round(std::vector<DistributedRobot>& team, Postbox<Eigen::Isometry3d>& box,
+                  const std::vector<Factor>* coarse, const PoseGraph& graph, const DistributedOptions& options,
+                  DistributedResult& result) {
+  box.begin_round();
+  const TwoStageOptions& o = options.two_stage;
+  const double gamma = o.parallel ? std::min(o.pose_over_relaxation, 1.0) : o.pose_over_relaxation;
+  double change = 0.0;
+  uint64_t bytes = 0;
+  for (DistributedRobot& robot : team) {
+    const auto t0 = std::chrono::steady_clock::now();
+    change = std::max(change, robot.pose_round(box.inbox(robot), options.local, gamma));
+    result.compute_s[robot.robot()] += seconds_since(t0);
+    bytes += box.post(robot, coarse != nullptr ? robot.coarse_separators() : robot.pose_separators(), result);
+  }
+  result.bytes_per_round.push_back(bytes);
+  ++result.rounds;
+  if (coarse == nullptr) {
+    return change;
+  }
+  const std::optional<Key> gauge = gauge_of(graph);
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto C = coarse_corrections(*coarse, box.latest, gauge, options.local, graph.dimension);
+  const double coarse_s = seconds_since(t0);
+  for (DistributedRobot& robot : team) {
+    result.compute_s[robot.robot()] += coarse_s;  // every robot solves the same coarse problem
+    change = std::max(change, robot.move(C));
+  }
+  for (auto& [k, T] : box.latest) {
+    T = C.of(k) * T;  // what every robot does to the separator poses it holds
+  }
+  return change;
+}
+
+// Stage 3 from what every robot already holds after stages 1-2: its neighbours' last rotations and
+// translations make their separator poses.
+void refine_poses(PoseGraph& graph, std::vector<DistributedRobot>& team, const DistributedOptions& options,
+                  DistributedResult& result) {
+  const bool coarse = options.two_stage.coarse && team.size() > 1;
+  Postbox<Eigen::Isometry3d> box{{}, kSeparatorPoseBytes, coarse ? team.size() - 1 : 0, options.two_stage.parallel, {}};
+  for (const DistributedRobot& r : team) {
+    for (const auto& [k, T] : r.pose_separators()) {
+      box.latest[k] = T;
+    }
+  }
+  write_poses(team, graph);
+  result.objective_first_round = result.rounds;
+  result.objective_per_round.push_back(objective(graph, options.local.objective));
+  uint64_t factor_bytes = 0;
+  const std::vector<Factor> factors =
+      coarse ? coarse_factors(graph, team.size(), result, factor_bytes) : std::vector<Factor>{};
+  for (int round = result.rounds; round < options.max_rounds; ++round) {
+    const double change = pose_round(team, box, coarse ? &factors : nullptr, graph, options, result);
+    result.bytes_per_round.back() += std::exchange(factor_bytes, 0);  // sent with the first round's separators
+    write_poses(team, graph);
+    result.objective_per_round.push_back(objective(graph, options.local.objective));
+    if (change < options.pose_change_tolerance) {
+      result.converged = true;
+      break;
+    }
+  }
 }
 
 }  // namespace
@@ -279,6 +460,42 @@ DistributedResult solve_distributed(PoseGraph& graph, const DistributedOptions& 
       break;
     }
   }
+  return result;
+}
+
+DistributedResult solve_distributed_two_stage(PoseGraph& graph, const DistributedOptions& options) {
+  DistributedResult result;
+  const TwoStageOptions& o = options.two_stage;
+  std::vector<DistributedRobot> team;
+  for (uint32_t r : robots_of(graph)) {
+    team.emplace_back(graph, r, gauge_of(graph));
+  }
+  // The first round of a linear stage starts from values not yet consistent between robots: no
+  // over-relaxation there.
+  const auto omega = [&](int round) { return round == 1 || o.parallel ? 1.0 : o.linear_over_relaxation; };
+  Postbox<Eigen::Matrix3d> rotations{{}, kSeparatorRotationBytes, 0, o.parallel, {}};
+  result.rotation_rounds =
+      run_stage(
+          team, rotations, std::min(o.max_rotation_rounds, options.max_rounds), o.rotation_tolerance, result,
+          [&](DistributedRobot& r, const SeparatorRotations& in, int round) {
+            return r.rotation_round(in, omega(round));
+          },
+          [](const DistributedRobot& r) { return r.rotation_separators(); })
+          .first;
+  for (DistributedRobot& r : team) {
+    r.end_rotations(rotations.inbox(r));
+  }
+  Postbox<Eigen::Vector3d> translations{{}, kSeparatorTranslationBytes, 0, o.parallel, {}};
+  result.translation_rounds =
+      run_stage(
+          team, translations, std::min(o.max_translation_rounds, options.max_rounds - result.rounds),
+          o.translation_tolerance, result,
+          [&](DistributedRobot& r, const SeparatorTranslations& in, int round) {
+            return r.translation_round(in, omega(round));
+          },
+          [](const DistributedRobot& r) { return r.translation_separators(); })
+          .first;
+  refine_poses(graph, team, options, result);
   return result;
 }
 

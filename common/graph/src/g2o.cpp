@@ -1,5 +1,7 @@
 #include "cdc/graph/g2o.hpp"
 
+#include "cdc/graph/objective.hpp"
+
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -24,8 +26,9 @@ struct LineReader {
   const std::string& path;
   size_t line;
   std::istringstream in;
-  bool* symbols = nullptr;    // set when an id carries a robot letter in its top byte
-  bool* low_plain = nullptr;  // set when an id's top byte is below 26: read as such, a cdc key of robot 0..25
+  bool* symbols = nullptr;       // set when an id carries a robot letter in its top byte
+  bool* low_plain = nullptr;     // set when an id's top byte is below 26: read as such, a cdc key of robot 0..25
+  std::string* plain = nullptr;  // the first id with no robot letter (a..z) in its top byte, with its line
 
   [[noreturn]] void fail(const std::string& msg) const {
     throw G2oError(path + ":" + std::to_string(line) + ": " + msg);
@@ -61,6 +64,9 @@ struct LineReader {
     }
     if (low_plain != nullptr && (v >> 56) < kSymbolRobots) {
       *low_plain = true;
+    }
+    if (plain != nullptr && plain->empty() && ((v >> 56) < 'a' || (v >> 56) > 'z')) {
+      *plain = path + ":" + std::to_string(line) + ": id " + std::to_string(v);
     }
     return v;
   }
@@ -109,19 +115,47 @@ bool same_pose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   return (a.matrix() - b.matrix()).cwiseAbs().maxCoeff() <= 1e-6 * scale;
 }
 
-void check_information(LineReader& r, const Matrix6d& info) {
+bool positive_definite(const Matrix6d& info) {
+  return Eigen::SelfAdjointEigenSolver<Matrix6d>(info).eigenvalues().minCoeff() > 0.0;
+}
+
+// Fails unless the information is positive definite or, with `isotropic`, gives positive SE-Sync
+// weights. Returns whether it is positive definite.
+bool check_information(LineReader& r, const Matrix6d& info, int dimension, bool isotropic) {
+  if (isotropic) {
+    Factor f;
+    f.information = info;
+    const IsotropicWeights w = isotropic_weights(f, dimension);
+    if (!(std::isfinite(w.tau) && w.tau > 0.0 && std::isfinite(w.kappa) && w.kappa > 0.0)) {
+      r.fail("information gives no positive isotropic weights (tau " + std::to_string(w.tau) + ", kappa " +
+             std::to_string(w.kappa) + ")");
+    }
+    return positive_definite(info);
+  }
   Eigen::SelfAdjointEigenSolver<Matrix6d> es(info);
   if (es.eigenvalues().minCoeff() <= 0.0) {
     r.fail("information matrix is not positive definite (smallest eigenvalue " +
            std::to_string(es.eigenvalues().minCoeff()) + ")");
   }
+  return true;
 }
 
 // Where a file's records go: the graph, and the edges already read from other robots' files
 // (null: a single file); the vertices declared by this file (id -> line and pose) and by every file so far.
+// An edge as read, with the file it came from (its index in the folder).
+struct EdgeRecord {
+  size_t file;
+  Eigen::Isometry3d T;
+  Matrix6d info;
+};
+using EdgeRecords = std::map<std::pair<Key, Key>, std::vector<EdgeRecord>>;
+
 struct Target {
   PoseGraph& graph;
-  std::set<std::pair<Key, Key>>* seen_edges;
+  EdgeRecords& edges;  // every edge read so far, by its ends
+  size_t file;         // this file's index in the folder
+  bool folder;
+  bool isotropic_information;
   std::set<Key>& declared;
   G2oReadReport& report;
   std::map<Key, std::pair<size_t, Eigen::Isometry3d>> in_file;
@@ -143,10 +177,20 @@ struct Target {
     }
   }
 
-  void add_edge(Key a, Key b, const Eigen::Isometry3d& T, const Matrix6d& info) {
-    if (seen_edges != nullptr && !seen_edges->insert({a, b}).second) {
-      return;  // an inter-robot edge listed by both robots
+  // An edge another file listed alike is the same measurement (both robots list an inter-robot
+  // edge): kept once. Any other edge between the same two poses is a measurement of its own.
+  void add_edge(Key a, Key b, const Eigen::Isometry3d& T, const Matrix6d& info, bool definite) {
+    std::vector<EdgeRecord>& same_ends = edges[{a, b}];
+    const bool listed_elsewhere = std::any_of(same_ends.begin(), same_ends.end(), [&](const EdgeRecord& e) {
+      return e.file != file && same_pose(e.T, T) && (e.info - info).cwiseAbs().maxCoeff() <= 1e-9 * info.norm();
+    });
+    if (listed_elsewhere) {
+      ++report.duplicate_edges;
+      return;
     }
+    if (!same_ends.empty() || edges.count({b, a}) != 0) ++report.parallel_edges;
+    if (!definite) ++report.indefinite_information;
+    same_ends.push_back({file, T, info});
     graph.add_between(a, b, T, info);
   }
 };
@@ -192,8 +236,8 @@ void read_edge_se3(LineReader& r, Target& target) {
   }
   r.expect_end();
   check_edge_ends(r, a, b);
-  check_information(r, info);
-  target.add_edge(a, b, T, info);
+  const bool definite = check_information(r, info, 3, target.isotropic_information);
+  target.add_edge(a, b, T, info, definite);
 }
 
 // EDGE_SE2: (dx, dy, dtheta) and the upper triangle of its 3x3 information, lifted into 3D.
@@ -219,8 +263,8 @@ void read_edge_se2(LineReader& r, Target& target) {
   info(1, 5) = info(5, 1) = i23;
   info(5, 5) = i33;
   info(2, 2) = info(3, 3) = info(4, 4) = kPlanarLiftInformation;
-  check_information(r, info);
-  target.add_edge(a, b, planar(dx, dy, dth), info);
+  const bool definite = check_information(r, info, 2, target.isotropic_information);
+  target.add_edge(a, b, planar(dx, dy, dth), info, definite);
 }
 
 // The records read, each with its reader and the dimension it speaks of.
@@ -248,40 +292,51 @@ int read_record(const std::string& tag, LineReader& r, Target& target) {
   r.fail("unsupported record '" + tag + "' (expected VERTEX_SE3:QUAT, EDGE_SE3:QUAT, VERTEX_SE2, EDGE_SE2)");
 }
 
-void parse_into(const std::string& path, PoseGraph& graph, std::set<std::pair<Key, Key>>* seen_edges,
-                std::set<Key>& declared, G2oReadReport& report, const G2oReadOptions& options) {
+// Reads one line's record into the target; a malformed line fails, or is skipped and counted.
+// Returns the dimension the record speaks of (0: none or skipped).
+int read_line(LineReader& r, Target& target, const G2oReadOptions& options) {
+  std::string tag;
+  if (!(r.in >> tag) || tag[0] == '#') {
+    return 0;
+  }
+  try {
+    return read_record(tag, r, target);
+  } catch (const G2oError& e) {
+    if (!options.skip_malformed) {
+      throw;
+    }
+    ++target.report.skipped_lines;
+    if (options.warnings != nullptr) {
+      options.warnings->push_back(std::string(e.what()) + " (line skipped)");
+    }
+  }
+  return 0;
+}
+
+void parse_into(const std::string& path, Target& target, const G2oReadOptions& options) {
   std::ifstream file(path);
   if (!file) {
     throw G2oError(path + ": cannot open file");
   }
-  Target target{graph, seen_edges, declared, report, {}};
-  std::string text;
+  PoseGraph& graph = target.graph;
+  std::string text, plain;
   size_t n = 0;
   bool saw_2d = false, saw_3d = false, low_plain = false;
   while (std::getline(file, text)) {
-    ++n;
-    LineReader r{path, n, std::istringstream(text)};
+    LineReader r{path, ++n, std::istringstream(text)};
     r.symbols = &graph.symbol_keys;
     r.low_plain = &low_plain;
-    std::string tag;
-    if (!(r.in >> tag) || tag[0] == '#') {
-      continue;
-    }
-    try {
-      const int dimension = read_record(tag, r, target);
-      saw_2d = saw_2d || dimension == 2;
-      saw_3d = saw_3d || dimension == 3;
-    } catch (const G2oError& e) {
-      if (!options.skip_malformed) {
-        throw;
-      }
-      if (options.warnings != nullptr) {
-        options.warnings->push_back(std::string(e.what()) + " (line skipped)");
-      }
-    }
+    r.plain = &plain;
+    const int dimension = read_line(r, target, options);
+    saw_2d = saw_2d || dimension == 2;
+    saw_3d = saw_3d || dimension == 3;
   }
   if (saw_2d && saw_3d) {
     throw G2oError(path + ": mixes 2D and 3D records");
+  }
+  if (target.folder && !plain.empty()) {
+    throw G2oError(plain + " carries no robot letter (a..z in its top byte): every file of a multi-robot folder " +
+                   "keys its poses as GTSAM symbols of its robot");
   }
   if (low_plain && graph.symbol_keys) {
     throw G2oError(path +
@@ -344,7 +399,9 @@ PoseGraph read_g2o(const std::string& path, const G2oReadOptions& options) {
   PoseGraph g;
   std::set<Key> declared;
   G2oReadReport report;
-  parse_into(path, g, nullptr, declared, report, options);
+  EdgeRecords edges;
+  Target target{g, edges, 0, false, options.isotropic_information, declared, report, {}};
+  parse_into(path, target, options);
   if (g.factors.empty() && g.poses.empty()) {
     throw G2oError(path + ": no vertices or edges");
   }
@@ -369,11 +426,12 @@ PoseGraph read_g2o_folder(const std::string& folder, const G2oReadOptions& optio
   }
   std::sort(files.begin(), files.end());
   PoseGraph g;
-  std::set<std::pair<Key, Key>> seen;
+  EdgeRecords edges;
   std::set<Key> declared;
   G2oReadReport report;
-  for (const auto& f : files) {
-    parse_into(f.string(), g, &seen, declared, report, options);
+  for (size_t i = 0; i < files.size(); ++i) {
+    Target target{g, edges, i, true, options.isotropic_information, declared, report, {}};
+    parse_into(files[i].string(), target, options);
   }
   check_vertices(folder, g, declared, report);
   finish_report(options, report);

@@ -73,12 +73,34 @@ struct Chain {
   }
 };
 
+// Parallel odometry factors (the same step measured twice) fused into one to first order: the
+// information-weighted mean of their differences from the first, the sum of their information.
+Factor fuse(const std::vector<const Factor*>& parallel) {
+  Factor fused = *parallel.front();
+  if (parallel.size() == 1) return fused;
+  Matrix6d info = Matrix6d::Zero();
+  Vector6d weighted = Vector6d::Zero();
+  const Eigen::Isometry3d first = rigid(fused.measurement);
+  for (const Factor* f : parallel) {
+    info += f->information;
+    weighted += f->information * residual(first.inverse() * rigid(f->measurement));
+  }
+  fused.measurement = perturb(first, info.ldlt().solve(weighted));
+  fused.information = info;
+  return fused;
+}
+
 std::map<uint32_t, Chain> odometry_chains(const PoseGraph& g) {
-  std::map<uint32_t, std::map<uint64_t, const Factor*>> by_start;  // robot -> a index -> factor
+  // robot -> a index -> its odometry factors (several when the step is measured more than once)
+  std::map<uint32_t, std::map<uint64_t, std::vector<const Factor*>>> parallel;
   for (const Factor& f : g.factors) {
     if (f.kind == FactorKind::kOdometry) {
-      by_start[robot_of(f.a)][index_of(f.a)] = &f;
+      parallel[robot_of(f.a)][index_of(f.a)].push_back(&f);
     }
+  }
+  std::map<uint32_t, std::map<uint64_t, Factor>> by_start;
+  for (const auto& [robot, steps] : parallel) {
+    for (const auto& [a, factors] : steps) by_start[robot].emplace(a, fuse(factors));
   }
   std::map<uint32_t, Chain> chains;
   for (const auto& [robot, edges] : by_start) {
@@ -87,7 +109,7 @@ std::map<uint32_t, Chain> odometry_chains(const PoseGraph& g) {
     c.pose[idx] = Eigen::Isometry3d::Identity();
     c.cov[idx] = Matrix6d::Zero();
     for (auto it = edges.find(idx); it != edges.end(); it = edges.find(idx)) {
-      const Factor& f = *it->second;
+      const Factor& f = it->second;
       const uint64_t next = index_of(f.b);
       const Eigen::Isometry3d m = rigid(f.measurement);
       const Matrix6d A = adjoint(m.inverse());

@@ -447,5 +447,66 @@ TEST_F(G2oFiles, IdsOutsideTheSymbolLettersAreWrittenBackAsRead) {
               ::testing::ThrowsMessage<G2oError>(::testing::HasSubstr("mixes GTSAM symbol ids")));
 }
 
+// A 6x6 information that is not positive definite (a strong translation-rotation coupling) whose
+// isotropic weights are positive: refused by default, read for SE-Sync's objective.
+TEST_F(G2oFiles, IndefiniteInformationWithPositiveIsotropicWeightsIsReadForSeSync) {
+  const std::string q = " 0 0 0 1";
+  // Upper triangle: diag 1, coupling (tx, rx) = 5: eigenvalues 1 +- 5, one negative.
+  const std::string info = " 1 0 0 5 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n";
+  std::ofstream(path("indef.g2o")) << "EDGE_SE3:QUAT 0 1 1 0 0" << q << info;
+  EXPECT_THAT([&] { read_g2o(path("indef.g2o")); },
+              ::testing::ThrowsMessage<G2oError>(::testing::HasSubstr("not positive definite")));
+  G2oReadOptions options;
+  options.isotropic_information = true;
+  G2oReadReport report;
+  options.report = &report;
+  const PoseGraph g = read_g2o(path("indef.g2o"), options);
+  ASSERT_EQ(g.factors.size(), 1u);
+  EXPECT_EQ(report.indefinite_information, 1u);
+  const IsotropicWeights w = isotropic_weights(g.factors[0], 3);
+  EXPECT_DOUBLE_EQ(w.tau, 1.0);
+  EXPECT_DOUBLE_EQ(w.kappa, 0.5);
+  std::ofstream(path("zero.g2o")) << "EDGE_SE3:QUAT 0 1 1 0 0" << q << " 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 0 0 0 0 0 0\n";
+  EXPECT_THAT([&] { read_g2o(path("zero.g2o"), options); },
+              ::testing::ThrowsMessage<G2oError>(::testing::HasSubstr("no positive isotropic weights")));
+}
+
+// Two measurements between the same two poses are two factors, in one file or in two; only an edge a
+// second robot's file lists alike (the same measurement) is kept once.
+TEST_F(G2oFiles, ParallelEdgesAreKeptAndOnlyIdenticalListingsMerge) {
+  const uint64_t a0 = uint64_t{'a'} << 56, b0 = uint64_t{'b'} << 56;
+  const std::string q = " 0 0 0 1", info = " 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n";
+  std::ofstream(path("par.g2o")) << "EDGE_SE3:QUAT 0 5 1 0 0" << q << info << "EDGE_SE3:QUAT 0 5 1.1 0 0" << q << info;
+  G2oReadReport report;
+  G2oReadOptions options;
+  options.report = &report;
+  EXPECT_EQ(read_g2o(path("par.g2o"), options).factors.size(), 2u);
+  EXPECT_EQ(report.parallel_edges, 1u);
+  std::filesystem::create_directories(path("robots"));
+  std::ofstream(path("robots/a.g2o")) << "EDGE_SE3:QUAT " << a0 << ' ' << a0 + 1 << " 1 0 0" << q << info
+                                      << "EDGE_SE3:QUAT " << a0 << ' ' << b0 << " 2 0 0" << q << info;
+  std::ofstream(path("robots/b.g2o")) << "EDGE_SE3:QUAT " << b0 << ' ' << b0 + 1 << " 1 0 0" << q << info
+                                      << "EDGE_SE3:QUAT " << a0 << ' ' << b0 << " 2 0 0" << q << info
+                                      << "EDGE_SE3:QUAT " << a0 << ' ' << b0 << " 2.5 0 0" << q << info;
+  const PoseGraph g = read_g2o_folder(path("robots"), options);
+  EXPECT_EQ(g.factors.size(), 4u);  // two odometry, the shared loop once, its parallel loop
+  EXPECT_EQ(report.duplicate_edges, 1u);
+  EXPECT_EQ(report.parallel_edges, 1u);
+}
+
+// In a multi-robot folder every id names its robot; a file with plain ids is refused, not merged into robot 0.
+TEST_F(G2oFiles, AFolderFileWithoutRobotLettersIsRefused) {
+  const uint64_t a0 = uint64_t{'a'} << 56;
+  const std::string q = " 0 0 0 1", info = " 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 1\n";
+  std::filesystem::create_directories(path("mixed_robots"));
+  std::ofstream(path("mixed_robots/a.g2o")) << "EDGE_SE3:QUAT " << a0 << ' ' << a0 + 1 << " 1 0 0" << q << info;
+  std::ofstream(path("mixed_robots/plain.g2o")) << "EDGE_SE3:QUAT 0 1 1 0 0" << q << info;
+  G2oReadOptions lenient;
+  lenient.skip_malformed = true;  // refusing the file is not a line to skip
+  EXPECT_THAT([&] { read_g2o_folder(path("mixed_robots"), lenient); },
+              ::testing::ThrowsMessage<G2oError>(::testing::AllOf(::testing::HasSubstr("plain.g2o:1: id 0"),
+                                                                  ::testing::HasSubstr("carries no robot letter"))));
+}
+
 }  // namespace
 }  // namespace cdc::graph

@@ -181,6 +181,18 @@ TEST(Pcm, TrueLoopsFarAlongAChainOfSlightlyNonOrthonormalOdometryStayConsistent)
 
 // A loop to a robot no odometry describes (a robot that does not exist in the graph) cannot be checked against
 // anything: it is rejected, even alone.
+// A step measured twice is two measurements: the chain uses both (fused), not the last one read.
+TEST(Pcm, ParallelOdometryFactorsAreFusedNotDropped) {
+  PoseGraph g;
+  const Matrix6d info = Matrix6d::Identity() * 100.0;
+  g.add_between(make_key(0, 0), make_key(0, 1), pose(1.0, 0, 0), info);
+  g.add_between(make_key(0, 0), make_key(0, 1), pose(1.2, 0, 0), info);
+  g.add_between(make_key(0, 1), make_key(0, 2), pose(1.0, 0, 0), info);
+  g.add_between(make_key(0, 0), make_key(0, 2), pose(2.1, 0, 0), info);  // agrees with the mean of the two
+  ASSERT_EQ(g.factors[3].kind, FactorKind::kLoop);
+  EXPECT_LT(Pcm::odometry_distance(g, g.factors[3]), 1e-9);
+}
+
 TEST(Pcm, ALoopToARobotWithoutTrajectoryIsRejected) {
   PoseGraph g;
   const Matrix6d info = Matrix6d::Identity();

@@ -107,23 +107,23 @@ std::vector<RefPoint> read_reference_pcd(const std::filesystem::path& path) {
   std::vector<char> buf(n * stride);
   in.read(buf.data(), static_cast<std::streamsize>(buf.size()));
   if (static_cast<std::size_t>(in.gcount()) != buf.size()) return {};
-  std::vector<RefPoint> out(n);
-  auto get = [&](std::size_t i, const char* f, auto& v) {
-    if (offset.count(f) != 0) std::memcpy(&v, buf.data() + i * stride + offset[f], sizeof(v));
+  // Field f of point i, stored as the type of `stored`, into v (left as it is when the file has no f).
+  auto get = [&](std::size_t i, const char* f, auto& v, auto stored) {
+    if (offset.count(f) == 0) return;
+    std::memcpy(&stored, buf.data() + i * stride + offset[f], sizeof(stored));
+    v = stored;
   };
+  std::vector<RefPoint> out(n);
   for (std::size_t i = 0; i < n; ++i) {
-    get(i, "x", out[i].x);
-    get(i, "y", out[i].y);
-    get(i, "z", out[i].z);
-    uint8_t intensity = 0;
-    get(i, "intensity", intensity);
-    out[i].intensity = intensity;
-    get(i, "return_type", out[i].return_type);
-    get(i, "channel", out[i].channel);
-    get(i, "azimuth", out[i].azimuth);
-    uint32_t t = 0;
-    get(i, "time_stamp", t);
-    out[i].time_ns = t;
+    RefPoint& p = out[i];
+    get(i, "x", p.x, float{});
+    get(i, "y", p.y, float{});
+    get(i, "z", p.z, float{});
+    get(i, "intensity", p.intensity, uint8_t{});
+    get(i, "return_type", p.return_type, uint8_t{});
+    get(i, "channel", p.channel, uint16_t{});
+    get(i, "azimuth", p.azimuth, float{});
+    get(i, "time_stamp", p.time_ns, uint32_t{});
   }
   return out;
 }

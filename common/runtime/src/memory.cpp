@@ -1,5 +1,7 @@
 #include "cdc/runtime/memory.hpp"
 
+#include <cstdlib>  // the C library's headers define __GLIBC__ when it is glibc
+
 #if defined(__GLIBC__)
 #include <malloc.h>
 #endif
@@ -9,6 +11,10 @@ namespace cdc::runtime {
 namespace {
 constexpr int kThresholdBytes = 128 * 1024;
 }  // namespace
+
+#if !defined(__GLIBC__)
+#warning "not glibc: the heap is left to the C library's defaults"
+#endif
 
 void return_large_blocks() {
 #if defined(__GLIBC__)

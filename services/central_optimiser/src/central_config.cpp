@@ -21,6 +21,7 @@ CentralNodeOptions load_options(const std::string& path) {
   r.get_in("update_period_ms", o.update_period_ms, 1, 60000);
   r.get_in("status_period_ms", o.status_period_ms, 1, 60000);
   r.get_in("max_result_age_ms", o.max_result_age_ms, 1, 3'600'000);
+  r.get_in("result_pose_rate", o.result_pose_rate, 0.0, 1e9);
   r.get_in("optimiser.max_iterations", o.core.max_iterations_per_update, 1, 10000);
   double max_time_ms = o.core.max_time_per_update_s * 1e3;
   r.get_in("optimiser.max_time_ms", max_time_ms, 0.1, 600000.0);

@@ -21,7 +21,8 @@ struct CentralNodeOptions {
   int update_period_ms = 100;    // least time between optimisations
   int max_result_age_ms = 2000;  // results of an unsettled graph are held back at most this long
   int status_period_ms = 250;
-  std::string graph_out;  // write the final graph (g2o) here at shutdown
+  double result_pose_rate = 3000;  // poses per second per robot in results (0: every update's, at once)
+  std::string graph_out;           // write the final graph (g2o) here at shutdown
   std::string log_level = "info";
 };
 

@@ -12,6 +12,8 @@ constexpr double kAnchorInformation = 1e8;
 // A local pass that does not converge carries its touched keys to the next; beyond this many windows'
 // worth, a full pass takes them instead (the carried set would otherwise grow with every short pass).
 constexpr size_t kMaxCarriedTouched = 4;
+// Loops from an active key to keys held fixed that a local pass takes, per key (local_factors).
+constexpr size_t kMaxAnchorsPerKey = 4;
 
 }  // namespace
 
@@ -339,18 +341,33 @@ std::set<Key> CentralCore::active_keys() const {
   return active;
 }
 
-// The active keys and the factors through them, the keys beyond held fixed: the work is the
-// window's, whatever the size of the graph. A pass that does not converge keeps its touched keys,
-// so that the next update goes on with them.
-UpdateStats CentralCore::solve_local(const graph::SolverOptions& options) {
-  const std::set<Key> active = active_keys();
+// The factors of a local pass: every factor between two active keys, and of those that tie an active
+// key to a fixed one (loops to earlier laps), the kMaxAnchorsPerKey most recent per key. A place
+// revisited lap after lap gathers a loop per visit; all of them would make each local pass grow with
+// the mission, while a few recent ones hold the window as well (the full passes take them all).
+std::vector<size_t> CentralCore::local_factors(const std::set<Key>& active) const {
   std::vector<size_t> through;
   for (Key k : active) {
     const auto it = factors_at_.find(k);
-    if (it != factors_at_.end()) through.insert(through.end(), it->second.begin(), it->second.end());
+    if (it == factors_at_.end()) continue;
+    size_t anchors = 0;
+    for (auto i = it->second.rbegin(); i != it->second.rend(); ++i) {  // newest first
+      const graph::Factor& f = graph_.factors[*i];
+      const bool inside = active.count(f.a) != 0 && active.count(f.b) != 0;
+      if (inside || f.kind != graph::FactorKind::kLoop || anchors++ < kMaxAnchorsPerKey) through.push_back(*i);
+    }
   }
   std::sort(through.begin(), through.end());
   through.erase(std::unique(through.begin(), through.end()), through.end());
+  return through;
+}
+
+// The active keys and the factors through them (local_factors), the keys beyond held fixed: the work
+// is the window's, whatever the size of the graph. A pass that does not converge keeps its touched
+// keys, so that the next update goes on with them.
+UpdateStats CentralCore::solve_local(const graph::SolverOptions& options) {
+  const std::set<Key> active = active_keys();
+  const std::vector<size_t> through = local_factors(active);
   graph::PoseGraph local;
   local.dimension = graph_.dimension;
   std::set<Key> fixed;
@@ -432,39 +449,45 @@ UpdateStats CentralCore::optimise_fully() {
 
 std::vector<RobotEstimate> CentralCore::estimates() const {
   std::vector<RobotEstimate> out;
-  for (const auto& [robot, list] : sessions_) {
-    if (list.empty()) {
-      continue;
-    }
-    const Session& s = list.back();
-    RobotEstimate e;
-    e.robot = robot;
-    e.incarnation = s.incarnation;
-    if (s.placed && s.in_graph > 0) {
-      for (uint32_t id = 0; id < s.in_graph; ++id) {
-        e.poses.emplace_back(id, graph_.poses.at(key(s, id)));
-      }
-      // W from the robot's odometry frame (paper eq. 1-2), fitted to all its keyframes in the graph
-      // rather than held at the first: a new loop that turns the robot's whole trajectory about its
-      // first keyframe moves no corrected pose relative to the others. Only the change in shape (drift
-      // corrected along the trajectory) reaches the front-end, whose fusion takes it up.
-      std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>> odom_world;
-      odom_world.reserve(e.poses.size());
-      for (const auto& [id, T] : e.poses) odom_world.emplace_back(s.keyframes.at(id).T_odom_keyframe, T);
-      const geometry::Alignment fit = geometry::align_poses(odom_world);
-      e.T_world_robot = fit.ok ? fit.T_dst_src : odom_world.front().second * odom_world.front().first.inverse();
-    } else if (s.hint) {
-      e.T_world_robot = *s.hint;
-      e.from_hint = true;
-      for (const auto& [id, kf] : s.keyframes) {
-        e.poses.emplace_back(id, *s.hint * kf.T_odom_keyframe);
-      }
-    } else {
-      continue;  // not in the world yet
-    }
-    out.push_back(std::move(e));
+  for (const auto& entry : sessions_) {
+    if (std::optional<RobotEstimate> e = estimate(entry.first)) out.push_back(std::move(*e));
   }
   return out;
+}
+
+// One pass over the robot's keyframes in the graph and its held odometry, both in id order.
+std::optional<RobotEstimate> CentralCore::estimate(uint32_t robot) const {
+  auto it = sessions_.find(robot);
+  if (it == sessions_.end() || it->second.empty()) return std::nullopt;
+  const Session& s = it->second.back();
+  RobotEstimate e;
+  e.robot = robot;
+  e.incarnation = s.incarnation;
+  if (s.placed && s.in_graph > 0) {
+    e.poses.reserve(s.in_graph);
+    // W from the robot's odometry frame (paper eq. 1-2), fitted to all its keyframes in the graph
+    // rather than held at the first: a new loop that turns the robot's whole trajectory about its
+    // first keyframe moves no corrected pose relative to the others. Only the change in shape (drift
+    // corrected along the trajectory) reaches the front-end, whose fusion takes it up.
+    geometry::PoseAligner fit;
+    auto pose = graph_.poses.find(key(s, 0));
+    auto held = s.keyframes.begin();
+    for (uint32_t id = 0; id < s.in_graph; ++id, ++pose, ++held) {
+      e.poses.emplace_back(id, pose->second);
+      fit.add(held->second.T_odom_keyframe, pose->second);
+    }
+    const geometry::Alignment a = fit.solve();
+    e.T_world_robot =
+        a.ok ? a.T_dst_src : e.poses.front().second * s.keyframes.begin()->second.T_odom_keyframe.inverse();
+  } else if (s.hint) {
+    e.T_world_robot = *s.hint;
+    e.from_hint = true;
+    e.poses.reserve(s.keyframes.size());
+    for (const auto& [id, kf] : s.keyframes) e.poses.emplace_back(id, *s.hint * kf.T_odom_keyframe);
+  } else {
+    return std::nullopt;  // not in the world yet
+  }
+  return e;
 }
 
 std::vector<Acknowledgement> CentralCore::acknowledgements() const {

@@ -92,6 +92,7 @@ CentralNode::CentralNode(const runtime::ServiceOptions& common, const CentralNod
       w_status_(service_.radio(), topics::kRobotStatus, dds::qos::keyed_state()),
       core_(o.core),
       schedule_(std::chrono::milliseconds(o.update_period_ms), std::chrono::milliseconds(o.max_result_age_ms)),
+      pacer_(o.core.robot_count, o.result_pose_rate),
       last_status_(Clock::now() - std::chrono::hours(1)) {
   for (uint32_t k = 0; k < o.core.robot_count; ++k) {
     w_results_.emplace_back(service_.radio(), t_opt_, dds::qos::keyed_state(1).partitions({dds::partitions::robot(k)}));
@@ -128,6 +129,7 @@ void CentralNode::spin() {
     take_inputs();
     const auto now = Clock::now();
     if (schedule_.update_due(core_.dirty(), core_.settled(), now)) optimise(now);
+    publish_due_results(Clock::now());
     if (acks_dirty_) publish_acknowledgements();
     if (now - last_status_ >= std::chrono::milliseconds(o_.status_period_ms)) {
       publish_status();
@@ -171,13 +173,17 @@ void CentralNode::optimise(Clock::time_point now) {
   spdlog::debug("update {} (graph version {}): {} pass over {} poses and {} factors, {} iterations in {:.0f} ms, {}",
                 schedule_.updates() + 1, core_.version(), u.full ? "full" : "local", u.poses, u.factors, u.iterations,
                 u.time_s * 1e3, u.converged ? "converged" : "not converged");
-  if (schedule_.updated(core_.settled(), now)) publish_results();
+  if (schedule_.updated(core_.settled(), now)) pacer_.updated();
 }
 
-void CentralNode::publish_results() {
-  for (const RobotEstimate& e : core_.estimates()) {
-    publish_result(e);
-    log_result(core_.version(), e);
+void CentralNode::publish_due_results(Clock::time_point now) {
+  for (uint32_t robot = 0; robot < o_.core.robot_count; ++robot) {
+    if (!pacer_.due(robot, now)) continue;
+    const std::optional<RobotEstimate> e = core_.estimate(robot);
+    pacer_.sent(robot, e ? e->poses.size() : 0, now);
+    if (!e) continue;
+    publish_result(*e);
+    log_result(core_.version(), *e);
   }
 }
 
@@ -272,6 +278,7 @@ nlohmann::json CentralNode::stats(double final_cost) const {
             {"updates", schedule_.updates()},
             {"unsettled_updates", schedule_.unsettled_updates()},
             {"results_held", schedule_.results_held()},
+            {"results_merged", pacer_.merged()},
             {"final_cost", final_cost}});
   nlohmann::json sessions = nlohmann::json::array();
   for (const Acknowledgement& a : core_.acknowledgements()) {

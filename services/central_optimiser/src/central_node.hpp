@@ -44,7 +44,7 @@ class CentralNode {
   void on_loop(const cdc_msg_LoopClosure& m);
   void on_world(const cdc_msg_WorldTransform& m);
   void optimise(UpdateSchedule::Clock::time_point now);
-  void publish_results();
+  void publish_due_results(UpdateSchedule::Clock::time_point now);
   void publish_result(const RobotEstimate& e);
   void publish_acknowledgements();
   void publish_status();
@@ -67,6 +67,7 @@ class CentralNode {
 
   CentralCore core_;
   UpdateSchedule schedule_;
+  ResultPacer pacer_;
   UpdateSchedule::Clock::time_point last_status_;
   bool acks_dirty_ = false;
   std::vector<cdc_msg_KeyframePose> pose_storage_;

@@ -24,4 +24,27 @@ bool UpdateSchedule::updated(bool settled, Clock::time_point now) {
   return true;
 }
 
+ResultPacer::ResultPacer(size_t robots, double poses_per_second) : turns_(robots), rate_(poses_per_second) {}
+
+void ResultPacer::updated() {
+  for (Turn& t : turns_) {
+    if (t.pending) ++merged_;
+    t.pending = true;
+  }
+}
+
+bool ResultPacer::due(uint32_t robot, Clock::time_point now) const {
+  return robot < turns_.size() && turns_[robot].pending && now >= turns_[robot].next;
+}
+
+void ResultPacer::sent(uint32_t robot, size_t poses, Clock::time_point now) {
+  if (robot >= turns_.size()) return;
+  Turn& t = turns_[robot];
+  t.pending = false;
+  if (rate_ > 0.0) {
+    t.next = now + std::chrono::duration_cast<Clock::duration>(
+                       std::chrono::duration<double>(static_cast<double>(poses) / rate_));
+  }
+}
+
 }  // namespace cdc::central

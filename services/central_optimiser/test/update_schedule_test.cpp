@@ -38,5 +38,34 @@ TEST(UpdateSchedule, TheFirstUnsettledResultsGoOut) {
   EXPECT_TRUE(s.updated(false, UpdateSchedule::Clock::now())) << "nothing was published yet";
 }
 
+TEST(ResultPacer, KeepsEachRobotsPosesWithinTheRate) {
+  ResultPacer p(2, 1000.0);  // poses per second per robot
+  const auto t0 = ResultPacer::Clock::now();
+  EXPECT_FALSE(p.due(0, t0)) << "nothing to send yet";
+  p.updated();
+  EXPECT_TRUE(p.due(0, t0));
+  EXPECT_TRUE(p.due(1, t0));
+  p.sent(0, 500, t0);  // robot 0's next result waits 0.5 s
+  p.sent(1, 100, t0);  // robot 1's 0.1 s
+  EXPECT_FALSE(p.due(0, t0 + milliseconds(600))) << "sent, nothing new";
+  p.updated();
+  p.updated();
+  EXPECT_FALSE(p.due(0, t0 + milliseconds(499)));
+  EXPECT_TRUE(p.due(0, t0 + milliseconds(500)));
+  EXPECT_TRUE(p.due(1, t0 + milliseconds(100)));
+  EXPECT_EQ(p.merged(), 2u) << "the second update's results replace the first's, per robot";
+  EXPECT_FALSE(p.due(2, t0)) << "no such robot";
+}
+
+TEST(ResultPacer, ARateOfZeroSendsEveryUpdate) {
+  ResultPacer p(1, 0.0);
+  const auto t0 = ResultPacer::Clock::now();
+  p.updated();
+  p.sent(0, 1'000'000, t0);
+  p.updated();
+  EXPECT_TRUE(p.due(0, t0));
+  EXPECT_EQ(p.merged(), 0u);
+}
+
 }  // namespace
 }  // namespace cdc::central

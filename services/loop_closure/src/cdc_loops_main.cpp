@@ -203,8 +203,10 @@ struct PcmCommand {
 int run_pcm(const PcmCommand& c) {
   std::vector<std::string> warnings;
   graph::G2oReadOptions ro;
+  graph::G2oReadReport report;
   ro.skip_malformed = !c.strict;
   ro.warnings = &warnings;
+  ro.report = &report;
   const graph::PoseGraph g =
       std::filesystem::is_directory(c.input) ? graph::read_g2o_folder(c.input, ro) : graph::read_g2o(c.input, ro);
   for (const auto& w : warnings) {
@@ -223,7 +225,11 @@ int run_pcm(const PcmCommand& c) {
   if (c.json) {
     nlohmann::json j{{"accepted", ids(d.accepted)},
                      {"rejected", ids(d.rejected)},
-                     {"skipped_lines", warnings.size()},
+                     // Lines whose record is not in the graph: malformed ones and second listings of an edge.
+                     {"skipped_lines", report.skipped_lines + report.duplicate_edges},
+                     {"malformed_lines", report.skipped_lines},
+                     {"duplicate_edges", report.duplicate_edges},
+                     {"parallel_edges", report.parallel_edges},
                      {"chi2_threshold", c.threshold}};
     std::cout << j.dump() << '\n';
   } else {

@@ -1,6 +1,7 @@
 #include "loop_config.hpp"
 
 #include "cdc/config/reader.hpp"
+#include "cdc/config/scan_context.hpp"
 
 #include <chrono>
 #include <string>
@@ -17,12 +18,6 @@ void get_ms(Reader& r, const std::string& key, Nanos& out, int lo, int hi) {
   int v = static_cast<int>(std::chrono::duration_cast<std::chrono::milliseconds>(out).count());
   r.get_in(key, v, lo, hi);
   out = std::chrono::milliseconds(v);
-}
-
-void read_scan_context(Reader& r, lidar::ScanContextParams& p) {
-  r.get_in("scan_context.rings", p.rings, 1, 255);
-  r.get_in("scan_context.sectors", p.sectors, 4, 255);
-  r.get_in("scan_context.max_range_m", p.max_range_m, 1.0, 1000.0);
 }
 
 void read_retrieval(Reader& r, LoopParams& p) {
@@ -82,7 +77,7 @@ LoopNodeOptions load_loop_options(const std::string& path) {
   LoopNodeOptions o;
   Reader r(path);
   r.get_count("robots", o.robots, 1, 254);
-  read_scan_context(r, o.core.scan_context);
+  config::read_scan_context(r, o.core.scan_context);
   read_retrieval(r, o.core);
   read_verification(r, o.core);
   read_pcm(r, o.core);

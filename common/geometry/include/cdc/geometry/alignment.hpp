@@ -27,4 +27,24 @@ Eigen::Isometry3d apply(const Alignment& a, const Eigen::Isometry3d& pose);
 // Empty input or arm_m <= 0 gives ok = false.
 Alignment align_poses(const std::vector<std::pair<Eigen::Isometry3d, Eigen::Isometry3d>>& a_b, double arm_m = 1.0);
 
+// align_poses over a stream of pairs: add() keeps only the sums the fit needs (means and the
+// cross-covariance), so fitting n pairs takes O(n) time and O(1) memory, without a copy of the points.
+class PoseAligner {
+ public:
+  explicit PoseAligner(double arm_m = 1.0) : arm_m_(arm_m) {}
+  void add(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b);
+  size_t pairs() const noexcept { return pairs_; }
+  // The rigid fit of b_i ~= T * a_i; ok = false with no pairs or arm_m <= 0.
+  Alignment solve() const;
+
+ private:
+  void add_point(const Eigen::Vector3d& src, const Eigen::Vector3d& dst);
+  double arm_m_;
+  size_t pairs_ = 0;
+  double points_ = 0.0;
+  Eigen::Vector3d sum_src_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d sum_dst_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d sum_dst_src_ = Eigen::Matrix3d::Zero();  // sum of dst * src^T
+};
+
 }  // namespace cdc::geometry

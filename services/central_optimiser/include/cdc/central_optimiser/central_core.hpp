@@ -136,6 +136,8 @@ class CentralCore {
 
   // Robots placed in the world, with their current incarnation's keyframes.
   std::vector<RobotEstimate> estimates() const;
+  // One robot's estimate; nullopt while it is not in the world.
+  std::optional<RobotEstimate> estimate(uint32_t robot) const;
   std::vector<Acknowledgement> acknowledgements() const;
   // The anchored graph (for writing g2o and comparing optima).
   const graph::PoseGraph& graph() const noexcept { return graph_; }
@@ -214,6 +216,7 @@ class CentralCore {
   void withdraw(StoredLoop& l);
   void hold_loop_seq(uint32_t sender, uint32_t incarnation, uint32_t seq);
   std::set<Key> active_keys() const;
+  std::vector<size_t> local_factors(const std::set<Key>& active) const;
   bool full_pass_due() const;
   graph::SolverOptions update_options() const;
 

@@ -3,7 +3,9 @@
 #pragma once
 
 #include <chrono>
+#include <cstddef>
 #include <cstdint>
+#include <vector>
 
 namespace cdc::central {
 
@@ -32,6 +34,36 @@ class UpdateSchedule {
   std::chrono::milliseconds period_, max_age_;
   Clock::time_point last_update_, last_results_;
   uint64_t updates_ = 0, unsettled_ = 0, held_ = 0;
+};
+
+// Paces each robot's results so that the poses the central converts, serialises and sends per robot
+// stay within a rate: a result of n poses makes that robot's next one wait n / rate seconds. Results
+// of updates that come sooner stay pending and go out, as the newest estimate, when the robot's turn
+// comes, so a long mission's growing trajectories cost a bounded amount of work per second.
+class ResultPacer {
+ public:
+  using Clock = UpdateSchedule::Clock;
+
+  // poses_per_second <= 0: no pacing (every update's results go out at once).
+  ResultPacer(size_t robots, double poses_per_second);
+
+  // Every robot has new results.
+  void updated();
+  // The robot's new results are pending and its turn has come.
+  bool due(uint32_t robot, Clock::time_point now) const;
+  // Its results went out with this many poses (0: it had nothing to send).
+  void sent(uint32_t robot, size_t poses, Clock::time_point now);
+  // Updates whose results were folded into a later one for a robot, over all robots.
+  uint64_t merged() const noexcept { return merged_; }
+
+ private:
+  struct Turn {
+    bool pending = false;
+    Clock::time_point next;
+  };
+  std::vector<Turn> turns_;
+  double rate_;
+  uint64_t merged_ = 0;
 };
 
 }  // namespace cdc::central
