@@ -111,6 +111,27 @@ std::optional<Blocks> solve_linear(const std::vector<LinearTerm>& terms, const s
   return out;
 }
 
+// One round of a linear stage: the robot's linked keys are the unknowns, but for the gauge, held at
+// gauge_value(key); the separators received are known. nullopt while the robot is not placed.
+template <class Received, class GaugeValue>
+std::optional<Blocks> linear_round(const std::vector<LinearTerm>& terms, const Received& received,
+                                   const std::set<Key>& needed, const std::set<Key>& linked,
+                                   const std::optional<Key>& gauge, int columns, const GaugeValue& gauge_value) {
+  Blocks known;
+  for (Key k : needed) {
+    if (auto it = received.find(k); it != received.end()) known[k] = it->second.transpose();
+  }
+  std::vector<Key> unknown;
+  for (Key k : linked) {
+    if (gauge && k == *gauge) {
+      known[k] = gauge_value(k);
+    } else {
+      unknown.push_back(k);
+    }
+  }
+  return solve_linear(terms, unknown, known, columns);
+}
+
 // Robot r's own subgraph (intra-robot factors) initialised by chordal relaxation in a frame
 // anchored at its first pose's current value (identity when it has none).
 std::map<Key, Eigen::Isometry3d> local_chordal(const PoseGraph& graph, uint32_t r) {
@@ -184,21 +205,8 @@ DistributedRobot::DistributedRobot(const PoseGraph& graph, uint32_t robot, std::
 }
 
 double DistributedRobot::rotation_round(const SeparatorRotations& received, double omega) {
-  Blocks known;
-  for (Key k : needed_) {
-    if (auto it = received.find(k); it != received.end()) {
-      known[k] = it->second.transpose();
-    }
-  }
-  std::vector<Key> unknown;
-  for (Key k : linked_) {
-    if (gauge_ && k == *gauge_) {
-      known[k] = relaxed_.at(k).transpose();
-    } else {
-      unknown.push_back(k);
-    }
-  }
-  const std::optional<Blocks> x = solve_linear(rotation_terms_, unknown, known, 3);
+  const std::optional<Blocks> x = linear_round(rotation_terms_, received, needed_, linked_, gauge_, 3,
+                                               [this](Key k) { return Eigen::MatrixXd(relaxed_.at(k).transpose()); });
   if (!x) {
     return kNotPlaced;
   }
@@ -249,21 +257,9 @@ void DistributedRobot::end_rotations(const SeparatorRotations& received) {
 }
 
 double DistributedRobot::translation_round(const SeparatorTranslations& received, double omega) {
-  Blocks known;
-  for (Key k : needed_) {
-    if (auto it = received.find(k); it != received.end()) {
-      known[k] = it->second.transpose();
-    }
-  }
-  std::vector<Key> unknown;
-  for (Key k : linked_) {
-    if (gauge_ && k == *gauge_) {
-      known[k] = poses_.at(k).translation().transpose();
-    } else {
-      unknown.push_back(k);
-    }
-  }
-  const std::optional<Blocks> x = solve_linear(translation_terms_, unknown, known, 1);
+  const std::optional<Blocks> x =
+      linear_round(translation_terms_, received, needed_, linked_, gauge_, 1,
+                   [this](Key k) { return Eigen::MatrixXd(poses_.at(k).translation().transpose()); });
   if (!x) {
     return kNotPlaced;
   }
