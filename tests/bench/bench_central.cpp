@@ -8,6 +8,7 @@
 // half. Last output line: one JSON object.
 #include "cdc/central_optimiser/central_core.hpp"
 #include "cdc/runtime/memory.hpp"
+#include "least_squares.hpp"
 #include "stream_to_central.hpp"
 
 #include <CLI/CLI.hpp>
@@ -46,20 +47,6 @@ std::pair<double, double> memory_mb() {
           static_cast<double>(m.uordblks + m.hblkhd) / (1024.0 * 1024.0)};
 }
 
-// Least-squares slope of y over x.
-double slope(const std::vector<double>& x, const std::vector<double>& y) {
-  const double n = static_cast<double>(x.size());
-  double sx = 0, sy = 0, sxx = 0, sxy = 0;
-  for (size_t i = 0; i < x.size(); ++i) {
-    sx += x[i];
-    sy += y[i];
-    sxx += x[i] * x[i];
-    sxy += x[i] * y[i];
-  }
-  const double d = n * sxx - sx * sx;
-  return d == 0.0 ? 0.0 : (n * sxy - sx * sy) / d;
-}
-
 int run_memory(uint32_t per_robot) {
   cdc::runtime::return_large_blocks();
   cdc::test::SwarmStreamOptions o;
@@ -88,8 +75,8 @@ int run_memory(uint32_t per_robot) {
   }
   const size_t half = kf.size() / 2;
   const std::vector<double> x(kf.begin() + static_cast<long>(half), kf.end());
-  const double rss_kb = slope(x, {rss.begin() + static_cast<long>(half), rss.end()}) * 1024.0;
-  const double heap_kb = slope(x, {heap.begin() + static_cast<long>(half), heap.end()}) * 1024.0;
+  const double rss_kb = cdc::test::slope(x, {rss.begin() + static_cast<long>(half), rss.end()}) * 1024.0;
+  const double heap_kb = cdc::test::slope(x, {heap.begin() + static_cast<long>(half), heap.end()}) * 1024.0;
   std::printf("second half: resident %.2f KB and heap %.2f KB per keyframe\n", rss_kb, heap_kb);
   nlohmann::json j{{"keyframes", core.graph().poses.size()},
                    {"factors", core.graph().factors.size()},

@@ -13,6 +13,7 @@
 #include "cdc/dds/shutdown.hpp"
 #include "cdc/dds/topics.hpp"
 #include "child_process.hpp"
+#include "least_squares.hpp"
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -87,18 +88,6 @@ bool read_usage(pid_t pid, Usage& u) {
   }
   u.cpu_s = (utime + stime) / static_cast<double>(::sysconf(_SC_CLK_TCK));
   return true;
-}
-
-// Least-squares slope of y over x.
-double slope(const std::vector<double>& x, const std::vector<double>& y) {
-  const double n = static_cast<double>(x.size());
-  if (x.size() < 2) return 0;
-  double sx = 0, sy = 0, sxx = 0, sxy = 0;
-  for (size_t i = 0; i < x.size(); ++i) {
-    sx += x[i], sy += y[i], sxx += x[i] * x[i], sxy += x[i] * y[i];
-  }
-  const double d = n * sxx - sx * sx;
-  return d == 0 ? 0 : (n * sxy - sx * sy) / d;
 }
 
 // The sample nearest to time t.
@@ -240,7 +229,7 @@ nlohmann::json service_figures(const std::vector<Sample>& samples, size_t i, dou
     t.push_back(s->t_s);
     rss.push_back(s->usage[i].rss_mb);
   }
-  const double mb_per_30min = slope(t, rss) * 1800.0;
+  const double mb_per_30min = cdc::test::slope(t, rss) * 1800.0;
   return {{"rss_mb_mid", at(samples, end_s / 2).usage[i].rss_mb},
           {"rss_mb_end", samples.back().usage[i].rss_mb},
           {"rss_slope_mb_per_30min", mb_per_30min},
@@ -256,7 +245,7 @@ double feeder_kb_per_keyframe(const std::vector<Sample>& samples, size_t feeder)
     kf.push_back(static_cast<double>(s.central_keyframes));
     rss.push_back(s.usage[feeder].rss_mb * 1024.0);
   }
-  return slope(kf, rss);
+  return cdc::test::slope(kf, rss);
 }
 
 nlohmann::json report(const Options& o, const std::vector<Service>& services, const std::vector<Sample>& samples) {

@@ -1,4 +1,5 @@
 // Graduated non-convexity on a small synthetic graph with wrong loop closures.
+#include "cdc/geometry/se3.hpp"
 #include "cdc/graph/initialise.hpp"
 #include "cdc/graph/solver.hpp"
 
@@ -13,8 +14,7 @@ namespace {
 
 Eigen::Isometry3d pose(const Eigen::Vector3d& t, const Eigen::Vector3d& rotation_vector) {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  const double angle = rotation_vector.norm();
-  if (angle > 0) T.linear() = Eigen::AngleAxisd(angle, rotation_vector / angle).toRotationMatrix();
+  T.linear() = geometry::so3_exp(rotation_vector);
   T.translation() = t;
   return T;
 }
