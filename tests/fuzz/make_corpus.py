@@ -170,7 +170,8 @@ def spread3(v):
 def compact(c):
     # Clouds: uint16 count, uint8 resolution [mm] - 1, then the packed planes of sorted Morton deltas.
     for name, res_mm, pts in [("cloud_line", 10, [(i, -2 * i, 3) for i in range(20)]),
-                              ("cloud_box", 50, [(x, y, z) for x in (-3, 0, 5) for y in (-1, 2) for z in (0, 7)])]:
+                              ("cloud_box", 50, [(x, y, z) for x in (-3, 0, 5) for y in (-1, 2) for z in (0, 7)]),
+                              ("cloud_int16_ends", 64, [(-32768,) * 3, (32767,) * 3])]:
         codes = sorted(spread3(x & 0xFFFF ^ 0x8000) | spread3(y & 0xFFFF ^ 0x8000) << 1 |
                        spread3(z & 0xFFFF ^ 0x8000) << 2 for x, y, z in pts)
         deltas = [b - a for a, b in zip([0] + codes, codes)]

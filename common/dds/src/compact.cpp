@@ -106,7 +106,8 @@ PackedCloud pack_points(const std::vector<Eigen::Vector3f>& points, float resolu
     bool ok = true;
     for (int a = 0; a < 3; ++a) {
       const float s = std::round(p[a] * inv);
-      if (!(std::abs(s) <= static_cast<float>(std::numeric_limits<int16_t>::max()))) {
+      if (!(s >= static_cast<float>(std::numeric_limits<int16_t>::min()) &&
+            s <= static_cast<float>(std::numeric_limits<int16_t>::max()))) {
         ok = false;
         break;
       }

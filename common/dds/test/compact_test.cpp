@@ -106,6 +106,22 @@ TEST(Compact, PointsOutsideTheInt16RangeAreDroppedAndCounted) {
   EXPECT_NEAR(back[1].z(), 1.0f, 0.006f);
 }
 
+// The grid's whole int16 range packs, its lowest step (-32768) included, so that every cloud
+// unpack_points returns packs again unchanged.
+TEST(Compact, BothEndsOfTheInt16RangePack) {
+  const float res = 0.064f;
+  const std::vector<Eigen::Vector3f> pts = {{-32768 * res, -32768 * res, -32768 * res},
+                                            {32767 * res, 32767 * res, 32767 * res}};
+  const PackedCloud pc = pack_points(pts, res);
+  EXPECT_EQ(pc.dropped, 0u);
+  ASSERT_EQ(pc.count, 2u);
+  std::vector<Eigen::Vector3f> back;
+  ASSERT_EQ(unpack_points(pc.bytes.data(), pc.bytes.size(), pc.count, res, back), "");
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_FLOAT_EQ(back[0].x(), -32768 * res);
+  EXPECT_FLOAT_EQ(back[1].z(), 32767 * res);
+}
+
 TEST(Compact, RandomAndMutatedInputNeverCrashes) {
   // Network input: random bytes, and valid packed data with bytes flipped, truncated or extended,
   // must come back as a reason or as exactly the size asked for (run under the asan preset too).
