@@ -15,9 +15,8 @@
 #include "cdc/graph/objective.hpp"
 #include "cdc/graph/solver.hpp"
 #include "child_process.hpp"
-#include "dds_helpers.hpp"
+#include "process_test.hpp"
 #include "swarm_stream.hpp"
-#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -36,7 +35,6 @@ namespace cdc {
 namespace {
 
 using namespace std::chrono_literals;
-namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 struct ModeSample {
@@ -51,14 +49,11 @@ struct CorrectionSample {
   Eigen::Isometry3d T_world_robot;
 };
 
-class BackendSwarm : public ::testing::Test {
+class BackendSwarm : public test::ProcessTest {
  protected:
-  void SetUp() override {
-    for (const char* v : {"CDC_CENTRAL_BIN", "CDC_PEER_BIN", "CDC_FEEDER_BIN"}) {
-      ASSERT_NE(std::getenv(v), nullptr) << v << " must name the binary";
-    }
-    dir_ = test::fresh_test_dir("backend");
-    participant_ = std::make_unique<dds::Participant>(test::test_domain());
+  BackendSwarm() : ProcessTest("backend", {"CDC_CENTRAL_BIN", "CDC_PEER_BIN", "CDC_FEEDER_BIN"}) {}
+
+  void set_up() override {
     t_mode_ = std::make_unique<dds::Topic<cdc_msg_ModeState>>(*participant_, dds::topics::kMode);
     t_corr_ = std::make_unique<dds::Topic<cdc_msg_OptimizedPoses>>(*participant_, dds::topics::kCorrection);
     t_kf_ = std::make_unique<dds::Topic<cdc_msg_Keyframe>>(*participant_, dds::topics::kKeyframe);
@@ -71,28 +66,16 @@ class BackendSwarm : public ::testing::Test {
         *participant_, *t_corr_, dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader()));
   }
 
-  void TearDown() override {
+  void stop_processes() override {
     for (auto* p : {&central_, &feeder_}) {
       stop(*p);
     }
     for (auto& p : peers_) {
       stop(p);
     }
-    if (!HasFailure()) {
-      fs::remove_all(dir_);
-    } else {
-      std::printf("logs kept in %s\n", dir_.c_str());
-    }
   }
 
   static void stop(test::ChildProcess& p) { p.stop(5s); }
-
-  std::string write(const std::string& name, const std::string& text) {
-    const std::string p = (dir_ / name).string();
-    std::ofstream(p) << text;
-    return p;
-  }
-  std::string path(const std::string& name) const { return (dir_ / name).string(); }
 
   void start_central(const std::string& config, const std::string& tag) {
     central_ =
@@ -162,8 +145,6 @@ class BackendSwarm : public ::testing::Test {
     return nlohmann::json::parse(in);
   }
 
-  fs::path dir_;
-  std::unique_ptr<dds::Participant> participant_;
   std::unique_ptr<dds::Topic<cdc_msg_ModeState>> t_mode_;
   std::unique_ptr<dds::Topic<cdc_msg_OptimizedPoses>> t_corr_;
   std::unique_ptr<dds::Topic<cdc_msg_Keyframe>> t_kf_;

@@ -13,6 +13,7 @@
 #include "cdc/dds/topics.hpp"
 #include "child_process.hpp"
 #include "dds_helpers.hpp"
+#include "process_test.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -22,8 +23,6 @@
 #include <csignal>
 #include <cstdlib>
 #include <deque>
-#include <filesystem>
-#include <fstream>
 #include <map>
 #include <sstream>
 #include <thread>
@@ -32,32 +31,17 @@ namespace cdc {
 namespace {
 
 using namespace std::chrono_literals;
-namespace fs = std::filesystem;
 using Clock = std::chrono::steady_clock;
 
 constexpr uint32_t kRobots = 3, kKeyframes = 300, kFlood = 60'000;
 constexpr uint32_t kFeederIncarnation = 4242;  // cdc-test-swarm-feeder's default
 
-class CentralUnderAttack : public ::testing::Test {
+class CentralUnderAttack : public test::ProcessTest {
  protected:
-  void SetUp() override {
-    for (const char* v : {"CDC_CENTRAL_BIN", "CDC_PEER_BIN", "CDC_FEEDER_BIN"}) {
-      ASSERT_NE(std::getenv(v), nullptr) << v << " must name the binary";
-    }
-    dir_ = fs::temp_directory_path() /
-           ("cdc_central_flood_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
-            std::to_string(::getpid()));
-    fs::create_directories(dir_);
-    participant_ = std::make_unique<dds::Participant>(test::test_domain());
-  }
+  CentralUnderAttack() : ProcessTest("central_flood", {"CDC_CENTRAL_BIN", "CDC_PEER_BIN", "CDC_FEEDER_BIN"}) {}
 
-  void TearDown() override {
+  void stop_processes() override {
     for (auto it = children_.rbegin(); it != children_.rend(); ++it) end(*it);
-    if (!HasFailure()) {
-      fs::remove_all(dir_);
-    } else {
-      std::printf("logs kept in %s\n", dir_.c_str());
-    }
   }
 
   // SIGTERM, then SIGKILL if it does not stop; true when it exited with status 0.
@@ -67,11 +51,6 @@ class CentralUnderAttack : public ::testing::Test {
     return st && WIFEXITED(*st) && WEXITSTATUS(*st) == 0;
   }
 
-  std::string path(const std::string& name) const { return (dir_ / name).string(); }
-  std::string write(const std::string& name, const std::string& text) {
-    std::ofstream(path(name)) << text;
-    return path(name);
-  }
   test::ChildProcess& spawn(const char* binary_env, std::vector<std::string> args, const std::string& log) {
     args.insert(args.begin(), std::getenv(binary_env));
     children_.push_back(test::ChildProcess::spawn(args, path(log)));
@@ -80,15 +59,8 @@ class CentralUnderAttack : public ::testing::Test {
   test::ChildProcess& start_central(const std::string& config) {
     return spawn("CDC_CENTRAL_BIN", {"--config", config, "--stats-out", path("central.json")}, "central.log");
   }
-  std::string read(const std::string& name) const {
-    std::ifstream in(path(name));
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-  }
+  std::string read(const std::string& name) const { return test::read_file(path(name)); }
 
-  fs::path dir_;
-  std::unique_ptr<dds::Participant> participant_;
   std::deque<test::ChildProcess> children_;  // started in this order, ended in reverse
 };
 

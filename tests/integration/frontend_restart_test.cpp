@@ -9,7 +9,7 @@
 #include "cdc/geometry/trajectory.hpp"
 #include "cdc/graph/g2o.hpp"
 #include "child_process.hpp"
-#include "dds_helpers.hpp"
+#include "process_test.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -20,7 +20,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <set>
 #include <thread>
 
@@ -34,46 +33,30 @@ constexpr uint32_t kKeyframes = 120;
 
 void stop(test::ChildProcess& p) { p.stop(10s); }
 
-std::string text_of(const fs::path& p) {
-  std::ifstream in(p);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
 nlohmann::json json_of(const fs::path& p) {
   std::ifstream in(p);
   return nlohmann::json::parse(in);
 }
 
-class FrontendRestart : public ::testing::Test {
+class FrontendRestart : public test::ProcessTest {
  protected:
-  void SetUp() override {
-    for (const char* v : {"CDC_CENTRAL_BIN", "CDC_PEER_BIN", "CDC_FEEDER_BIN"}) {
-      ASSERT_NE(std::getenv(v), nullptr) << v << " must name the binary";
-    }
-    dir_ = fs::temp_directory_path() / ("cdc_frontend_restart_" + std::to_string(::getpid()));
-    fs::create_directories(dir_);
-    participant_ = std::make_unique<dds::Participant>(test::test_domain());
+  FrontendRestart() : ProcessTest("frontend_restart", {"CDC_CENTRAL_BIN", "CDC_PEER_BIN", "CDC_FEEDER_BIN"}) {}
+
+  void set_up() override {
     t_sequence_ = std::make_unique<dds::Topic<cdc_msg_KeyframeSequence>>(*participant_, dds::topics::kKeyframeSequence);
     r_sequence_ = std::make_unique<dds::Reader<cdc_msg_KeyframeSequence>>(
         *participant_, *t_sequence_, dds::qos::keyed_state().partitions(dds::partitions::all_robots_reader()));
   }
 
-  void TearDown() override {
+  void stop_processes() override {
     for (auto* p : {&feeder_, &peer_, &central_}) stop(*p);
-    if (!HasFailure()) {
-      fs::remove_all(dir_);
-    } else {
-      std::printf("logs kept in %s\n", dir_.c_str());
-    }
   }
-
-  fs::path path(const std::string& name) const { return dir_ / name; }
 
   void start_feeder(const std::string& tag, std::vector<std::string> extra) {
     std::vector<std::string> args{std::getenv("CDC_FEEDER_BIN"), "--robots",       "1", "--keyframes",
                                   std::to_string(kKeyframes),    "--wait-readers", "2"};
     args.insert(args.end(), extra.begin(), extra.end());
-    feeder_ = test::ChildProcess::spawn(args, path("feeder_" + tag + ".log").string());
+    feeder_ = test::ChildProcess::spawn(args, path("feeder_" + tag + ".log"));
   }
 
   // The newest keyframe the peer optimiser holds, as it last said (-1: none yet).
@@ -92,8 +75,6 @@ class FrontendRestart : public ::testing::Test {
     return false;
   }
 
-  fs::path dir_;
-  std::unique_ptr<dds::Participant> participant_;
   std::unique_ptr<dds::Topic<cdc_msg_KeyframeSequence>> t_sequence_;
   std::unique_ptr<dds::Reader<cdc_msg_KeyframeSequence>> r_sequence_;
   test::ChildProcess central_, peer_, feeder_;
@@ -103,14 +84,12 @@ class FrontendRestart : public ::testing::Test {
 TEST_F(FrontendRestart, EveryKeyframeOfBothFrontEndsReachesPeerAndCentralOnce) {
   std::ofstream(path("central.yaml")) << "robots: 1\nlease_ms: 1000\n";
   std::ofstream(path("peer.yaml")) << "robots: 1\nrange_m: 1.0e6\ndwell_ms: 500\nmask_ms: 500\n";
-  central_ = test::ChildProcess::spawn(
-      {std::getenv("CDC_CENTRAL_BIN"), "--config", path("central.yaml").string(), "--stats-out",
-       path("central.json").string(), "--graph-out", path("central.g2o").string()},
-      path("central.log").string());
-  peer_ = test::ChildProcess::spawn(
-      {std::getenv("CDC_PEER_BIN"), "--robot", "0", "--config", path("peer.yaml").string(), "--stats-out",
-       path("peer.json").string(), "--trajectory-out", path("peer.tum").string()},
-      path("peer.log").string());
+  central_ = test::ChildProcess::spawn({std::getenv("CDC_CENTRAL_BIN"), "--config", path("central.yaml"), "--stats-out",
+                                        path("central.json"), "--graph-out", path("central.g2o")},
+                                       path("central.log"));
+  peer_ = test::ChildProcess::spawn({std::getenv("CDC_PEER_BIN"), "--robot", "0", "--config", path("peer.yaml"),
+                                     "--stats-out", path("peer.json"), "--trajectory-out", path("peer.tum")},
+                                    path("peer.log"));
   start_feeder("first", {"--rate-hz", "25", "--incarnation", "4242"});
   ASSERT_TRUE(wait_newest_at_least(50, 30s)) << "the first front-end's keyframes never reached the peer";
   feeder_.signal(SIGKILL);  // in mid-drive
@@ -122,7 +101,7 @@ TEST_F(FrontendRestart, EveryKeyframeOfBothFrontEndsReachesPeerAndCentralOnce) {
   start_feeder("restarted", {"--rate-hz", "40", "--incarnation", "4243", "--continue-wait-ms", "5000"});
   const auto fs_ = feeder_.wait(30s);
   ASSERT_TRUE(fs_ && WIFEXITED(*fs_) && WEXITSTATUS(*fs_) == 0) << "see " << path("feeder_restarted.log");
-  EXPECT_NE(text_of(path("feeder_restarted.log"))
+  EXPECT_NE(test::read_file(path("feeder_restarted.log"))
                 .find("robot 0 continues its back-end's sequence, from keyframe " + std::to_string(before_restart + 1) +
                       " of incarnation 4242"),
             std::string::npos)
@@ -144,7 +123,7 @@ TEST_F(FrontendRestart, EveryKeyframeOfBothFrontEndsReachesPeerAndCentralOnce) {
   EXPECT_EQ(central["sessions"][0]["highest_contiguous_keyframe"].get<int64_t>(), int64_t{kKeyframes} - 1);
 
   // One chain in the central's graph: keyframes 0..119 of robot 0's one session, 119 odometry factors.
-  const graph::PoseGraph g = graph::read_g2o(path("central.g2o").string());
+  const graph::PoseGraph g = graph::read_g2o(path("central.g2o"));
   std::set<uint64_t> ids;
   for (const auto& [key, T] : g.poses) {
     EXPECT_EQ(graph::robot_of(key), 0u);
@@ -154,7 +133,7 @@ TEST_F(FrontendRestart, EveryKeyframeOfBothFrontEndsReachesPeerAndCentralOnce) {
   EXPECT_EQ(*ids.rbegin(), kKeyframes - 1) << "keys of one session, ids 0.." << kKeyframes - 1;
   EXPECT_EQ(g.count(graph::FactorKind::kOdometry), kKeyframes - 1);
 
-  const geometry::Trajectory t = geometry::read_tum(path("peer.tum").string());
+  const geometry::Trajectory t = geometry::read_tum(path("peer.tum"));
   ASSERT_EQ(t.size(), kKeyframes);
   for (size_t i = 1; i < t.size(); ++i) EXPECT_GT(t[i].stamp_ns, t[i - 1].stamp_ns) << "line " << i + 1;
 }

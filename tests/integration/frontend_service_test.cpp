@@ -9,7 +9,7 @@
 #include "cdc/geometry/metrics.hpp"
 #include "cdc/geometry/trajectory.hpp"
 #include "child_process.hpp"
-#include "dds_helpers.hpp"
+#include "process_test.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -28,10 +28,13 @@ namespace {
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
 
-TEST(FrontendService, OdometryAndKeyframesFromAPlayedDrive) {
-  for (const char* v : {"CDC_FRONTEND_BIN", "CDC_SIM_BIN"}) ASSERT_NE(std::getenv(v), nullptr) << v;
-  const fs::path dir = fs::temp_directory_path() / ("cdc_frontend_service_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
+class FrontendService : public test::ProcessTest {
+ protected:
+  FrontendService() : ProcessTest("frontend_service", {"CDC_FRONTEND_BIN", "CDC_SIM_BIN"}) {}
+};
+
+TEST_F(FrontendService, OdometryAndKeyframesFromAPlayedDrive) {
+  const fs::path& dir = dir_;
   std::ofstream(dir / "drive.yaml")
       << "name: drive\nseed: 4\ntrajectories:\n  source: procedural\n  pattern: crossing\n"
          "  robots: 1\n  speed_mps: 6\n  size_m: 80\n  duration_s: 16\nlidar: vlp16\n";
@@ -42,7 +45,7 @@ TEST(FrontendService, OdometryAndKeyframesFromAPlayedDrive) {
   const auto gs = gen.wait(120s);
   ASSERT_TRUE(gs && WIFEXITED(*gs) && WEXITSTATUS(*gs) == 0) << "see " << dir / "generate.log";
 
-  dds::Participant participant(test::test_domain());
+  dds::Participant& participant = *participant_;
   dds::Topic<cdc_msg_LidarScan> t_scan(participant, dds::topics::kLidar);
   dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
   dds::Writer<cdc_msg_LidarScan> w_scan(participant, t_scan, dds::qos::sensor_stream(16, true));
@@ -122,10 +125,6 @@ TEST(FrontendService, OdometryAndKeyframesFromAPlayedDrive) {
   EXPECT_NE(text.find("non-finite value"), std::string::npos);
   EXPECT_NE(text.find("empty sweep"), std::string::npos);
   EXPECT_NE(text.find("out of order"), std::string::npos);
-  if (!HasFailure())
-    fs::remove_all(dir);
-  else
-    std::printf("logs kept in %s\n", dir.c_str());
 }
 
 }  // namespace

@@ -6,7 +6,7 @@
 #include "cdc/dds/pubsub.hpp"
 #include "cdc/dds/topics.hpp"
 #include "child_process.hpp"
-#include "dds_helpers.hpp"
+#include "process_test.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -25,12 +25,15 @@ namespace {
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
 
-TEST(MapService, BuildsAndWritesTheMapFromKeyframesAndCentralPoses) {
-  ASSERT_NE(std::getenv("CDC_MAP_BIN"), nullptr);
-  const fs::path dir = fs::temp_directory_path() / ("cdc_map_service_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
+class MapService : public test::ProcessTest {
+ protected:
+  MapService() : ProcessTest("map_service", {"CDC_MAP_BIN"}) {}
+};
+
+TEST_F(MapService, BuildsAndWritesTheMapFromKeyframesAndCentralPoses) {
+  const fs::path& dir = dir_;
   std::ofstream(dir / "map.yaml") << "robots: 2\n";
-  dds::Participant participant(test::test_domain());
+  dds::Participant& participant = *participant_;
   dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
   dds::Topic<cdc_msg_OptimizedPoses> t_opt(participant, dds::topics::kCentralOptimized);
   dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096));
@@ -110,7 +113,6 @@ TEST(MapService, BuildsAndWritesTheMapFromKeyframesAndCentralPoses) {
     if (line.rfind("POINTS ", 0) == 0) points = std::stoul(line.substr(7));
   }
   EXPECT_EQ(points, 10u * 1000u);
-  if (!HasFailure()) fs::remove_all(dir);
 }
 
 }  // namespace

@@ -6,9 +6,8 @@
 #include "cdc/dds/topics.hpp"
 #include "cdc/io/kitti.hpp"
 #include "child_process.hpp"
-#include "dds_helpers.hpp"
+#include "process_test.hpp"
 #include "scenario.hpp"
-#include "temp_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -27,12 +26,11 @@ namespace {
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
 
-class SimPlay : public ::testing::Test {
+class SimPlay : public test::ProcessTest {
  protected:
-  void SetUp() override {
-    ASSERT_NE(std::getenv("CDC_SIM_BIN"), nullptr);
-    dir_ = test::fresh_test_dir("sim_play");
-    participant_ = std::make_unique<dds::Participant>(test::test_domain());
+  SimPlay() : ProcessTest("sim_play", {"CDC_SIM_BIN"}) {}
+
+  void set_up() override {
     t_lidar_ = std::make_unique<dds::Topic<cdc_msg_LidarScan>>(*participant_, dds::topics::kLidar);
     t_gt_ = std::make_unique<dds::Topic<cdc_msg_GroundTruth>>(*participant_, dds::topics::kGroundTruth);
     t_progress_ = std::make_unique<dds::Topic<cdc_msg_ConsumerProgress>>(*participant_, dds::topics::kProgress);
@@ -47,8 +45,6 @@ class SimPlay : public ::testing::Test {
     w_progress_ =
         std::make_unique<dds::Writer<cdc_msg_ConsumerProgress>>(*participant_, *t_progress_, dds::qos::keyed_state());
   }
-  void TearDown() override { fs::remove_all(dir_); }
-
   // A two-robot procedural scenario's dataset in dir_/ds, max_scans sweeps per robot.
   sim::GenerateSummary generate_small(size_t max_scans) {
     const fs::path sc = dir_ / "small.yaml";
@@ -56,11 +52,9 @@ class SimPlay : public ::testing::Test {
                          "  duration_s: 10\n  size_m: 40\nradio:\n  central_robot: 0\n";
     sim::GenerateOptions g;
     g.max_scans = max_scans;
-    return sim::generate_dataset(sim::load_scenario(sc.string()), sc.string(), (dir_ / "ds").string(), g);
+    return sim::generate_dataset(sim::load_scenario(sc.string()), sc.string(), path("ds"), g);
   }
 
-  fs::path dir_;
-  std::unique_ptr<dds::Participant> participant_;
   std::unique_ptr<dds::Topic<cdc_msg_LidarScan>> t_lidar_;
   std::unique_ptr<dds::Topic<cdc_msg_GroundTruth>> t_gt_;
   std::unique_ptr<dds::Topic<cdc_msg_ConsumerProgress>> t_progress_;
@@ -75,8 +69,7 @@ TEST_F(SimPlay, LockStepDeliversEveryScanExactlyOnceInOrder) {
   ASSERT_EQ(generate_small(25).scans, 50u);
 
   test::ChildProcess player = test::ChildProcess::spawn(
-      {std::getenv("CDC_SIM_BIN"), "play", (dir_ / "ds").string(), "--lockstep", "--wait-readers", "1"},
-      (dir_ / "player.log").string());
+      {std::getenv("CDC_SIM_BIN"), "play", path("ds"), "--lockstep", "--wait-readers", "1"}, path("player.log"));
   std::map<uint32_t, std::vector<uint64_t>> seen;
   std::map<uint32_t, std::vector<uint32_t>> counts;
   const auto deadline = std::chrono::steady_clock::now() + 60s;
@@ -118,8 +111,8 @@ TEST_F(SimPlay, LockStepDeliversEveryScanExactlyOnceInOrder) {
 TEST_F(SimPlay, APlayerBesideARobotPlaysOnlyThatRobot) {
   generate_small(10);
   test::ChildProcess player = test::ChildProcess::spawn(
-      {std::getenv("CDC_SIM_BIN"), "play", (dir_ / "ds").string(), "--robot", "1", "--lockstep", "--wait-readers", "1"},
-      (dir_ / "player.log").string());
+      {std::getenv("CDC_SIM_BIN"), "play", path("ds"), "--robot", "1", "--lockstep", "--wait-readers", "1"},
+      path("player.log"));
   std::map<uint32_t, size_t> per_robot;
   const auto deadline = std::chrono::steady_clock::now() + 30s;
   while (per_robot[1] < 10 && std::chrono::steady_clock::now() < deadline) {
@@ -136,8 +129,8 @@ TEST_F(SimPlay, APlayerBesideARobotPlaysOnlyThatRobot) {
   EXPECT_EQ(per_robot[1], 10u);
   EXPECT_EQ(per_robot[0], 0u) << "robot 0's sweeps were played too";
   // A robot the dataset does not have is named.
-  test::ChildProcess bad = test::ChildProcess::spawn(
-      {std::getenv("CDC_SIM_BIN"), "play", (dir_ / "ds").string(), "--robot", "7"}, (dir_ / "bad.log").string());
+  test::ChildProcess bad =
+      test::ChildProcess::spawn({std::getenv("CDC_SIM_BIN"), "play", path("ds"), "--robot", "7"}, path("bad.log"));
   const auto bs = bad.wait(20s);
   ASSERT_TRUE(bs && WIFEXITED(*bs));
   EXPECT_NE(WEXITSTATUS(*bs), 0);
@@ -155,13 +148,12 @@ TEST_F(SimPlay, ImportedKittiSweepsPlayWithTheirGroundTruthAndNoInventedTimes) {
   test::ChildProcess import = test::ChildProcess::spawn(
       {std::getenv("CDC_IMPORT_BIN"), "kitti", (data / "kitti/scans/seq00").string(), "--allow-gaps", "--poses",
        (data / "kitti/poses/00.txt").string(), "--calib", (data / "kitti/calib_Tr.txt").string(), "--calib-key",
-       "Tr_00_02", "--out", (dir_ / "seq00").string()},
-      (dir_ / "import.log").string());
+       "Tr_00_02", "--out", path("seq00")},
+      path("import.log"));
   const auto is = import.wait(60s);
   ASSERT_TRUE(is && WIFEXITED(*is) && WEXITSTATUS(*is) == 0) << "cdc-import failed: see " << (dir_ / "import.log");
   test::ChildProcess player = test::ChildProcess::spawn(
-      {std::getenv("CDC_SIM_BIN"), "play", (dir_ / "seq00").string(), "--rate", "0", "--wait-readers", "1"},
-      (dir_ / "player.log").string());
+      {std::getenv("CDC_SIM_BIN"), "play", path("seq00"), "--rate", "0", "--wait-readers", "1"}, path("player.log"));
   std::vector<cdc_msg_LidarScan> scans;
   std::map<int64_t, Eigen::Isometry3d> truth;
   const auto deadline = std::chrono::steady_clock::now() + 30s;
@@ -199,14 +191,14 @@ TEST_F(SimPlay, ImportedKittiSweepsPlayWithTheirGroundTruthAndNoInventedTimes) {
 }
 
 TEST_F(SimPlay, AMissingFolderIsNamed) {
-  test::ChildProcess player = test::ChildProcess::spawn(
-      {std::getenv("CDC_SIM_BIN"), "play", (dir_ / "nothing").string()}, (dir_ / "player.log").string());
+  test::ChildProcess player =
+      test::ChildProcess::spawn({std::getenv("CDC_SIM_BIN"), "play", path("nothing")}, path("player.log"));
   const auto st = player.wait(10s);
   ASSERT_TRUE(st && WIFEXITED(*st));
   EXPECT_EQ(WEXITSTATUS(*st), 1);
   std::ifstream log(dir_ / "player.log");
   const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
-  EXPECT_NE(text.find((dir_ / "nothing").string()), std::string::npos) << text;
+  EXPECT_NE(text.find(path("nothing")), std::string::npos) << text;
 }
 
 }  // namespace

@@ -10,7 +10,7 @@
 #include "cdc/io/pcap.hpp"
 #include "cdc/io/velodyne.hpp"
 #include "child_process.hpp"
-#include "dds_helpers.hpp"
+#include "process_test.hpp"
 #include "velodyne_fixture.hpp"
 
 #include <gtest/gtest.h>
@@ -69,24 +69,13 @@ std::string text_of(const fs::path& p) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
-class VelodyneDriver : public ::testing::Test {
+class VelodyneDriver : public test::ProcessTest {
  protected:
-  void SetUp() override {
-    for (const char* v : {"CDC_VELODYNE_BIN", "CDC_FRONTEND_BIN", "CDC_IMPORT_BIN"})
-      ASSERT_NE(std::getenv(v), nullptr) << v;
+  VelodyneDriver() : ProcessTest("velodyne_driver", {"CDC_VELODYNE_BIN", "CDC_FRONTEND_BIN", "CDC_IMPORT_BIN"}) {}
+
+  void set_up() override {
     if (!fs::exists(vlp16_bag())) GTEST_SKIP() << "no Velodyne fixture at " << vlp16_bag() << " (set CDC_DATA_DIR)";
-    dir_ = fs::temp_directory_path() / ("cdc_velodyne_driver_" + std::to_string(::getpid()) + "_" +
-                                        ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
     packets_ = vlp16_packets();
-  }
-  void TearDown() override {
-    if (dir_.empty()) return;
-    if (!HasFailure())
-      fs::remove_all(dir_);
-    else
-      std::printf("logs kept in %s\n", dir_.c_str());
   }
 
   std::vector<std::string> driver_args(const std::string& stats) const {
@@ -101,7 +90,6 @@ class VelodyneDriver : public ::testing::Test {
             (dir_ / stats).string()};
   }
 
-  fs::path dir_;
   std::vector<Packet> packets_;
 };
 
@@ -140,7 +128,7 @@ TEST_F(VelodyneDriver, PcapReplayReachesTheFrontEndWithTheSweepsCdcImportMakes) 
   }
 
   // (b) The front-end of robot 0, LiDAR only; the test watches its odometry to know when it is done.
-  dds::Participant participant(test::test_domain());
+  dds::Participant& participant = *participant_;
   dds::Topic<cdc_msg_Odometry> t_odom(participant, dds::topics::kOdometry);
   dds::Reader<cdc_msg_Odometry> r_odom(
       participant, t_odom, dds::qos::sensor_stream(64, true).partitions(dds::partitions::all_robots_reader()));
@@ -215,7 +203,7 @@ uint16_t free_udp_port() {
 TEST_F(VelodyneDriver, UdpDatagramsOnLoopbackWithMalformedOnesCounted) {
   const uint16_t port = free_udp_port();
   ASSERT_NE(port, 0);
-  dds::Participant participant(test::test_domain());
+  dds::Participant& participant = *participant_;
   dds::Topic<cdc_msg_LidarScan> t_scan(participant, dds::topics::kLidar);
   dds::Reader<cdc_msg_LidarScan> r_scan(participant, t_scan, dds::qos::sensor_stream(16, true));
   // This test sends the packets from a thread of its own, which a loaded machine can stall for longer

@@ -9,6 +9,8 @@
 
 #include <algorithm>
 #include <limits>
+#include <map>
+#include <set>
 
 namespace cdc::graph {
 namespace {
@@ -20,6 +22,17 @@ using detail::LinearTerm;
 constexpr double kNotPlaced = std::numeric_limits<double>::infinity();
 using Blocks = std::map<Key, Eigen::MatrixXd>;
 using Triplets = std::vector<Eigen::Triplet<double>>;
+
+// A stage's values at the separators (the keys some neighbour reads): what the robot sends.
+template <class Value>
+std::map<Key, Value> at_separators(const std::map<Key, std::set<uint32_t>>& audience,
+                                   const std::map<Key, Value>& values) {
+  std::map<Key, Value> out;
+  for (const auto& [k, _] : audience) {
+    out[k] = values.at(k);
+  }
+  return out;
+}
 
 // The normal equations of a linear block problem: H x = b over the unknown blocks.
 struct NormalEquations {
@@ -220,13 +233,7 @@ double DistributedRobot::rotation_round(const SeparatorRotations& received, doub
   return change;
 }
 
-SeparatorRotations DistributedRobot::rotation_separators() const {
-  SeparatorRotations out;
-  for (const auto& [k, _] : audience_) {
-    out[k] = relaxed_.at(k);
-  }
-  return out;
-}
+SeparatorRotations DistributedRobot::rotation_separators() const { return at_separators(audience_, relaxed_); }
 
 void DistributedRobot::end_rotations(const SeparatorRotations& received) {
   for (const auto& [k, M] : relaxed_) {
@@ -346,13 +353,7 @@ double DistributedRobot::move(const CoarseCorrections& corrections) {
   return max_change;
 }
 
-SeparatorPoses DistributedRobot::pose_separators() const {
-  SeparatorPoses out;
-  for (const auto& [k, _] : audience_) {
-    out[k] = poses_.at(k);
-  }
-  return out;
-}
+SeparatorPoses DistributedRobot::pose_separators() const { return at_separators(audience_, poses_); }
 
 SeparatorPoses DistributedRobot::coarse_separators() const {
   SeparatorPoses out = pose_separators();
