@@ -35,21 +35,23 @@ double sesync_objective(const PoseGraph& graph) {
   return f;
 }
 
+double squared_residual(const PoseGraph& graph, const Factor& e) {
+  const Eigen::Isometry3d& Ta = graph.poses.at(e.a);
+  Eigen::Isometry3d est = Ta;  // prior: T_world_a
+  if (e.kind != FactorKind::kPrior) {
+    est = Ta.inverse() * graph.poses.at(e.b);
+  }
+  const Eigen::Quaterniond q_err(e.measurement.rotation().transpose() * est.rotation());
+  Eigen::Matrix<double, 6, 1> r;
+  r.head<3>() = est.translation() - e.measurement.translation();
+  const Eigen::Vector3d v = q_err.vec();
+  r.tail<3>() = 2.0 * (q_err.w() < 0 ? Eigen::Vector3d(-v) : v);
+  return r.dot(e.information * r);
+}
+
 double full_information_cost(const PoseGraph& graph) {
   double f = 0.0;
-  for (const Factor& e : graph.factors) {
-    const Eigen::Isometry3d& Ta = graph.poses.at(e.a);
-    Eigen::Isometry3d est = Ta;  // prior: T_world_a
-    if (e.kind != FactorKind::kPrior) {
-      est = Ta.inverse() * graph.poses.at(e.b);
-    }
-    const Eigen::Quaterniond q_err(e.measurement.rotation().transpose() * est.rotation());
-    Eigen::Matrix<double, 6, 1> r;
-    r.head<3>() = est.translation() - e.measurement.translation();
-    const Eigen::Vector3d v = q_err.vec();
-    r.tail<3>() = 2.0 * (q_err.w() < 0 ? Eigen::Vector3d(-v) : v);
-    f += r.dot(e.information * r);
-  }
+  for (const Factor& e : graph.factors) f += squared_residual(graph, e);
   return f;
 }
 

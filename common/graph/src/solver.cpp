@@ -309,7 +309,10 @@ void solve_gnc(const PoseGraph& graph, const GncOptions& gnc, const ceres::Solve
       std::fill(w.begin(), w.end(), 1.0);
       result.gnc_converged = false;
     }
-    if (pass.least_squares_start) run_solve(sopts, full_report, problem, result);
+    if (pass.least_squares_start) {
+      run_solve(sopts, full_report, problem, result);
+      if (pass.require_converged_start && !result.converged) return;
+    }
     if (!result.failed) run_gnc(graph, pass, sopts, full_report, problem, ids, w, result);
     result.gnc_threshold = pass.inlier_threshold;
     if (result.failed || !gnc.calibrate_threshold) return;

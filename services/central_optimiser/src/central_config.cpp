@@ -34,6 +34,10 @@ CentralNodeOptions load_options(const std::string& path) {
   r.get_in("optimiser.full_pass_time_ms", full_pass_ms, 0.1, 600000.0);
   o.core.full_pass_time_s = full_pass_ms * 1e-3;
   r.get_in("optimiser.loop_robust_scale", o.core.loop_robust_scale, 0.0, 1e6);
+  r.get<bool>("optimiser.loop_gnc", o.core.loop_gnc);
+  r.get_in("optimiser.loop_gnc_threshold", o.core.loop_gnc_threshold, 1e-9, 1e9);
+  r.get_in("optimiser.loop_gnc_median_ratio", o.core.loop_gnc_median_ratio, 1.0, 1e9);
+  r.get_in("optimiser.loop_gnc_rounds", o.core.loop_gnc_rounds, 1, 1000);
   r.get<bool>("optimiser.share_loop_information", o.core.share_loop_information);
   r.get<std::string>("log_level", o.log_level);
   if (const int robots = static_cast<int>(o.core.robot_count); o.central_on_robot >= robots) {

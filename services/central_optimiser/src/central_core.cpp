@@ -1,6 +1,7 @@
 #include "cdc/central_optimiser/central_core.hpp"
 
 #include "cdc/geometry/alignment.hpp"
+#include "cdc/graph/objective.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -17,7 +18,7 @@ constexpr size_t kMaxAnchorsPerKey = 4;
 
 }  // namespace
 
-CentralCore::CentralCore(const CentralConfig& config) : config_(config) {}
+CentralCore::CentralCore(const CentralConfig& config) : config_(config), gnc_threshold_(config.loop_gnc_threshold) {}
 
 CentralCore::Session* CentralCore::session(uint32_t robot, uint32_t incarnation, bool create) {
   auto& list = sessions_[robot];
@@ -216,6 +217,11 @@ void CentralCore::index_factors() {
 void CentralCore::withdraw(StoredLoop& l) {
   if (l.in_graph) {
     graph_.factors.erase(graph_.factors.begin() + static_cast<std::ptrdiff_t>(l.factor_index));
+    if (l.factor_index < outliers_.size()) {
+      if (outliers_[l.factor_index] != 0) --counters_.loops_outliers;
+      outliers_.erase(outliers_.begin() + static_cast<std::ptrdiff_t>(l.factor_index));
+      retries_.erase(retries_.begin() + static_cast<std::ptrdiff_t>(l.factor_index));
+    }
     for (StoredLoop& other : loops_) {
       if (other.in_graph && other.factor_index > l.factor_index) {
         --other.factor_index;
@@ -281,6 +287,27 @@ void CentralCore::add_world_hint(uint32_t robot, uint32_t incarnation, const Eig
   session(robot, incarnation, true)->hint = T_world_robot;
 }
 
+// The graph a full pass solves: a copy of the factors (less the loops held out as outliers, with the
+// loops' information shared when so configured; ids[j] is pass factor j's index in graph_) and the
+// poses themselves (moved, not copied: a long mission's pose nodes stay where they are in the heap
+// instead of being reallocated among the pass's transient buffers every time).
+graph::PoseGraph CentralCore::take_pass_graph(std::vector<size_t>& ids) {
+  graph::PoseGraph pass;
+  pass.dimension = graph_.dimension;
+  pass.symbol_keys = graph_.symbol_keys;
+  pass.factors.reserve(graph_.factors.size());
+  ids.clear();
+  ids.reserve(graph_.factors.size());
+  for (size_t i = 0; i < graph_.factors.size(); ++i) {
+    if (outlier(i)) continue;
+    pass.factors.push_back(graph_.factors[i]);
+    ids.push_back(i);
+  }
+  pass.poses = std::move(graph_.poses);
+  if (config_.share_loop_information) graph::share_loop_information(pass, loop_counts_);
+  return pass;
+}
+
 UpdateStats CentralCore::solve_with(const graph::SolverOptions& options) {
   UpdateStats st;
   st.poses = graph_.poses.size();
@@ -288,22 +315,11 @@ UpdateStats CentralCore::solve_with(const graph::SolverOptions& options) {
   if (graph_.factors.empty()) {
     return st;
   }
-  graph::SolveResult r;
-  if (config_.share_loop_information) {
-    // The graph keeps the loops' information as measured: the solve takes weighted copies of the
-    // factors, and the poses themselves (moved, not copied: a long mission's pose nodes stay where they
-    // are in the heap instead of being reallocated among the pass's transient buffers every time).
-    graph::PoseGraph weighted;
-    weighted.dimension = graph_.dimension;
-    weighted.symbol_keys = graph_.symbol_keys;
-    weighted.factors = graph_.factors;
-    weighted.poses = std::move(graph_.poses);
-    graph::share_loop_information(weighted, loop_counts_);
-    r = graph::solve(weighted, options);
-    graph_.poses = std::move(weighted.poses);
-  } else {
-    r = graph::solve(graph_, options);
-  }
+  std::vector<size_t> ids;
+  graph::PoseGraph pass = take_pass_graph(ids);
+  const graph::SolveResult r = graph::solve(pass, options);
+  review_loops(pass, ids, r);
+  graph_.poses = std::move(pass.poses);
   st.solved = true;
   st.converged = r.converged;
   st.iterations = r.iterations;
@@ -352,6 +368,7 @@ std::vector<size_t> CentralCore::local_factors(const std::set<Key>& active) cons
     if (it == factors_at_.end()) continue;
     size_t anchors = 0;
     for (auto i = it->second.rbegin(); i != it->second.rend(); ++i) {  // newest first
+      if (outlier(*i)) continue;
       const graph::Factor& f = graph_.factors[*i];
       const bool inside = active.count(f.a) != 0 && active.count(f.b) != 0;
       if (inside || f.kind != graph::FactorKind::kLoop || anchors++ < kMaxAnchorsPerKey) through.push_back(*i);
@@ -431,7 +448,7 @@ UpdateStats CentralCore::optimise() {
     // the work loop is never blocked for long (on_iteration reports its progress).
     o.max_iterations = std::min(o.max_iterations, config_.full_pass_iterations);
     o.max_time_s = config_.full_pass_time_s;
-    return solve_with(o);
+    return solve_with(full_pass_options(o));
   }
   return solve_local(o);
 }
@@ -444,7 +461,71 @@ UpdateStats CentralCore::optimise_fully() {
   o.gradient_tolerance = 1e-14;
   o.parameter_tolerance = 1e-14;
   o.robust_loss_scale = config_.loop_robust_scale;
-  return solve_with(o);
+  return solve_with(full_pass_options(o));
+}
+
+std::vector<LoopIn> CentralCore::outlier_loops() const {
+  std::vector<LoopIn> out;
+  for (const StoredLoop& l : loops_) {
+    if (l.in_graph && outlier(l.factor_index)) out.push_back(l.in);
+  }
+  return out;
+}
+
+graph::SolverOptions CentralCore::full_pass_options(graph::SolverOptions o) const {
+  if (!config_.loop_gnc) return o;
+  o.gnc.enabled = true;
+  o.gnc.least_squares_start = true;
+  o.gnc.require_converged_start = true;
+  o.gnc.inlier_threshold = gnc_threshold_;
+  o.gnc.mu_step = 2.0;
+  o.gnc.max_rounds = config_.loop_gnc_rounds;
+  return o;
+}
+
+// After a full pass with GNC that converged: the outliers held out before it that lie within c^2 of
+// its solution rejoin the graph (or try again, see below), the loops its weights reject are held out, and the accepted
+// loops' median squared residual sets the next pass's threshold. A pass cut short decides nothing.
+void CentralCore::review_loops(const graph::PoseGraph& pass, const std::vector<size_t>& ids,
+                               const graph::SolveResult& r) {
+  if (!config_.loop_gnc || r.failed || !r.converged || !r.gnc_converged || r.weights.size() != pass.factors.size()) {
+    return;
+  }
+  outliers_.resize(graph_.factors.size(), 0);
+  retries_.resize(graph_.factors.size(), 0);
+  for (size_t i = 0; i < outliers_.size(); ++i) {
+    if (outliers_[i] == 0) continue;
+    graph::Factor f = graph_.factors[i];
+    if (config_.share_loop_information) {
+      graph::PoseGraph one;
+      one.factors = {f};
+      graph::share_loop_information(one, loop_counts_);
+      f = one.factors.front();
+    }
+    // Held out while wrong loops bent the graph, a true loop may sit a little beyond c^2 of the
+    // graph without it and within c^2 with it: such loops take part in GNC again (a few times).
+    const double s = graph::squared_residual(pass, f);
+    const bool retry = s <= kGncRetryFactor * gnc_threshold_ && retries_[i] < kGncMaxRetries;
+    if (s <= gnc_threshold_ || retry) {
+      if (s > gnc_threshold_) ++retries_[i];
+      outliers_[i] = 0;
+      --counters_.loops_outliers;
+    }
+  }
+  std::vector<double> accepted;
+  for (size_t j = 0; j < pass.factors.size(); ++j) {
+    if (!pass.factors[j].robust) continue;
+    if (r.weights[j] < graph::kGncAcceptedWeight) {
+      outliers_[ids[j]] = 1;
+      ++counters_.loops_outliers;
+    } else {
+      accepted.push_back(graph::squared_residual(pass, pass.factors[j]));
+    }
+  }
+  if (accepted.size() < kGncCalibrationLoops) return;
+  const auto mid = accepted.begin() + static_cast<std::ptrdiff_t>(accepted.size() / 2);
+  std::nth_element(accepted.begin(), mid, accepted.end());
+  gnc_threshold_ = std::min(config_.loop_gnc_threshold, config_.loop_gnc_median_ratio * *mid);
 }
 
 std::vector<RobotEstimate> CentralCore::estimates() const {

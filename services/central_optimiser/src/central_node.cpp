@@ -19,7 +19,7 @@ namespace cdc::central {
 
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(Counters, keyframes_accepted, keyframes_duplicate, keyframes_rejected,
                                    keyframes_pending_full, loops_accepted, loops_duplicate, loops_rejected,
-                                   loops_withdrawn)
+                                   loops_withdrawn, loops_outliers)
 
 namespace {
 

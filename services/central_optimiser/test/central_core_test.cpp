@@ -11,6 +11,7 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <random>
 
 namespace cdc::central {
@@ -576,6 +577,91 @@ TEST(CentralCore, OnlyLoopsWaitingForTheirKeyframesCountAgainstTheCap) {
   }
   EXPECT_EQ(core.add_loop(l).outcome, Outcome::kAccepted);
   EXPECT_EQ(core.counters().loops_rejected, 1u);
+}
+
+// The highest loop sequence number `sender` uses in the stream.
+uint32_t max_seq(const test::SwarmStream& s, uint32_t sender) {
+  uint32_t top = 0;
+  for (const test::StreamLoop& l : s.loops) {
+    if (l.sender == sender) top = std::max(top, l.seq);
+  }
+  return top;
+}
+
+// The stream with `count` wrong loops added, intra- and inter-robot: random pairs of keyframes with
+// their true relative pose moved 3-8 m and turned up to 0.5 rad, sent among the true ones.
+test::SwarmStream with_wrong_loops(test::SwarmStream s, int count) {
+  std::mt19937 rng(11);
+  const uint32_t robots = static_cast<uint32_t>(s.keyframes.size());
+  const uint32_t n = static_cast<uint32_t>(s.keyframes[0].size());
+  std::uniform_int_distribution<uint32_t> robot(0, robots - 1), keyframe(0, n - 1);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0), metres(1.0, 2.0);
+  std::map<uint32_t, uint32_t> next_seq;
+  for (const test::StreamLoop& l : s.loops) next_seq[l.sender] = std::max(next_seq[l.sender], l.seq + 1);
+  for (int added = 0; added < count;) {
+    test::StreamLoop w = s.loops.front();
+    w.robot_a = robot(rng);
+    w.robot_b = added % 2 == 0 ? w.robot_a : robot(rng);
+    w.keyframe_a = keyframe(rng);
+    w.keyframe_b = keyframe(rng);
+    if (w.robot_a == w.robot_b &&
+        (w.keyframe_a > w.keyframe_b ? w.keyframe_a - w.keyframe_b : w.keyframe_b - w.keyframe_a) < 10) {
+      continue;
+    }
+    w.sender = w.robot_a;
+    w.seq = next_seq[w.sender]++;
+    w.step = std::max(w.keyframe_a, w.keyframe_b);
+    const Eigen::Vector3d axis = Eigen::Vector3d(unit(rng), unit(rng), unit(rng)).normalized();
+    Eigen::Isometry3d off = Eigen::Isometry3d::Identity();
+    off.translation() = metres(rng) * Eigen::Vector3d(unit(rng), unit(rng), unit(rng)).normalized();
+    off.linear() = Eigen::AngleAxisd(0.5 * unit(rng), axis).toRotationMatrix();
+    w.T_a_b = s.keyframes[w.robot_a][w.keyframe_a].T_world_truth.inverse() *
+              s.keyframes[w.robot_b][w.keyframe_b].T_world_truth * off;
+    s.loops.push_back(w);
+    ++added;
+  }
+  std::stable_sort(s.loops.begin(), s.loops.end(),
+                   [](const test::StreamLoop& a, const test::StreamLoop& b) { return a.step < b.step; });
+  return s;
+}
+
+// Runs the stream as the node does (an update after every step) and to convergence at the end.
+void run_incrementally(CentralCore& core, const test::SwarmStream& s) {
+  size_t next_loop = 0;
+  for (size_t k = 0; k < s.keyframes[0].size(); ++k) {
+    feed_step(core, s, k, next_loop);
+    core.optimise();
+  }
+  core.optimise_fully();
+}
+
+TEST(CentralCore, WrongLoopsAreHeldOutAndTheEstimateKeepsItsShape) {
+  const auto clean = test::make_swarm_stream(small());
+  const int wrong = 12;
+  const auto spoiled = with_wrong_loops(clean, wrong);
+  CentralCore reference(CentralConfig{});
+  run_incrementally(reference, clean);
+  EXPECT_EQ(reference.counters().loops_outliers, 0u);
+  CentralCore robust(CentralConfig{});
+  run_incrementally(robust, spoiled);
+  // Every wrong loop is held out (their sequence numbers follow each sender's true ones), and at
+  // most 1 % of the true ones, those at the tail of the chi-square bound.
+  size_t wrong_out = 0, true_out = 0;
+  for (const LoopIn& l : robust.outlier_loops()) {
+    const bool injected = l.seq > max_seq(clean, l.sender);
+    ++(injected ? wrong_out : true_out);
+  }
+  EXPECT_EQ(wrong_out, static_cast<size_t>(wrong));
+  EXPECT_LE(true_out, clean.loops.size() / 100);
+  const double clean_error = max_position_error(reference, clean);
+  EXPECT_LT(max_position_error(robust, spoiled), clean_error + 0.1);
+  // Without GNC (the Cauchy loss alone in every pass) the wrong loops bend the estimate.
+  CentralConfig cauchy_only;
+  cauchy_only.loop_gnc = false;
+  CentralCore plain(cauchy_only);
+  feed_in_order(plain, spoiled);
+  plain.optimise_fully();
+  EXPECT_GT(max_position_error(plain, spoiled), clean_error + 0.5);
 }
 
 TEST(CentralCore, EverySolverIterationIsReported) {

@@ -7,6 +7,8 @@ namespace cdc::graph {
 
 // sum_e r_e^T Omega_e r_e with r = (t_err, 2 vec(q_err)), no 1/2 factor (twice Ceres' cost).
 double full_information_cost(const PoseGraph& graph);
+// One factor's term r^T Omega r of full_information_cost at the graph's poses.
+double squared_residual(const PoseGraph& graph, const Factor& factor);
 
 // SE-Sync's objective (Rosen et al. 2019, no 1/2 factor):
 //   sum_e kappa_e ||R_j - R_i R_ij||_F^2 + tau_e ||t_j - t_i - R_i t_ij||^2

@@ -44,6 +44,10 @@ struct GncOptions {
   // given (from odometry alone, the wrong loops stand out; at a least-squares solution they have
   // pulled the poses towards themselves).
   bool least_squares_start = false;
+  // With least_squares_start: no rounds when the least-squares solve stops short of convergence (a
+  // bounded incremental pass), since residuals away from the solution single out no outlier; the
+  // result is that solve's, every weight 1 and gnc_converged false.
+  bool require_converged_start = false;
   // Relative cost change at which a round whose weights are not yet settled stops (the final
   // round uses SolverOptions::function_tolerance).
   double round_function_tolerance = 1e-6;

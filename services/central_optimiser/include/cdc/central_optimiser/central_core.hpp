@@ -20,6 +20,13 @@
 
 namespace cdc::central {
 
+// Accepted loops a full pass needs before their residuals set GNC's threshold.
+inline constexpr size_t kGncCalibrationLoops = 20;
+// A held-out loop within kGncRetryFactor c^2 of a converged full pass takes part in GNC again, at
+// most kGncMaxRetries times.
+inline constexpr double kGncRetryFactor = 4.0;
+inline constexpr uint8_t kGncMaxRetries = 2;
+
 using graph::Key;
 using graph::Matrix6d;
 
@@ -57,6 +64,20 @@ struct CentralConfig {
   // Cauchy scale on loop factors in whitened units (0: none). 3 is about the 95 % chi-square
   // radius of a 6-DoF residual: inlier loops stay quadratic, gross outliers are discounted.
   double loop_robust_scale = 3.0;
+  // Graduated non-convexity on loop closures in full passes (graph::GncOptions: truncated least
+  // squares from the least-squares solution). A full pass takes GNC rounds only when some loop's
+  // squared residual r^T Omega r exceeds the threshold c^2 at the least-squares solution, so a
+  // graph without wrong loops costs what it did. A loop that a converged full pass rejects stays out
+  // of later passes until a converged full pass finds it within c^2 of the graph without it. Local
+  // passes keep the Cauchy loss on the loops not rejected.
+  bool loop_gnc = true;
+  // c^2 at most; below it, c^2 follows the loops: loop_gnc_median_ratio times the median squared
+  // residual of the accepted loops at the last converged full pass (with at least
+  // kGncCalibrationLoops of them), since the information of registered loops is often far more
+  // pessimistic than their errors and a wrong loop would then fit under the chi-square bound.
+  double loop_gnc_threshold = 16.81;
+  double loop_gnc_median_ratio = 100.0;
+  int loop_gnc_rounds = 30;  // GNC rounds per full pass at most (mu doubles each round)
   // Loops through one keyframe share its cloud's errors: each loop's information is divided by the
   // most loops either of its keyframes takes part in (graph::share_loop_information).
   bool share_loop_information = true;
@@ -113,6 +134,7 @@ struct Counters {
   uint64_t keyframes_accepted = 0, keyframes_duplicate = 0, keyframes_rejected = 0;
   uint64_t keyframes_pending_full = 0;  // of keyframes_rejected: refused at max_pending_keyframes
   uint64_t loops_accepted = 0, loops_duplicate = 0, loops_rejected = 0, loops_withdrawn = 0;
+  uint64_t loops_outliers = 0;  // loops in the graph that GNC holds out of the solves now
 };
 
 class CentralCore {
@@ -151,6 +173,10 @@ class CentralCore {
   // placed, else from its own hint; nullopt while it is not in the world.
   std::optional<Eigen::Vector3d> newest_position(uint32_t robot) const;
   bool dirty() const noexcept { return dirty_; }
+  // The loops in the graph that GNC holds out of the solves.
+  std::vector<LoopIn> outlier_loops() const;
+  // GNC's threshold c^2 for the next full pass (CentralConfig::loop_gnc_threshold).
+  double gnc_threshold() const noexcept { return gnc_threshold_; }
   // Whether the last update converged within its budget. A large change (a robot rejoining with
   // its backlog and the loops it missed) takes several bounded passes; the estimates between them
   // are partial solutions, which a robot's front-end must not follow (the node holds them back).
@@ -208,6 +234,7 @@ class CentralCore {
   void insert_ready_keyframes(Session& s);
   void try_insert_loops();
   void place(Session& s, const Eigen::Isometry3d& T_world_odom);
+  graph::PoseGraph take_pass_graph(std::vector<size_t>& ids);
   UpdateStats solve_with(const graph::SolverOptions& options);
   UpdateStats solve_local(const graph::SolverOptions& options);
   void touch(const Session& s, uint32_t id) { touched_.insert(key(s, id)); }
@@ -219,6 +246,9 @@ class CentralCore {
   std::vector<size_t> local_factors(const std::set<Key>& active) const;
   bool full_pass_due() const;
   graph::SolverOptions update_options() const;
+  graph::SolverOptions full_pass_options(graph::SolverOptions o) const;
+  void review_loops(const graph::PoseGraph& pass, const std::vector<size_t>& ids, const graph::SolveResult& r);
+  bool outlier(size_t factor) const { return factor < outliers_.size() && outliers_[factor] != 0; }
 
   CentralConfig config_;
   std::map<uint32_t, std::vector<Session>> sessions_;  // per robot, by arrival of incarnations
@@ -229,6 +259,9 @@ class CentralCore {
   graph::PoseGraph graph_;
   std::map<Key, std::vector<size_t>> factors_at_;  // key -> indices of graph_.factors through it
   std::map<Key, int> loop_counts_;                 // key -> loop factors through it (graph::loop_counts)
+  std::vector<uint8_t> outliers_;                  // per factor of graph_: a loop GNC rejected (short: none)
+  std::vector<uint8_t> retries_;                   // per factor of graph_: times it rejoined beyond c^2
+  double gnc_threshold_ = 0;                       // c^2 of the next full pass
   uint64_t changes_since_full_ = 0;                // keyframes and loops inserted since the last full pass
   bool last_full_ = false;                         // the last update was a full pass
   std::function<void()> on_iteration_;
