@@ -461,7 +461,10 @@ UpdateStats CentralCore::optimise_fully() {
   o.gradient_tolerance = 1e-14;
   o.parameter_tolerance = 1e-14;
   o.robust_loss_scale = config_.loop_robust_scale;
-  return solve_with(full_pass_options(o));
+  // Loops that rejoin after a pass are in the next one: the final solve takes them in.
+  UpdateStats st = solve_with(full_pass_options(o));
+  for (int again = 0; again <= kGncMaxRetries && rejoined_ > 0; ++again) st = solve_with(full_pass_options(o));
+  return st;
 }
 
 std::vector<LoopIn> CentralCore::outlier_loops() const {
@@ -488,6 +491,7 @@ graph::SolverOptions CentralCore::full_pass_options(graph::SolverOptions o) cons
 // loops' median squared residual sets the next pass's threshold. A pass cut short decides nothing.
 void CentralCore::review_loops(const graph::PoseGraph& pass, const std::vector<size_t>& ids,
                                const graph::SolveResult& r) {
+  rejoined_ = 0;
   if (!config_.loop_gnc || r.failed || !r.converged || !r.gnc_converged || r.weights.size() != pass.factors.size()) {
     return;
   }
@@ -510,6 +514,7 @@ void CentralCore::review_loops(const graph::PoseGraph& pass, const std::vector<s
       if (s > gnc_threshold_) ++retries_[i];
       outliers_[i] = 0;
       --counters_.loops_outliers;
+      ++rejoined_;
     }
   }
   std::vector<double> accepted;

@@ -262,6 +262,7 @@ class CentralCore {
   std::vector<uint8_t> outliers_;                  // per factor of graph_: a loop GNC rejected (short: none)
   std::vector<uint8_t> retries_;                   // per factor of graph_: times it rejoined beyond c^2
   double gnc_threshold_ = 0;                       // c^2 of the next full pass
+  size_t rejoined_ = 0;                            // outliers the last full pass let rejoin
   uint64_t changes_since_full_ = 0;                // keyframes and loops inserted since the last full pass
   bool last_full_ = false;                         // the last update was a full pass
   std::function<void()> on_iteration_;
