@@ -92,7 +92,9 @@ TEST(PeerMessages, CentralResultsAndSeparatorsKeepTheirPoses) {
   m.source = cdc_msg_SOURCE_CENTRAL;
   EXPECT_FALSE(central_result(m).from_hint);
 
-  SeparatorOut out{2, {{5, pose(5.0, 0.1)}, {6, pose(6.0, -0.1)}}};
+  SeparatorOut out;
+  out.target = 2;
+  out.poses = {{5, pose(5.0, 0.1)}, {6, pose(6.0, -0.1)}};
   std::vector<cdc_msg_KeyframePoseF> storage;
   const cdc_msg_SeparatorPoses s = separator_message(Origin{1, 3, 1000}, out, 17, storage);
   EXPECT_EQ(std::make_tuple(s.robot_id, s.target_robot_id, s.incarnation, s.round, s.stamp_ns),
