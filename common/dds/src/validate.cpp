@@ -339,6 +339,18 @@ Validation validate(const cdc_msg_SeparatorPoses& m, const ValidationLimits& lim
   for (uint32_t i = 0; i < m.poses._length; ++i) {
     CDC_CHECK(validate_pose(m.poses._buffer[i].pose, "poses[" + std::to_string(i) + "].pose", limits));
   }
+  CDC_CHECK(check_sequence_max(m.loops, limits.max_poses, "loops"));
+  for (uint32_t i = 0; i < m.loops._length; ++i) {
+    const cdc_msg_LoopClosure& l = m.loops._buffer[i];
+    const std::string field = "loops[" + std::to_string(i) + "]";
+    if (const Validation v = validate(l, limits); !v) {
+      return Validation::fail(field + "." + v.reason());
+    }
+    if (l.robot_a == l.robot_b || (l.robot_a != m.robot_id && l.robot_b != m.robot_id)) {
+      return Validation::fail(field + ": not an inter-robot loop of the sender, robot " + std::to_string(m.robot_id) +
+                              " (robots " + std::to_string(l.robot_a) + " and " + std::to_string(l.robot_b) + ")");
+    }
+  }
   return Validation::ok();
 }
 

@@ -109,6 +109,8 @@ TEST(Traffic, MessagesWithSequencesAreWalkedExactly) {
                                                 "OptimizedPoses");
     expect_same_size_with<cdc_msg_KeyframePoseF>(&cdc_msg_SeparatorPoses_desc, &cdc_msg_SeparatorPoses::poses, n,
                                                  "SeparatorPoses");
+    expect_same_size_with<cdc_msg_LoopClosure>(&cdc_msg_SeparatorPoses_desc, &cdc_msg_SeparatorPoses::loops, n,
+                                               "SeparatorPoses with relayed loops");
     // A sequence of bytes whose odd length needs the payload padded before the struct after it.
     std::vector<uint8_t> cells(n * 3 + 1);
     cdc_msg_Descriptor descriptor{};

@@ -250,6 +250,36 @@ TEST(Validation, SeparatorPosesInSinglePrecision) {
   EXPECT_THAT(validate(m, ValidationLimits{}).reason(), HasSubstr("target_robot_id"));
 }
 
+TEST(Validation, SeparatorPosesRelayOnlyTheSendersInterRobotLoops) {
+  cdc_msg_SeparatorPoses m{};
+  m.robot_id = 1;
+  m.target_robot_id = 2;
+  std::vector<cdc_msg_LoopClosure> loops(1);
+  cdc_msg_LoopClosure& l = loops[0];
+  l.robot_a = 1;
+  l.keyframe_a = 4;
+  l.robot_b = 3;
+  l.keyframe_b = 9;
+  l.sender_robot_id = 1;
+  l.T_a_b = identity_pose();
+  identity_information(l.information);
+  borrow(m.loops, loops);
+  m.inter_robot_loops = 1;
+  EXPECT_TRUE(validate(m, ValidationLimits{})) << validate(m, ValidationLimits{}).reason();
+  l.robot_a = 0;
+  EXPECT_THAT(validate(m, ValidationLimits{}).reason(),
+              HasSubstr("loops[0]: not an inter-robot loop of the sender, robot 1 (robots 0 and 3)"));
+  l.robot_a = 3;
+  l.robot_b = 3;
+  EXPECT_THAT(validate(m, ValidationLimits{}).reason(), HasSubstr("loops[0]: not an inter-robot loop"));
+  l.robot_a = 1;
+  l.fitness = -1.0f;
+  EXPECT_THAT(validate(m, ValidationLimits{}).reason(), HasSubstr("loops[0].fitness"));
+  l.fitness = 0.0f;
+  l.robot_b = 99;
+  EXPECT_THAT(validate(m, ValidationLimits{}).reason(), HasSubstr("loops[0].robot_b"));
+}
+
 TEST(Validation, ExtraNodeIdsAreAccepted) {
   cdc_msg_RobotStatus s{};
   s.robot_id = 200;  // a ground-station central

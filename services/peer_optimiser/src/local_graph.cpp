@@ -2,6 +2,7 @@
 
 #include "cdc/geometry/alignment.hpp"
 
+#include <algorithm>
 #include <utility>
 
 namespace cdc::peer {
@@ -14,6 +15,89 @@ bool LocalGraph::add_loop(const LoopRecord& loop) {
   }
   loops_.push_back(loop);
   return true;
+}
+
+bool LocalGraph::add_group_loop(const LoopRecord& loop) {
+  if (loop.robot_a == loop.robot_b || loop.robot_a == robot_ || loop.robot_b == robot_ ||
+      !loop_ids_.insert({loop.sender, loop.sender_incarnation, loop.seq}).second) {
+    return false;
+  }
+  group_loops_.push_back(loop);
+  return true;
+}
+
+std::vector<const LoopRecord*> LocalGraph::inter_robot_loops() const {
+  using Ends = std::tuple<uint32_t, uint32_t, uint32_t, uint32_t>;
+  std::set<Ends> withdrawn;
+  std::vector<const LoopRecord*> all;
+  for (const auto* list : {&loops_, &group_loops_}) {
+    for (const LoopRecord& l : *list) {
+      if (l.robot_a == l.robot_b) continue;
+      if (l.withdrawn) {
+        withdrawn.insert({l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b});
+      } else {
+        all.push_back(&l);
+      }
+    }
+  }
+  std::vector<const LoopRecord*> out;
+  for (const LoopRecord* l : all) {
+    if (withdrawn.count({l->robot_a, l->keyframe_a, l->robot_b, l->keyframe_b}) == 0) out.push_back(l);
+  }
+  return out;
+}
+
+std::set<uint32_t> LocalGraph::group() const {
+  std::set<uint32_t> reached{robot_};
+  const std::vector<const LoopRecord*> links = inter_robot_loops();
+  for (bool grew = true; grew;) {
+    grew = false;
+    for (const LoopRecord* l : links) {
+      const bool a = reached.count(l->robot_a) != 0, b = reached.count(l->robot_b) != 0;
+      if (a != b) {
+        reached.insert(a ? l->robot_b : l->robot_a);
+        grew = true;
+      }
+    }
+  }
+  reached.erase(robot_);
+  return reached;
+}
+
+std::map<uint32_t, std::set<uint32_t>> LocalGraph::group_separator_ids() const {
+  std::set<uint32_t> ids;
+  for (const LoopRecord* l : inter_robot_loops()) {
+    if (l->robot_a == robot_) ids.insert(l->keyframe_a);
+    if (l->robot_b == robot_) ids.insert(l->keyframe_b);
+  }
+  std::map<uint32_t, std::set<uint32_t>> wanted;
+  for (uint32_t peer : group()) wanted[peer] = ids;
+  return wanted;
+}
+
+std::map<uint32_t, std::vector<LoopRecord>> LocalGraph::loops_to_relay() const {
+  std::map<uint32_t, std::vector<LoopRecord>> out;
+  for (uint32_t peer : group()) {
+    for (const LoopRecord& l : loops_) {
+      if (l.robot_a != l.robot_b && std::min(l.robot_a, l.robot_b) == robot_ && l.robot_a != peer &&
+          l.robot_b != peer) {
+        out[peer].push_back(l);
+      }
+    }
+  }
+  return out;
+}
+
+uint32_t LocalGraph::inter_robot_loops_of(uint32_t robot) const {
+  const std::vector<const LoopRecord*> loops = inter_robot_loops();
+  return static_cast<uint32_t>(std::count_if(
+      loops.begin(), loops.end(), [&](const LoopRecord* l) { return l->robot_a == robot || l->robot_b == robot; }));
+}
+
+bool LocalGraph::shares_coarse_step_with(uint32_t robot) const {
+  if (robot == robot_) return true;
+  const auto said = coarse_views_.find(robot);
+  return said != coarse_views_.end() && said->second.second && inter_robot_loops_of(robot) == said->second.first;
 }
 
 void LocalGraph::on_separator(uint32_t from, const KeyframePoses& poses) {

@@ -81,6 +81,12 @@ void PeerCore::add_loop(const LoopRecord& loop, Nanos now) {
   }
 }
 
+void PeerCore::on_separator(uint32_t from, const SeparatorOut& message) {
+  known_.on_separator(from, message.poses);
+  for (const LoopRecord& l : message.loops) known_.add_group_loop(l);
+  known_.on_coarse_view(from, message.inter_robot_loops, message.coarse_step);
+}
+
 void PeerCore::on_central_result(const CentralResult& r) {
   if (r.central_incarnation != central_incarnation_) {
     central_incarnation_ = r.central_incarnation;  // a (re)started central knows nothing yet
@@ -171,6 +177,10 @@ StepOutput PeerCore::step(Nanos now, bool central_alive) {
   if (round_due) {
     last_round_ = now;
     out.separators = separators_due(now);
+    for (const SeparatorOut& s : out.separators) {
+      traffic_.poses += s.poses.size();
+      traffic_.loops += s.loops.size();
+    }
   }
   if (target_) {
     out.correction = next_correction(mode() == Mode::kCentralized && central_current);
@@ -205,20 +215,26 @@ void PeerCore::follow_distributed_round() {
   }
 }
 
-// A robot sends separators only once its estimate is in its group's frame (the central's estimate,
-// the lowest robot of its group, or placed through a peer), so that it never drags its neighbours
-// into its own frame. They carry the central's poses while CENTRALIZED, else the distributed estimate.
+// A robot sends separator poses only once its estimate is in its group's frame (the central's
+// estimate, the lowest robot of its group, or placed through peers), so that it never drags its
+// neighbours into its own frame. They carry the central's poses while CENTRALIZED, else the
+// distributed estimate. With the coarse step every robot of the group gets the poses of every own
+// keyframe an inter-robot loop touches, and the loops it relays (those go in any frame).
 std::vector<SeparatorOut> PeerCore::separators_due(Nanos now) {
-  if (!central_.has_poses() && !distributed_.placed_by_peers() && !known_.lowest_in_group()) {
-    return {};
-  }
+  const bool in_frame = central_.has_poses() || distributed_.placed_by_peers() || known_.lowest_in_group();
   const bool from_central = mode() == Mode::kCentralized && central_.last();
-  std::map<uint32_t, Eigen::Isometry3d> central_poses;
+  std::map<uint32_t, Eigen::Isometry3d> own;
   if (from_central) {
-    central_poses.insert(central_.poses().begin(), central_.poses().end());
+    own.insert(central_.poses().begin(), central_.poses().end());
+  } else if (in_frame) {
+    own = distributed_.poses();
   }
-  return separators_.round(now, known_.separator_ids(), from_central ? central_poses : distributed_.poses(),
-                           world_pose());
+  if (!config_.coarse_step) {
+    return in_frame ? separators_.round(now, known_.separator_ids(), own, world_pose()) : std::vector<SeparatorOut>{};
+  }
+  const bool coarse = mode() == Mode::kDistributed && central_.poses().empty();
+  return separators_.round(now, known_.group_separator_ids(), own, world_pose(), known_.loops_to_relay(),
+                           {known_.inter_robot_loops_of(config_.robot), coarse});
 }
 
 // The correction the front-end gets: never more than the fusion thresholds per step.

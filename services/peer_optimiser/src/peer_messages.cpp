@@ -85,7 +85,16 @@ AckIn ack_in(const cdc_msg_Acknowledgement& m) {
                m.highest_contiguous_loop_seq};
 }
 
-KeyframePoses separator_poses(const cdc_msg_SeparatorPoses& m) { return keyframe_poses(m.poses); }
+SeparatorOut separator_in(const cdc_msg_SeparatorPoses& m) {
+  SeparatorOut s;
+  s.target = m.target_robot_id;
+  s.poses = keyframe_poses(m.poses);
+  s.loops.reserve(m.loops._length);
+  for (uint32_t i = 0; i < m.loops._length; ++i) s.loops.push_back(loop_record(m.loops._buffer[i]));
+  s.inter_robot_loops = m.inter_robot_loops;
+  s.coarse_step = m.coarse_step;
+  return s;
+}
 
 cdc_msg_ModeState mode_state(const Origin& o, Mode mode, SwitchReason reason, std::optional<double> distance,
                              uint32_t transitions) {
@@ -131,16 +140,36 @@ cdc_msg_RobotStatus robot_status(const Origin& o, const std::optional<Eigen::Iso
 }
 
 cdc_msg_SeparatorPoses separator_message(const Origin& o, const SeparatorOut& s, uint32_t round,
-                                         std::vector<cdc_msg_KeyframePoseF>& storage) {
+                                         SeparatorStorage& storage) {
   cdc_msg_SeparatorPoses m{};
   m.robot_id = o.robot;
   m.target_robot_id = s.target;
   m.incarnation = o.incarnation;
   m.round = round;
   m.stamp_ns = o.stamp_ns;
-  lend(m.poses, storage, s.poses, [](uint32_t id, const Eigen::Isometry3d& T) {
+  lend(m.poses, storage.poses, s.poses, [](uint32_t id, const Eigen::Isometry3d& T) {
     return cdc_msg_KeyframePoseF{id, dds::to_msg_f(T)};
   });
+  storage.loops.clear();
+  for (const LoopRecord& l : s.loops) storage.loops.push_back(loop_message(l));
+  dds::borrow(m.loops, storage.loops);
+  m.inter_robot_loops = s.inter_robot_loops;
+  m.coarse_step = s.coarse_step;
+  return m;
+}
+
+cdc_msg_LoopClosure loop_message(const LoopRecord& l) {
+  cdc_msg_LoopClosure m{};
+  m.robot_a = l.robot_a;
+  m.keyframe_a = l.keyframe_a;
+  m.robot_b = l.robot_b;
+  m.keyframe_b = l.keyframe_b;
+  m.sender_robot_id = l.sender;
+  m.sender_incarnation = l.sender_incarnation;
+  m.loop_seq = l.seq;
+  m.status = l.withdrawn ? cdc_msg_LOOP_WITHDRAWN : cdc_msg_LOOP_ACCEPTED;
+  m.T_a_b = dds::to_msg(l.T_a_b);
+  dds::information_to_msg(l.information, m.information);
   return m;
 }
 

@@ -26,7 +26,8 @@ OwnKeyframe own_keyframe(const cdc_msg_Keyframe& m);
 LoopRecord loop_record(const cdc_msg_LoopClosure& m);
 CentralResult central_result(const cdc_msg_OptimizedPoses& m);
 AckIn ack_in(const cdc_msg_Acknowledgement& m);
-KeyframePoses separator_poses(const cdc_msg_SeparatorPoses& m);
+// What a peer sent this robot: its separator poses, the loops it relays, its count of inter-robot loops.
+SeparatorOut separator_in(const cdc_msg_SeparatorPoses& m);
 
 // Out: the robot that writes, its incarnation, and the message's wall-clock stamp.
 struct Origin {
@@ -47,8 +48,14 @@ std::optional<Eigen::Vector3d> status_position(const cdc_msg_RobotStatus& m);
 cdc_msg_RobotStatus robot_status(const Origin& o, const std::optional<Eigen::Isometry3d>& T_world_base,
                                  int64_t last_keyframe_id, Mode mode);
 // The messages below borrow `storage` for their poses: it must outlive the write.
+struct SeparatorStorage {
+  std::vector<cdc_msg_KeyframePoseF> poses;
+  std::vector<cdc_msg_LoopClosure> loops;
+};
 cdc_msg_SeparatorPoses separator_message(const Origin& o, const SeparatorOut& s, uint32_t round,
-                                         std::vector<cdc_msg_KeyframePoseF>& storage);
+                                         SeparatorStorage& storage);
+// A loop as the core holds it, for relaying (its stamp and fitness are not kept: both 0).
+cdc_msg_LoopClosure loop_message(const LoopRecord& l);
 // An own keyframe as the core holds it, with its cloud, for re-sending to the central.
 cdc_msg_Keyframe keyframe_message(uint32_t robot, const OwnKeyframe& k, std::vector<cdc_msg_PointXYZI>& cloud);
 // Where the robot's keyframe sequence stands: its newest keyframe (nullptr: none held yet).

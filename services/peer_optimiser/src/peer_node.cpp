@@ -19,7 +19,8 @@ namespace cdc::peer {
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(PeerNodeCounters, forwarded_keyframes, withheld_keyframes, keyframe_writer_discards,
                                    resent_keyframes, resent_loops, corrections, separator_messages)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(PeerNodeState, robot, mode, transitions, keyframes, keyframes_duplicate,
-                                   keyframes_refused, distributed_rounds, radio_cuts)
+                                   keyframes_refused, distributed_rounds, radio_cuts, coarse_steps, separator_poses,
+                                   relayed_loops)
 
 namespace {
 
@@ -158,7 +159,7 @@ void PeerNode::on_central_result(const cdc_msg_OptimizedPoses& m) { core_.on_cen
 
 void PeerNode::on_ack(const cdc_msg_Acknowledgement& m) { core_.on_ack(ack_in(m)); }
 
-void PeerNode::on_separator(const cdc_msg_SeparatorPoses& m) { core_.on_separator(m.robot_id, separator_poses(m)); }
+void PeerNode::on_separator(const cdc_msg_SeparatorPoses& m) { core_.on_separator(m.robot_id, separator_in(m)); }
 
 void PeerNode::on_status(const cdc_msg_RobotStatus& m) {
   if (!m.is_central) core_.on_peer_mode(m.robot_id, from_msg(m.mode));
@@ -293,6 +294,9 @@ nlohmann::json PeerNode::stats() const {
   state.keyframes_duplicate = core_.keyframe_counters().duplicate;
   state.keyframes_refused = core_.keyframe_counters().refused;
   state.distributed_rounds = core_.distributed_rounds();
+  state.coarse_steps = core_.coarse_steps();
+  state.separator_poses = core_.separator_traffic().poses;
+  state.relayed_loops = core_.separator_traffic().loops;
   state.radio_cuts = service_.robot_domains()->radio_cuts();
   nlohmann::json j = state;
   j.update(nlohmann::json(counters_));

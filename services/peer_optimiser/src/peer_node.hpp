@@ -43,6 +43,8 @@ struct PeerNodeState {
   uint32_t transitions = 0;
   uint64_t keyframes = 0, distributed_rounds = 0, radio_cuts = 0;
   uint64_t keyframes_duplicate = 0, keyframes_refused = 0;  // own keyframes not taken (PeerCore::add_keyframe)
+  uint64_t coarse_steps = 0;                                // distributed rounds that began with a coarse step
+  uint64_t separator_poses = 0, relayed_loops = 0;          // sent to peers (cdc/peer/separator)
 };
 
 class PeerNode {
@@ -117,7 +119,7 @@ class PeerNode {
   std::vector<uint32_t> separator_matches_;  // per peer: its readers ever matched
   Period mode_period_, radio_status_period_, status_file_period_;
   std::vector<cdc_msg_KeyframePose> pose_storage_;
-  std::vector<cdc_msg_KeyframePoseF> separator_storage_;
+  SeparatorStorage separator_storage_;
 };
 
 }  // namespace cdc::peer

@@ -104,6 +104,56 @@ TEST(DistributedEstimate, EachRoundMovesRelaxationOfTheWayToItsSolution) {
   EXPECT_EQ(e.rounds(), 2u);
 }
 
+TEST(DistributedEstimate, TheCoarseStepMovesAHigherRobotAndTheGaugeKeepsItsFirstKeyframe) {
+  // Robot 0's keyframe 4 sees robot 1's keyframe 2 one metre ahead, which robot 1 reports 3 m and a
+  // tenth of a radian off: the coarse step moves robot 1 onto the loop and robot 0 stays, its first
+  // keyframe at its odometry pose.
+  LocalGraph g = straight_line(0, 5);
+  LoopRecord l;
+  l.robot_a = 0;
+  l.keyframe_a = 4;
+  l.robot_b = 1;
+  l.keyframe_b = 2;
+  l.T_a_b = pose_at(1);
+  g.add_loop(l);
+  g.on_separator(1, {{2, pose_at(8, 0, 0.1)}});
+  g.on_coarse_view(1, 1, true);  // robot 1 has this one loop and runs the coarse step too
+  DistributedEstimate e(config(0));
+  ASSERT_TRUE(e.round(g, {}, std::nullopt));
+  EXPECT_EQ(e.coarse_steps(), 1u);
+  EXPECT_LT((e.poses().at(0).matrix() - pose_at(0).matrix()).norm(), 1e-9) << "the gauge's first keyframe moved";
+  for (uint32_t id = 0; id < 5; ++id) EXPECT_NEAR(x_of(e, id), id, 1e-3) << "robot 0 was pulled to robot 1";
+
+  // Robot 1 in the same group is placed by the coarse step (robot 0 holds still in it).
+  LocalGraph g1 = straight_line(1, 3);
+  g1.add_loop(l);
+  g1.on_separator(0, {{4, pose_at(4)}});
+  g1.on_coarse_view(0, 1, true);
+  PeerConfig c1 = config(1);
+  c1.relaxation = 1.0;
+  DistributedEstimate e1(c1);
+  ASSERT_TRUE(e1.round(g1, {}, pose_at(100, 50, 1.0)));
+  EXPECT_TRUE(e1.placed_by_peers());
+  EXPECT_LT((e1.poses().at(2).matrix() - pose_at(5).matrix()).norm(), 1e-6);
+
+  PeerConfig without = config(0);
+  without.coarse_step = false;
+  DistributedEstimate e2(without);
+  e2.round(g, {}, std::nullopt);
+  EXPECT_EQ(e2.coarse_steps(), 0u);
+  EXPECT_GT(x_of(e2, 4), 4.1) << "block solves alone pull the lowest robot toward its peer";
+
+  // While robot 1 has a loop robot 0 does not hold, or does not run the coarse step (the central's
+  // estimate anchors it), their coarse problems would differ: robot 0 runs none.
+  g.on_coarse_view(1, 2, true);
+  DistributedEstimate e3(config(0));
+  e3.round(g, {}, std::nullopt);
+  EXPECT_EQ(e3.coarse_steps(), 0u);
+  g.on_coarse_view(1, 1, false);
+  e3.round(g, {}, std::nullopt);
+  EXPECT_EQ(e3.coarse_steps(), 0u);
+}
+
 TEST(DistributedEstimate, ARoundWithoutKeyframesGivesNothing) {
   DistributedEstimate e(config(1));
   EXPECT_FALSE(e.round(LocalGraph(1), {}, std::nullopt));

@@ -101,5 +101,37 @@ TEST(LocalGraph, ItsGraphHoldsTheEstimateTheOdometryAndTheLoopsWithBothEnds) {
   EXPECT_EQ(pg.count(graph::FactorKind::kLoop), 1u);
 }
 
+TEST(LocalGraph, KnowsItsGroupThroughLoopsItsPeersRelay) {
+  // Robot 1 has loops with robots 0 and 2 (and one within itself); robot 2 relays its loop with
+  // robot 3, robot 0 one with robot 2 that a withdrawal retracts.
+  LocalGraph g(1);
+  g.add_keyframe(keyframe_at(4, 0));
+  g.add_loop(loop(0, 3, 1, 4));
+  g.add_loop(loop(1, 6, 2, 2));
+  g.add_loop(loop(1, 1, 1, 9));
+  EXPECT_EQ(g.group(), (std::set<uint32_t>{0, 2}));
+  EXPECT_FALSE(g.add_group_loop(loop(1, 7, 3, 1))) << "a loop touching robot 1 comes from the loop closures";
+  EXPECT_TRUE(g.add_group_loop(loop(2, 5, 3, 1)));
+  const LoopRecord relayed = loop(0, 8, 2, 8);
+  EXPECT_TRUE(g.add_group_loop(relayed));
+  EXPECT_FALSE(g.add_group_loop(relayed)) << "a loop held already";
+  EXPECT_EQ(g.group(), (std::set<uint32_t>{0, 2, 3})) << "robot 3 is reached through robot 2";
+  EXPECT_EQ(g.inter_robot_loops().size(), 4u);
+  LoopRecord withdrawal = loop(0, 8, 2, 8, true);
+  g.add_group_loop(withdrawal);
+  EXPECT_EQ(g.inter_robot_loops().size(), 3u) << "a withdrawn loop still counts";
+
+  // Every robot of the group gets every own keyframe an inter-robot loop touches; robot 1 relays
+  // its loops with higher robots to the others (robot 0 relays their loops with robot 1).
+  const std::set<uint32_t> own{4, 6};
+  EXPECT_EQ(g.group_separator_ids(), (std::map<uint32_t, std::set<uint32_t>>{{0, own}, {2, own}, {3, own}}));
+  const auto relay = g.loops_to_relay();
+  ASSERT_EQ(relay.count(0), 1u);
+  ASSERT_EQ(relay.at(0).size(), 1u);
+  EXPECT_EQ(relay.at(0)[0].robot_b, 2u);
+  EXPECT_EQ(relay.at(3).size(), 1u);
+  EXPECT_EQ(relay.count(2), 0u) << "robot 2 is an end of robot 1's only loop with a higher robot";
+}
+
 }  // namespace
 }  // namespace cdc::peer

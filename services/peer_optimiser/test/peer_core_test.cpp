@@ -449,10 +449,10 @@ TEST(PeerCore, TwoPeersPlaceEachOtherThroughSeparatorsAlone) {
       const auto o0 = r0.step(t, false);
       const auto o1 = r1.step(t, false);
       for (const auto& sep : o0.separators) {
-        if (sep.target == 1) r1.on_separator(0, sep.poses);
+        if (sep.target == 1) r1.on_separator(0, sep);
       }
       for (const auto& sep : o1.separators) {
-        if (sep.target == 0) r0.on_separator(1, sep.poses);
+        if (sep.target == 0) r0.on_separator(1, sep);
       }
     }
     graph::PoseGraph joint = central;
@@ -490,10 +490,12 @@ TEST(PeerCore, TwoPeersPlaceEachOtherThroughSeparatorsAlone) {
 }
 
 TEST(PeerCore, SeparatorPosesGoAgainOnlyOnceTheyMovedOrOnRefresh) {
-  // A settled pose is not sent again until the refresh; a moved one is.
+  // A settled pose is not sent again until the refresh; a moved one is. Block solves alone, so that
+  // robot 1's pose pulls keyframe 5 (a coarse step would move robot 1 onto the loop instead).
   const auto s = three_robot_stream();
   PeerConfig c0 = config(0);
   c0.separator_refresh = 2s;
+  c0.coarse_step = false;
   PeerCore r0(c0);
   add_robot0_with_a_loop_to_robot1(s, r0);
   size_t sent = 0;
@@ -540,18 +542,37 @@ TEST(PeerCore, APeerMatchedAnewGetsEverySeparatorPoseAtTheNextRound) {
       }
     }
   };
+  // With the coarse step every robot of the group gets every own keyframe an inter-robot loop touches.
+  const std::vector<uint32_t> both{5, 8};
   rounds(20);  // the first send to each peer, then the estimate settles (robot 0 is alone)
-  EXPECT_EQ(sent[1], std::vector<uint32_t>{5});
-  EXPECT_EQ(sent[2], std::vector<uint32_t>{8});
+  EXPECT_EQ(sent[1], both);
+  EXPECT_EQ(sent[2], both);
   rounds(20);
   EXPECT_TRUE(sent.empty()) << "settled separator poses were sent again";
 
   r0.resend_separators_to(2);  // robot 2's reader matched anew
   rounds(1);
-  EXPECT_EQ(sent[2], std::vector<uint32_t>{8}) << "the peer matched anew did not get its separator pose";
+  EXPECT_EQ(sent[2], both) << "the peer matched anew did not get its separator poses";
   EXPECT_EQ(sent.count(1), 0u) << "a peer that missed nothing got its separator pose again";
   rounds(20);
   EXPECT_TRUE(sent.empty()) << "the resend repeated";
+}
+
+TEST(PeerCore, TellsItsPeersWhetherItsRoundsRunTheCoarseStep) {
+  const auto s = three_robot_stream();
+  PeerCore r0(config(0));
+  add_robot0_with_a_loop_to_robot1(s, r0);
+  Nanos t = 0s;
+  StepOutput out = r0.step(t += 100ms, false);  // DISTRIBUTED at once, without the central's estimate
+  ASSERT_EQ(out.separators.size(), 1u);
+  EXPECT_TRUE(out.separators[0].coarse_step);
+  EXPECT_EQ(out.separators[0].inter_robot_loops, 1u);
+  for (int i = 0; i < 20; ++i) r0.step(t += 100ms, false);
+  r0.on_central_result(central_for(s, 0, 9, Eigen::Isometry3d::Identity()));
+  out = r0.step(t += 100ms, false);
+  ASSERT_EQ(out.separators.size(), 1u) << "the change did not go out at once";
+  EXPECT_FALSE(out.separators[0].coarse_step) << "the central's estimate anchors its rounds";
+  EXPECT_EQ(r0.separator_traffic().loops, 0u) << "robot 0 has no loop to relay to robot 1";
 }
 
 TEST(PeerCore, ACentralizedPeerGetsNoSeparatorPosesUntilItReportsDistributed) {

@@ -2,6 +2,7 @@
 #include "../src/peer_messages.hpp"
 
 #include "cdc/dds/convert.hpp"
+#include "cdc/dds/validate.hpp"
 
 #include <gtest/gtest.h>
 
@@ -92,16 +93,43 @@ TEST(PeerMessages, CentralResultsAndSeparatorsKeepTheirPoses) {
   m.source = cdc_msg_SOURCE_CENTRAL;
   EXPECT_FALSE(central_result(m).from_hint);
 
-  SeparatorOut out{2, {{5, pose(5.0, 0.1)}, {6, pose(6.0, -0.1)}}};
-  std::vector<cdc_msg_KeyframePoseF> storage;
+  SeparatorOut out;
+  out.target = 2;
+  out.poses = {{5, pose(5.0, 0.1)}, {6, pose(6.0, -0.1)}};
+  LoopRecord relayed{.sender = 1,
+                     .sender_incarnation = 4,
+                     .seq = 8,
+                     .robot_a = 1,
+                     .keyframe_a = 5,
+                     .robot_b = 3,
+                     .keyframe_b = 2,
+                     .withdrawn = true,
+                     .T_a_b = pose(1.0, 0.2)};
+  relayed.information = Matrix6d::Identity() * 40.0;
+  out.loops = {relayed};
+  out.inter_robot_loops = 7;
+  out.coarse_step = true;
+  SeparatorStorage storage;
   const cdc_msg_SeparatorPoses s = separator_message(Origin{1, 3, 1000}, out, 17, storage);
   EXPECT_EQ(std::make_tuple(s.robot_id, s.target_robot_id, s.incarnation, s.round, s.stamp_ns),
             std::make_tuple(1u, 2u, 3u, 17u, int64_t{1000}));
-  EXPECT_EQ(s.poses._buffer, storage.data());
-  const KeyframePoses back = separator_poses(s);
-  ASSERT_EQ(back.size(), 2u);
-  EXPECT_EQ(back[0].first, 5u);
-  EXPECT_TRUE(back[0].second.isApprox(pose(5.0, 0.1), 1e-6)) << "separator poses travel in single precision";
+  EXPECT_EQ(s.poses._buffer, storage.poses.data());
+  EXPECT_EQ(s.loops._buffer, storage.loops.data());
+  EXPECT_TRUE(dds::validate(s, dds::ValidationLimits{})) << dds::validate(s, dds::ValidationLimits{}).reason();
+  const SeparatorOut back = separator_in(s);
+  EXPECT_EQ(back.target, 2u);
+  ASSERT_EQ(back.poses.size(), 2u);
+  EXPECT_EQ(back.poses[0].first, 5u);
+  EXPECT_TRUE(back.poses[0].second.isApprox(pose(5.0, 0.1), 1e-6)) << "separator poses travel in single precision";
+  ASSERT_EQ(back.loops.size(), 1u);
+  const LoopRecord& l = back.loops[0];
+  EXPECT_EQ(std::make_tuple(l.sender, l.sender_incarnation, l.seq, l.robot_a, l.keyframe_a, l.robot_b, l.keyframe_b,
+                            l.withdrawn),
+            std::make_tuple(1u, 4u, 8u, 1u, 5u, 3u, 2u, true));
+  EXPECT_TRUE(l.T_a_b.isApprox(pose(1.0, 0.2), 1e-12));
+  EXPECT_TRUE(l.information.isApprox(relayed.information));
+  EXPECT_EQ(back.inter_robot_loops, 7u);
+  EXPECT_TRUE(back.coarse_step);
 }
 
 TEST(PeerMessages, OutgoingStateMessages) {

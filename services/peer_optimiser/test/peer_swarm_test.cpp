@@ -1,5 +1,5 @@
-// The peer cores of a three-robot swarm solving at once, hundreds of rounds: the damped rounds settle
-// on the centralized optimum, and the separator dead-band keeps the joint cost. Seconds of solving:
+// The peer cores of a three-robot swarm solving at once, hundreds of rounds: the rounds settle on the
+// centralized optimum, and the separator dead-band keeps the joint cost. Seconds of solving:
 // labelled `slow`, not `unit`.
 #include "cdc/graph/initialise.hpp"
 #include "cdc/graph/objective.hpp"
@@ -57,7 +57,7 @@ SwarmRounds run_swarm_rounds(const test::SwarmStream& s, int rounds, const PeerC
     for (auto& c : cores) out.push_back(c.step(t, false));
     for (uint32_t r = 0; r < robots; ++r) {
       for (const auto& sep : out[r].separators) {
-        cores[sep.target].on_separator(r, sep.poses);
+        cores[sep.target].on_separator(r, sep);
         result.separator_poses += sep.poses.size();
       }
       if (out[r].correction) {  // in the frame of its T_world_robot, which has long caught up
@@ -87,14 +87,19 @@ TEST(PeerSwarm, PeersSolvingAtOnceSettleOnTheCentralizedOptimum) {
   EXPECT_GE(r.cost, r.optimum * (1 - 1e-6));
 }
 
-// Over the whole swarm the dead-band sends far fewer separator poses, at about the same joint cost.
+// Over the whole swarm the dead-band sends far fewer separator poses, at about the same joint cost,
+// in block rounds. (With the coarse step on this stream, where every robot drives the whole block,
+// the map's slow turn about robot 0's first keyframe moves most poses by more than 1 mm for most of
+// the 300 rounds, and the dead-band saves less.)
 TEST(PeerSwarm, ADeadBandSendsFarFewerSeparatorPosesAtAboutTheSameCost) {
   const auto s = three_robot_stream();
-  PeerConfig exact = config(0);
+  PeerConfig base = config(0);
+  base.coarse_step = false;
+  PeerConfig exact = base;
   exact.separator_min_change_m = 0;
   exact.separator_min_change_rad = 0;
   const SwarmRounds all = run_swarm_rounds(s, 300, exact);
-  const SwarmRounds moved = run_swarm_rounds(s, 300, config(0));  // 1 mm / 0.01 deg, refresh 30 s
+  const SwarmRounds moved = run_swarm_rounds(s, 300, base);  // 1 mm / 0.01 deg, refresh 30 s
   std::printf("separator poses sent: %zu exactly, %zu when moved; joint cost %.2f / %.2f, optimum %.2f\n",
               all.separator_poses, moved.separator_poses, all.cost, moved.cost, all.optimum);
   EXPECT_LT(moved.separator_poses * 2, all.separator_poses);

@@ -80,5 +80,27 @@ TEST_F(SeparatorExchangeTest, APeerThatMayHaveMissedSomeGetsAllOfThemNextRound) 
   EXPECT_EQ(round(200ms), Sent{});
 }
 
+TEST(SeparatorExchange, RelaysEachLoopOnceToEachPeerAndAgainAfterAMiss) {
+  SeparatorExchange exchange(config(0));
+  LoopRecord a{.sender = 0, .seq = 1, .robot_a = 0, .keyframe_a = 5, .robot_b = 1, .keyframe_b = 7};
+  LoopRecord b = a;
+  b.seq = 2;
+  const auto relayed = [&](Nanos now, const std::vector<LoopRecord>& loops) {
+    std::map<uint32_t, std::vector<uint32_t>> seqs;  // peer -> loop seqs relayed
+    for (const SeparatorOut& s : exchange.round(now, {}, {}, std::nullopt, {{2, loops}})) {
+      EXPECT_TRUE(s.poses.empty());
+      for (const LoopRecord& l : s.loops) seqs[s.target].push_back(l.seq);
+    }
+    return seqs;
+  };
+  EXPECT_EQ(relayed(0s, {a}), (std::map<uint32_t, std::vector<uint32_t>>{{2, {1}}})) << "loops go without poses";
+  EXPECT_TRUE(relayed(100ms, {a}).empty()) << "a loop relayed again";
+  EXPECT_EQ(relayed(200ms, {a, b}), (std::map<uint32_t, std::vector<uint32_t>>{{2, {2}}}));
+  exchange.resend_to(2);
+  EXPECT_EQ(relayed(300ms, {a, b}), (std::map<uint32_t, std::vector<uint32_t>>{{2, {1, 2}}}));
+  exchange.on_peer_mode(2, Mode::kCentralized);
+  EXPECT_TRUE(relayed(400ms, {a, b}).empty()) << "a CENTRALIZED peer runs no coarse step";
+}
+
 }  // namespace
 }  // namespace cdc::peer

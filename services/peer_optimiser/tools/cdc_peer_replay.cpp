@@ -403,7 +403,7 @@ class Replay {
     for (uint32_t r = 0; r < o_.robots; ++r) {
       for (const auto& s : out[r].separators) {
         if (!run_.radio.up(r, s.target, t)) continue;
-        cores_[s.target].on_separator(r, s.poses);
+        cores_[s.target].on_separator(r, s);
         separator_poses_[r] += s.poses.size();
       }
       if (out[r].correction) last_[r] = std::move(out[r].correction);

@@ -1,7 +1,13 @@
 // The robot's own estimate in DISTRIBUTED mode (paper III-A-2): rounds that optimise its keyframes,
 // its odometry and the loops touching it, with its peers' separator poses held fixed. Every robot
 // solves at once (block Jacobi), so each round moves the own keyframes only `relaxation` of the way
-// to its solution.
+// to its solution. Without the central's estimate a round starts with the coarse step of the
+// two-stage solve (graph/distributed_robot.hpp): one rigid move per robot of the group, which
+// every robot solves alike from the same loops and poses, so that the rounds converge in shape and
+// not only in cost. Its gauge is the group's lowest robot: it holds still in the coarse step, and
+// after its own block solve (with no keyframe pinned) it moves rigidly back so that its first
+// keyframe is at its odometry pose. A robot of the group is in the group's frame once a coarse step
+// has placed it.
 #pragma once
 
 #include "cdc/graph/pose_graph.hpp"
@@ -36,9 +42,11 @@ class DistributedEstimate {
                                          const std::optional<Eigen::Isometry3d>& T_world_robot);
 
   const std::map<uint32_t, Eigen::Isometry3d>& poses() const noexcept { return estimate_; }
-  // The estimate has been moved into the group's frame through a peer's separator pose.
+  // The estimate has been moved into the group's frame through a peer's separator pose, or by a
+  // coarse step held by a lower robot.
   bool placed_by_peers() const noexcept { return placed_by_peers_; }
   uint64_t rounds() const noexcept { return rounds_; }
+  uint64_t coarse_steps() const noexcept { return coarse_steps_; }
 
  private:
   // A round's problem: the graph to solve and the separator poses held fixed in it.
@@ -47,17 +55,25 @@ class DistributedEstimate {
     std::set<Key> fixed;
     bool lowest = true;  // no separator of a lower robot in it: this robot is the lowest of its group
   };
+  using Separators = std::map<Key, Eigen::Isometry3d>;
+  // What a coarse step did: the group's gauge robot, when it ran.
+  struct Coarse {
+    std::optional<uint32_t> gauge;
+  };
 
   bool place_through_peers(const LocalGraph& known);
-  Problem problem(const LocalGraph& known) const;
-  void anchor(Problem& p, const LocalGraph& known, const KeyframePoses& central) const;
+  Coarse coarse_step(const LocalGraph& known, Separators& separators);
+  Problem problem(const LocalGraph& known, const Separators& separators) const;
+  void anchor(Problem& p, const LocalGraph& known, const KeyframePoses& central, const Coarse& coarse) const;
   void solve(Problem& p) const;
   void relax_towards(const graph::PoseGraph& solution);
+  void hold_gauge(const LocalGraph& known);
 
   PeerConfig config_;
   std::map<uint32_t, Eigen::Isometry3d> estimate_;  // own keyframes, T_world
   bool placed_by_peers_ = false;
   uint64_t rounds_ = 0;
+  uint64_t coarse_steps_ = 0;
 };
 
 }  // namespace cdc::peer

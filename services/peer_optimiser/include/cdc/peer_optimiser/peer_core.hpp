@@ -35,6 +35,12 @@ struct KeyframeCounters {
   uint64_t refused = 0;    // conflicting with what is held
 };
 
+// What the rounds sent to peers: separator poses and relayed loops, counted when given out.
+struct SeparatorTraffic {
+  uint64_t poses = 0;
+  uint64_t loops = 0;
+};
+
 class PeerCore {
  public:
   explicit PeerCore(const PeerConfig& config, Nanos start = Nanos{0});
@@ -47,7 +53,12 @@ class PeerCore {
   void add_loop(const LoopRecord& loop, Nanos now);  // any loop touching this robot
   void on_central_result(const CentralResult& r);
   void on_ack(const AckIn& a);
+  // A peer's separator poses, and the inter-robot loops between other robots it relays (for the
+  // coarse step; loops touching this robot come from the loop closures themselves).
   void on_separator(uint32_t from, const KeyframePoses& poses) { known_.on_separator(from, poses); }
+  // What a peer's step gave out for this robot (`message.target`): separator poses, relayed loops,
+  // and how many inter-robot loops the peer holds.
+  void on_separator(uint32_t from, const SeparatorOut& message);
   // The central's position in W; nullopt when the central knows no world yet (a restarted one before
   // its host robot's poses reach it): the distance to it is then unknown, not measured from the origin.
   void on_central_position(const std::optional<Eigen::Vector3d>& p) { central_position_ = p; }
@@ -85,6 +96,8 @@ class PeerCore {
   // The highest keyframe id up to which the current central has acknowledged every keyframe (-1: none).
   int64_t central_acknowledged_keyframe() const noexcept { return backlog_.acknowledged_keyframe(); }
   uint64_t distributed_rounds() const noexcept { return distributed_.rounds(); }
+  uint64_t coarse_steps() const noexcept { return distributed_.coarse_steps(); }
+  const SeparatorTraffic& separator_traffic() const noexcept { return traffic_; }
   // What this robot knows, as a pose graph: its keyframes (at the distributed estimate, else their
   // odometry) with their odometry factors, every loop touching it, and its peers' separator poses as
   // received. The union of every robot's graph is the swarm's graph (cdc-peer-replay merges them).
@@ -113,6 +126,7 @@ class PeerCore {
   Nanos last_round_{0};
   std::map<uint32_t, Eigen::Isometry3d> corrected_;  // T_world_keyframe as last published
   KeyframeCounters keyframe_counters_;
+  SeparatorTraffic traffic_;
 };
 
 }  // namespace cdc::peer

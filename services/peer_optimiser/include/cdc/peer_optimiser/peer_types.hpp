@@ -39,6 +39,13 @@ struct PeerConfig {
   // (block Jacobi); taken whole (1.0), two coupled robots each jump onto the other's old poses and
   // the pair oscillates about the optimum instead of settling. Damped, the rounds reach it.
   double relaxation = 0.7;
+  // Without the central's estimate, each round starts with the coarse step of the two-stage
+  // distributed solve (graph::coarse_corrections): one rigid move per robot of the group, solved
+  // alike by every robot from the group's inter-robot loops and separator poses. The block solves
+  // alone leave a bend of the whole map that shrinks by a few percent per round; the coarse step
+  // removes it at once. It needs every robot's inter-robot loops and their poses: peers send all
+  // their inter-robot separator poses to every robot of their group and relay their loops.
+  bool coarse_step = true;
   // A separator pose goes to a peer again only once it has moved this far since it was last sent
   // there (the rounds settle, and most poses stop moving). The topic is reliable, so a peer misses
   // one only when it was out of reach long enough to be unmatched (or restarted): the node then
@@ -112,7 +119,17 @@ struct Correction {
 
 struct SeparatorOut {
   uint32_t target = 0;
-  KeyframePoses poses;  // own keyframes the target's loops touch
+  // Own keyframes the target's loops touch; with the coarse step, every own keyframe an
+  // inter-robot loop touches.
+  KeyframePoses poses;
+  // Inter-robot loops of this robot that the target is no end of (each relayed once, by the loop's
+  // lower robot), for the target's coarse step.
+  std::vector<LoopRecord> loops;
+  // How many inter-robot loops the sender has (those touching it), and whether its rounds start with
+  // the coarse step: a robot runs the coarse step only while every robot of its group does and it
+  // holds as many loops touching each of them as that robot says it has.
+  uint32_t inter_robot_loops = 0;
+  bool coarse_step = false;
 };
 
 struct StepOutput {
