@@ -10,6 +10,7 @@ namespace cdc::peer {
 namespace {
 
 constexpr double kAnchorInformation = 1e6;
+constexpr int kGncRounds = 30;  // GNC rounds per block solve at most (mu doubles each round)
 // A key index no keyframe has (ids are 32-bit): as the coarse step's gauge, its robot holds still
 // as a whole (graph::coarse_corrections).
 constexpr uint64_t kNoKeyframe = (uint64_t{1} << 56) - 1;
@@ -223,18 +224,32 @@ void DistributedEstimate::anchor(Problem& p, const LocalGraph& known, const Keyf
   }
 }
 
-void DistributedEstimate::solve(Problem& p) const {
+void DistributedEstimate::solve(Problem& p) {
   if (config_.share_loop_information) {
     graph::share_loop_information(p.graph);
   }
   graph::SolverOptions o;
   o.max_iterations = config_.distributed_iterations;
   o.function_tolerance = 1e-8;
-  // No robust loss: loops reaching the back-end passed geometric verification and PCM, and in
-  // rounds that start misaligned a robust kernel discounts exactly the loops that align the robots,
-  // and the rounds converge many times more slowly.
+  // No Cauchy loss: in rounds that start misaligned it discounts exactly the loops that align the
+  // robots, and the rounds converge many times more slowly. GNC from the least-squares solution
+  // takes the own loops only (PeerConfig::own_loop_gnc_threshold).
   o.robust_loss_scale = 0.0;
-  graph::solve(p.graph, o, p.fixed);
+  if (config_.own_loop_gnc_threshold > 0.0) {
+    for (graph::Factor& f : p.graph.factors) f.robust = f.robust && !f.inter_robot();
+    o.gnc.enabled = true;
+    o.gnc.least_squares_start = true;
+    o.gnc.inlier_threshold = config_.own_loop_gnc_threshold;
+    o.gnc.mu_step = 2.0;
+    o.gnc.max_rounds = kGncRounds;
+  }
+  const graph::SolveResult r = graph::solve(p.graph, o, p.fixed);
+  if (r.gnc_converged && r.weights.size() == p.graph.factors.size()) {
+    own_loops_held_out_ = 0;
+    for (size_t i = 0; i < r.weights.size(); ++i) {
+      if (p.graph.factors[i].robust && r.weights[i] < graph::kGncAcceptedWeight) ++own_loops_held_out_;
+    }
+  }
 }
 
 void DistributedEstimate::relax_towards(const graph::PoseGraph& solution) {

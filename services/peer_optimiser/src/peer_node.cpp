@@ -19,8 +19,8 @@ namespace cdc::peer {
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(PeerNodeCounters, forwarded_keyframes, withheld_keyframes, keyframe_writer_discards,
                                    resent_keyframes, resent_loops, corrections, separator_messages)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(PeerNodeState, robot, mode, transitions, keyframes, keyframes_duplicate,
-                                   keyframes_refused, distributed_rounds, radio_cuts, coarse_steps, separator_poses,
-                                   relayed_loops)
+                                   keyframes_refused, distributed_rounds, radio_cuts, coarse_steps, own_loops_held_out,
+                                   separator_poses, relayed_loops)
 
 namespace {
 
@@ -295,6 +295,7 @@ nlohmann::json PeerNode::stats() const {
   state.keyframes_refused = core_.keyframe_counters().refused;
   state.distributed_rounds = core_.distributed_rounds();
   state.coarse_steps = core_.coarse_steps();
+  state.own_loops_held_out = core_.own_loops_held_out();
   state.separator_poses = core_.separator_traffic().poses;
   state.relayed_loops = core_.separator_traffic().loops;
   state.radio_cuts = service_.robot_domains()->radio_cuts();

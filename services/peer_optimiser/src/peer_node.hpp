@@ -44,6 +44,7 @@ struct PeerNodeState {
   uint64_t keyframes = 0, distributed_rounds = 0, radio_cuts = 0;
   uint64_t keyframes_duplicate = 0, keyframes_refused = 0;  // own keyframes not taken (PeerCore::add_keyframe)
   uint64_t coarse_steps = 0;                                // distributed rounds that began with a coarse step
+  uint64_t own_loops_held_out = 0;                          // own loops the last distributed round's GNC held out
   uint64_t separator_poses = 0, relayed_loops = 0;          // sent to peers (cdc/peer/separator)
 };
 

@@ -41,6 +41,7 @@ PeerNodeOptions load_options(const std::string& path) {
   r.get_in("distributed_iterations", o.core.distributed_iterations, 1, 1000);
   r.get_in("distributed_relaxation", o.core.relaxation, 1e-3, 1.0);
   r.get<bool>("share_loop_information", o.core.share_loop_information);
+  r.get_in("own_loop_gnc_threshold", o.core.own_loop_gnc_threshold, 0.0, 1e9);
   r.get<bool>("coarse_step", o.core.coarse_step);
   r.get_in("separator_min_change_m", o.core.separator_min_change_m, 0.0, 100.0);
   double sep_deg = o.core.separator_min_change_rad * 180.0 / M_PI;

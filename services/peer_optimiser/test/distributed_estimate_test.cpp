@@ -3,6 +3,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <utility>
+#include <vector>
+
 namespace cdc::peer {
 namespace {
 
@@ -152,6 +157,69 @@ TEST(DistributedEstimate, TheCoarseStepMovesAHigherRobotAndTheGaugeKeepsItsFirst
   g.on_coarse_view(1, 1, false);
   e3.round(g, {}, std::nullopt);
   EXPECT_EQ(e3.coarse_steps(), 0u);
+}
+
+// A 20 m square lap driven twice (keyframes 2 m apart), odometry drifting in yaw, true loops between
+// the laps and one wrong loop that puts keyframe 25 at keyframe 5's place turned by 90 degrees.
+struct SquareLaps {
+  LocalGraph graph{0};
+  std::vector<Eigen::Isometry3d> truth;
+};
+
+SquareLaps square_laps(bool wrong_loop) {
+  SquareLaps laps;
+  for (uint32_t id = 0; id < 80; ++id) {
+    const uint32_t side = (id / 10) % 4, step = id % 10;
+    const double yaw = M_PI / 2 * side;
+    const Eigen::Vector2d corner[4] = {{0, 0}, {20, 0}, {20, 20}, {0, 20}};
+    const Eigen::Vector2d p = corner[side] + 2.0 * step * Eigen::Vector2d(std::cos(yaw), std::sin(yaw));
+    laps.truth.push_back(pose_at(p.x(), p.y(), yaw));
+  }
+  Eigen::Isometry3d odom = Eigen::Isometry3d::Identity();
+  for (uint32_t id = 0; id < 80; ++id) {
+    OwnKeyframe kf;
+    kf.id = id;
+    kf.T_prev = id == 0 ? Eigen::Isometry3d::Identity()
+                        : laps.truth[id - 1].inverse() * laps.truth[id] * pose_at(0, 0, 0.004);  // drifts
+    odom = odom * kf.T_prev;
+    kf.T_odom = odom;
+    kf.information = Matrix6d::Identity() * 100.0;
+    laps.graph.add_keyframe(kf);
+  }
+  uint32_t seq = 0;
+  for (uint32_t id = 40; id < 80; id += 5) {
+    laps.graph.add_loop({0, 3, seq++, 0, id - 40, 0, id, false, laps.truth[id - 40].inverse() * laps.truth[id],
+                         Matrix6d::Identity() * 100.0});
+  }
+  if (wrong_loop) {
+    laps.graph.add_loop({0, 3, seq++, 0, 5, 0, 25, false, pose_at(0, 0, M_PI / 2), Matrix6d::Identity() * 100.0});
+  }
+  return laps;
+}
+
+double worst_error(const DistributedEstimate& e, const std::vector<Eigen::Isometry3d>& truth) {
+  double worst = 0;
+  for (const auto& [id, T] : e.poses()) worst = std::max(worst, (T.translation() - truth[id].translation()).norm());
+  return worst;
+}
+
+TEST(DistributedEstimate, GncHoldsAWrongOwnLoopOut) {
+  const SquareLaps clean = square_laps(false), spoiled = square_laps(true);
+  auto run = [](const SquareLaps& laps, double threshold) {
+    PeerConfig c = config(0);
+    c.own_loop_gnc_threshold = threshold;
+    DistributedEstimate e(c);
+    for (int round = 0; round < 30; ++round) e.round(laps.graph, {}, std::nullopt);
+    return std::make_pair(worst_error(e, laps.truth), e.own_loops_held_out());
+  };
+  const auto [clean_error, clean_out] = run(clean, 16.81);
+  EXPECT_EQ(clean_out, 0u);
+  const auto [robust_error, robust_out] = run(spoiled, 16.81);
+  EXPECT_EQ(robust_out, 1u);
+  EXPECT_NEAR(robust_error, clean_error, 0.01);
+  const auto [plain_error, plain_out] = run(spoiled, 0.0);
+  EXPECT_EQ(plain_out, 0u);
+  EXPECT_GT(plain_error, clean_error + 1.0) << "the wrong loop bends the lap without GNC";
 }
 
 TEST(DistributedEstimate, ARoundWithoutKeyframesGivesNothing) {

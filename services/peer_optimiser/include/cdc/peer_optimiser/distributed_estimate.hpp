@@ -47,6 +47,8 @@ class DistributedEstimate {
   bool placed_by_peers() const noexcept { return placed_by_peers_; }
   uint64_t rounds() const noexcept { return rounds_; }
   uint64_t coarse_steps() const noexcept { return coarse_steps_; }
+  // Own loops the last round's GNC held out (of a round whose solve converged).
+  size_t own_loops_held_out() const noexcept { return own_loops_held_out_; }
 
  private:
   // A round's problem: the graph to solve and the separator poses held fixed in it.
@@ -65,7 +67,7 @@ class DistributedEstimate {
   Coarse coarse_step(const LocalGraph& known, Separators& separators);
   Problem problem(const LocalGraph& known, const Separators& separators) const;
   void anchor(Problem& p, const LocalGraph& known, const KeyframePoses& central, const Coarse& coarse) const;
-  void solve(Problem& p) const;
+  void solve(Problem& p);
   void relax_towards(const graph::PoseGraph& solution);
   void hold_gauge(const LocalGraph& known);
 
@@ -74,6 +76,7 @@ class DistributedEstimate {
   bool placed_by_peers_ = false;
   uint64_t rounds_ = 0;
   uint64_t coarse_steps_ = 0;
+  size_t own_loops_held_out_ = 0;
 };
 
 }  // namespace cdc::peer

@@ -97,6 +97,7 @@ class PeerCore {
   int64_t central_acknowledged_keyframe() const noexcept { return backlog_.acknowledged_keyframe(); }
   uint64_t distributed_rounds() const noexcept { return distributed_.rounds(); }
   uint64_t coarse_steps() const noexcept { return distributed_.coarse_steps(); }
+  size_t own_loops_held_out() const noexcept { return distributed_.own_loops_held_out(); }
   const SeparatorTraffic& separator_traffic() const noexcept { return traffic_; }
   // What this robot knows, as a pose graph: its keyframes (at the distributed estimate, else their
   // odometry) with their odometry factors, every loop touching it, and its peers' separator poses as

@@ -57,6 +57,14 @@ struct PeerConfig {
   // Loops through one keyframe share its cloud's errors: each loop's information is divided by the
   // most loops either of its keyframes takes part in (graph::share_loop_information).
   bool share_loop_information = true;
+  // The robot's own loop closures (PCM checks inter-robot loops only) pass through graduated
+  // non-convexity in each distributed round's block solve (graph::GncOptions, truncated least
+  // squares after the round's bounded least-squares solve; GNC rounds only when an own loop's
+  // r^T Omega r exceeds this c^2 there; 0: off). Each round decides afresh: a round's solve is
+  // small, and a robot's estimate moves round by round. Inter-robot loops stay quadratic: their far ends are peers'
+  // separator poses held fixed, which a group still settling leaves misaligned, and a truncated loss would drop the
+  // very loops that align it.
+  double own_loop_gnc_threshold = 16.81;
   // Keyframes (and loops) re-sent per step at most, so that a rejoin's backlog (hundreds of
   // keyframes of ~110 KB) goes out over several steps instead of blocking the node's loop under
   // flow control.
