@@ -57,10 +57,11 @@ struct WireCounters {
 };
 
 nlohmann::json run_sequence(const std::string& data, const std::string& seq, const loops::LoopParams& params,
-                            uint32_t exclude_recent, const WireOptions& wire) {
+                            const io::SplitOptions& split, const WireOptions& wire) {
   const auto full = io::kitti_lidar_trajectory(data + "/kitti/poses/" + seq + ".txt",
                                                io::read_kitti_calib(data + "/kitti/calib_Tr.txt", "Tr_04_10"));
-  const auto robots = io::split_robots(full, io::SplitOptions{3, 0.15, 0.0});
+  const auto robots = io::split_robots(full, split);
+  const uint32_t exclude_recent = params.exclude_recent;
   std::vector<std::vector<Eigen::Vector3d>> paths;
   std::vector<Kf> kfs;
   for (uint32_t r = 0; r < robots.size(); ++r) {
@@ -320,6 +321,11 @@ int main(int argc, char** argv) {
          "with --wire: quantisation of the packed clouds [m] (loop_closure.yaml's verification.reply_resolution_m)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  io::SplitOptions split;
+  app.add_option("--reverse", split.reverse,
+                 "robots that drive their piece the other way, on the opposite lane (io::SplitOptions::reverse)");
+  app.add_option("--reverse-lane", split.reverse_lane_m, "how far left of the sequence's direction they drive [m]")
+      ->capture_default_str();
   bool both_verify = false;
   app.add_flag("--both-robots-verify", both_verify,
                "with --wire: both robots of a pair verify it (lower_robot_verifies: false)");
@@ -334,7 +340,7 @@ int main(int argc, char** argv) {
   nlohmann::json out;
   double precision = 1, recall = 1;
   for (const auto& s : seqs) {
-    out[s] = run_sequence(data, s, params, params.exclude_recent, wire);
+    out[s] = run_sequence(data, s, params, split, wire);
     precision = std::min(precision, out[s]["precision"].get<double>());
     recall = std::min(recall, out[s]["recall"].get<double>());
   }

@@ -33,6 +33,7 @@ void read_retrieval(Reader& r, LoopParams& p) {
 }
 
 void read_verification(Reader& r, LoopParams& p) {
+  r.get_in("verification.ground_guess_min_m", p.ground_guess_min_m, 0.0, 1000.0);
   r.get_in("verification.max_fitness_m2", p.max_fitness, 1e-6, 100.0);
   r.get_in("verification.min_overlap", p.min_overlap, 0.001, 1.0);
   r.get_in("verification.tilt_information_scale", p.tilt_information_scale, 0.0, 1.0);

@@ -48,6 +48,12 @@ struct LoopParams {
   double intra_gate_m = 15, intra_gate_per_m = 0.05;
   size_t max_verify = 2;  // candidates verified per keyframe
   odometry::RegistrationSettings registration = verification_registration();
+  // The verification's guess is moved along the candidate's up to put the two clouds' grounds
+  // (lidar::ground_height) level when the guess leaves them further apart than this [m]: two passes of
+  // one place at different heights (a sensor mounted higher; elevations that disagree between passes,
+  // 2-5 m in places of KITTI 08's ground truth) start registration that far off in height, beyond
+  // the correspondence distance, where it slides to a wrong height or fails. 0: always level them.
+  double ground_guess_min_m = 1.0;
   double max_fitness = 0.15;  // [m^2] mean squared inlier distance
   double min_overlap = 0.55;
   // The front-ends hold roll and pitch with gravity, so a loop's tilt (two sparse sweeps seen from
