@@ -390,7 +390,11 @@ ImportSummary write_import(const Recording& rec, const ImportOptions& o) {
   if (o.robots == 1) {
     ranges.push_back({0, rec.size()});
   } else {
-    ranges = io::split_ranges(rec.size(), io::SplitOptions{o.robots, o.overlap, o.time_shift_s});
+    io::SplitOptions split;
+    split.robots = o.robots;
+    split.overlap = o.overlap;
+    split.time_shift_s = o.time_shift_s;
+    ranges = io::split_ranges(rec.size(), split);
   }
   io::DatasetWriter writer(o.out, o.overwrite);
   std::vector<geometry::Trajectory> robot_poses(ranges.size());

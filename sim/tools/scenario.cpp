@@ -92,6 +92,11 @@ Scenario load_scenario(const std::string& path) {
   r.get_in("trajectories.robots", s.robots, 1, 64);
   r.get_in("trajectories.overlap", s.overlap, 0.0, 0.9);
   r.get_in("trajectories.time_shift_s", s.time_shift_s, 0.0, kMaxDurationS);
+  r.get<std::vector<int>>(
+      "trajectories.reverse", s.reverse,
+      [](const std::vector<int>& v) { return std::all_of(v.begin(), v.end(), [](int k) { return k >= 0 && k < 64; }); },
+      "a list of robot numbers");
+  r.get_in("trajectories.reverse_lane_m", s.reverse_lane_m, -20.0, 20.0);
   std::string pattern = "rays";
   r.get<std::string>(
       "trajectories.pattern", pattern, [](const std::string& v) { return parse_pattern(v).has_value(); },
@@ -123,6 +128,13 @@ Scenario load_scenario(const std::string& path) {
   r.get_in("world.clearance_m", s.world.clearance_m, 0.1, 100.0);
   r.get_in("world.spacing_m", s.world.spacing_m, 1.0, 1000.0);
   s.world.seed = s.seed;
+  for (int k : s.reverse) {
+    if (k >= s.robots) {
+      r.error("trajectories.reverse: robot " + std::to_string(k) + " is not one of the " + std::to_string(s.robots) +
+              " robots");
+    }
+  }
+  if (!s.reverse.empty() && s.source != "kitti") r.error("trajectories.reverse applies to KITTI sources only");
   if (s.central_robot >= s.robots) {
     r.error("radio.central_robot " + std::to_string(s.central_robot) + " is not one of the " +
             std::to_string(s.robots) + " robots");
@@ -158,7 +170,13 @@ std::vector<geometry::Trajectory> robot_trajectories(const Scenario& s, const Ge
     }
   }
   const auto seq = io::kitti_lidar_trajectory(poses.string(), io::read_kitti_calib(calib.string(), s.calib_key));
-  return io::split_robots(seq, io::SplitOptions{s.robots, s.overlap, s.time_shift_s});
+  io::SplitOptions split;
+  split.robots = s.robots;
+  split.overlap = s.overlap;
+  split.time_shift_s = s.time_shift_s;
+  split.reverse = s.reverse;
+  split.reverse_lane_m = s.reverse_lane_m;
+  return io::split_robots(seq, split);
 }
 
 SplineTrajectory to_spline(const geometry::Trajectory& t) {

@@ -10,6 +10,7 @@
 
 #include <functional>
 #include <string>
+#include <vector>
 
 namespace cdc::sim {
 
@@ -22,8 +23,10 @@ struct Scenario {
   int robots = 3;
   double overlap = 0.15;
   double time_shift_s = 0;
-  MissionOptions mission;                // procedural
-  std::string lidar = "vlp16";           // vlp16 | hdl64
+  std::vector<int> reverse;     // robots that drive their KITTI piece the other way (io::SplitOptions::reverse)
+  double reverse_lane_m = 0;    // how far to the left of the sequence's direction they drive [m]
+  MissionOptions mission;       // procedural
+  std::string lidar = "vlp16";  // vlp16 | hdl64
   double lidar_elevation_error_deg = 0;  // sigma of each beam's (fixed, seeded) elevation calibration error
   double lidar_elevation_bias_deg = 0;   // an elevation error common to every beam (KITTI's HDL-64E has about 0.22 deg)
   double lidar_azimuth_error_deg = 0;    // sigma of each beam's (fixed, seeded) azimuth calibration error

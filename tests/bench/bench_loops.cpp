@@ -57,10 +57,11 @@ struct WireCounters {
 };
 
 nlohmann::json run_sequence(const std::string& data, const std::string& seq, const loops::LoopParams& params,
-                            uint32_t exclude_recent, const WireOptions& wire) {
+                            const io::SplitOptions& split, const WireOptions& wire, bool follow_ground) {
   const auto full = io::kitti_lidar_trajectory(data + "/kitti/poses/" + seq + ".txt",
                                                io::read_kitti_calib(data + "/kitti/calib_Tr.txt", "Tr_04_10"));
-  const auto robots = io::split_robots(full, io::SplitOptions{3, 0.15, 0.0});
+  const auto robots = io::split_robots(full, split);
+  const uint32_t exclude_recent = params.exclude_recent;
   std::vector<std::vector<Eigen::Vector3d>> paths;
   std::vector<Kf> kfs;
   for (uint32_t r = 0; r < robots.size(); ++r) {
@@ -80,6 +81,14 @@ nlohmann::json run_sequence(const std::string& data, const std::string& seq, con
   sim::WorldOptions wo;
   wo.seed = 5;
   const sim::World world = sim::World::generate(paths, wo);
+  // Where the ground truth's passes over a place disagree in height, the world's ground follows the
+  // lowest and a higher pass drives above it, as over a bridge; --follow-ground puts every keyframe
+  // on the ground instead (its sensor at the world's sensor height above it).
+  for (Kf& k : kfs) {
+    if (!follow_ground) break;
+    const Eigen::Vector3d t = k.truth.translation();
+    k.truth.translation().z() = world.ground_height(t.x(), t.y()) + wo.sensor_height_m;
+  }
   sim::LidarModel lidar = sim::LidarModel::vlp16();
   std::mt19937_64 rng(9);
   std::normal_distribution<double> nt(0, 0.02), nr(0, 0.002);
@@ -303,6 +312,9 @@ int main(int argc, char** argv) {
   app.add_option("--max-sc-distance", defaults.max_sc_distance, "retrieval: Scan Context distance")
       ->capture_default_str();
   app.add_option("--max-verify", defaults.max_verify, "candidates verified per keyframe")->capture_default_str();
+  app.add_option("--ground-guess-min", defaults.ground_guess_min_m,
+                 "verification: level the guess with both grounds beyond this height difference [m]")
+      ->capture_default_str();
   app.add_option(
          "--reaim-max", defaults.reaim_max_m,
          "with --wire: largest offset [m] at which a candidate is verified against a neighbour's cloud (0: any)")
@@ -320,6 +332,14 @@ int main(int argc, char** argv) {
          "with --wire: quantisation of the packed clouds [m] (loop_closure.yaml's verification.reply_resolution_m)")
       ->capture_default_str()
       ->check(CLI::PositiveNumber);
+  io::SplitOptions split;
+  app.add_option("--reverse", split.reverse,
+                 "robots that drive their piece the other way, on the opposite lane (io::SplitOptions::reverse)");
+  app.add_option("--reverse-lane", split.reverse_lane_m, "how far left of the sequence's direction they drive [m]")
+      ->capture_default_str();
+  bool follow_ground = false;
+  app.add_flag("--follow-ground", follow_ground,
+               "keyframes on the simulated ground (where the ground truth's passes disagree in height)");
   bool both_verify = false;
   app.add_flag("--both-robots-verify", both_verify,
                "with --wire: both robots of a pair verify it (lower_robot_verifies: false)");
@@ -334,7 +354,7 @@ int main(int argc, char** argv) {
   nlohmann::json out;
   double precision = 1, recall = 1;
   for (const auto& s : seqs) {
-    out[s] = run_sequence(data, s, params, params.exclude_recent, wire);
+    out[s] = run_sequence(data, s, params, split, wire, follow_ground);
     precision = std::min(precision, out[s]["precision"].get<double>());
     recall = std::min(recall, out[s]["recall"].get<double>());
   }

@@ -75,18 +75,43 @@ std::vector<IndexRange> split_ranges(size_t count, const SplitOptions& o) {
   return out;
 }
 
+namespace {
+
+// The piece driven from its end to its start on the opposite lane: poses in reverse order, each
+// turned by pi about its own z and moved lane_m along its own (forward) y, stamps as they were.
+geometry::Trajectory driven_in_reverse(const geometry::Trajectory& t, double lane_m) {
+  geometry::Trajectory out;
+  const Eigen::Isometry3d turn(Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ()));
+  for (size_t i = 0; i < t.size(); ++i) {
+    Eigen::Isometry3d T = t[t.size() - 1 - i].pose;
+    T.translation() += T.linear() * Eigen::Vector3d(0, lane_m, 0);
+    out.push_back({t[i].stamp_ns, T * turn});
+  }
+  return out;
+}
+
+}  // namespace
+
 std::vector<geometry::Trajectory> split_robots(const geometry::Trajectory& seq, const SplitOptions& o) {
+  for (int r : o.reverse) {
+    if (r < 0 || r >= o.robots) {
+      throw std::invalid_argument("split: reversed robot " + std::to_string(r) + " is not one of the " +
+                                  std::to_string(o.robots) + " robots");
+    }
+  }
   std::vector<geometry::Trajectory> out;
   int k = 0;
   for (const IndexRange& r : split_ranges(seq.size(), o)) {
     geometry::Trajectory t(seq.begin() + static_cast<std::ptrdiff_t>(r.first),
                            seq.begin() + static_cast<std::ptrdiff_t>(r.last));
     const int64_t base = t.front().stamp_ns;
-    const int64_t shift = static_cast<int64_t>(std::llround(k++ * o.time_shift_s * 1e9));
+    const int64_t shift = static_cast<int64_t>(std::llround(k * o.time_shift_s * 1e9));
     for (auto& sp : t) {
       sp.stamp_ns = sp.stamp_ns - base + shift;
     }
-    out.push_back(std::move(t));
+    const bool reversed = std::find(o.reverse.begin(), o.reverse.end(), k) != o.reverse.end();
+    out.push_back(reversed ? driven_in_reverse(t, o.reverse_lane_m) : std::move(t));
+    ++k;
   }
   return out;
 }

@@ -8,6 +8,13 @@
 namespace cdc::io {
 namespace {
 
+SplitOptions pieces(int robots, double overlap) {
+  SplitOptions o;
+  o.robots = robots;
+  o.overlap = overlap;
+  return o;
+}
+
 std::string data() {
   const char* env = std::getenv("CDC_DATA_DIR");
   return env != nullptr ? env : "../shared/data";
@@ -34,7 +41,39 @@ TEST(KittiSplit, SyntheticSequenceTilesWithTheRequestedOverlap) {
   EXPECT_GT(r[0].back().pose.translation().x(), r[1].front().pose.translation().x() + 70);
   EXPECT_EQ(r[1].front().stamp_ns, 2'000'000'000);
   EXPECT_EQ(r[2].front().stamp_ns, 4'000'000'000);
-  EXPECT_THROW(split_robots(seq, SplitOptions{3, 1.0, 0}), std::invalid_argument);
+  EXPECT_THROW(split_robots(seq, pieces(3, 1.0)), std::invalid_argument);
+}
+
+TEST(KittiSplit, AReversedRobotDrivesItsPieceBackwardsOnTheOppositeLane) {
+  geometry::Trajectory seq;
+  for (int i = 0; i < 1000; ++i) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() = Eigen::Vector3d(i, 0, 0);
+    seq.push_back({i * 100'000'000LL, T});
+  }
+  SplitOptions o;
+  o.reverse = {1};
+  o.reverse_lane_m = 3.5;
+  const auto r = split_robots(seq, o);
+  ASSERT_EQ(r.size(), 3u);
+  const auto forward = split_robots(seq, SplitOptions{});
+  ASSERT_EQ(r[1].size(), forward[1].size());
+  // Same times, places in the other order, heading along -x, 3.5 m to the left of the +x drive.
+  EXPECT_EQ(r[1].front().stamp_ns, forward[1].front().stamp_ns);
+  EXPECT_EQ(r[1].back().stamp_ns, forward[1].back().stamp_ns);
+  EXPECT_NEAR(r[1].front().pose.translation().x(), forward[1].back().pose.translation().x(), 1e-9);
+  EXPECT_NEAR(r[1].back().pose.translation().x(), forward[1].front().pose.translation().x(), 1e-9);
+  EXPECT_NEAR(r[1].front().pose.translation().y(), 3.5, 1e-9);
+  EXPECT_NEAR((r[1].front().pose.linear() * Eigen::Vector3d::UnitX()).x(), -1.0, 1e-9);
+  EXPECT_NEAR((r[1].front().pose.linear() * Eigen::Vector3d::UnitZ()).z(), 1.0, 1e-9);
+  // It moves along its own +x: forward, not in reverse gear.
+  const Eigen::Vector3d step = r[1].front().pose.inverse() * r[1][1].pose.translation();
+  EXPECT_GT(step.x(), 0.9);
+  // The other robots are untouched.
+  EXPECT_TRUE(r[0].back().pose.isApprox(forward[0].back().pose));
+  EXPECT_TRUE(r[2].front().pose.isApprox(forward[2].front().pose));
+  o.reverse = {3};
+  EXPECT_THROW(split_robots(seq, o), std::invalid_argument);
 }
 
 TEST(KittiSplit, Sequence05GivesThreeRobotsThatShareGroundAndTime) {
@@ -47,7 +86,7 @@ TEST(KittiSplit, Sequence05GivesThreeRobotsThatShareGroundAndTime) {
   // In the LiDAR frame the vehicle drives along +x with z up: the first seconds go forward in x.
   EXPECT_GT(seq[50].pose.translation().x(), 10.0);
   EXPECT_LT(std::abs(seq[50].pose.translation().z()), 2.0);
-  const auto robots = split_robots(seq, SplitOptions{3, 0.15, 0.0});
+  const auto robots = split_robots(seq, pieces(3, 0.15));
   ASSERT_EQ(robots.size(), 3u);
   // Common places: every robot passes within 5 m of a place another robot also visits.
   for (size_t a = 0; a < 3; ++a) {

@@ -8,11 +8,17 @@
 namespace cdc::lidar {
 
 ScanContext make_scan_context(const std::vector<Eigen::Vector3f>& points, const ScanContextParams& p) {
+  return make_scan_context(points, p, Eigen::Vector3f::Zero());
+}
+
+ScanContext make_scan_context(const std::vector<Eigen::Vector3f>& points, const ScanContextParams& p,
+                              const Eigen::Vector3f& sensor) {
   ScanContext sc;
   sc.rings = p.rings;
   sc.sectors = p.sectors;
   sc.cells.assign(static_cast<size_t>(p.rings * p.sectors), 0.0f);
-  for (const auto& pt : points) {
+  for (const Eigen::Vector3f& seen : points) {
+    const Eigen::Vector3f pt = seen - sensor;
     const double r = std::hypot(pt.x(), pt.y());
     if (r <= 0.0 || r >= p.max_range_m || !std::isfinite(r)) continue;
     double az = std::atan2(pt.y(), pt.x());  // (-pi, pi]

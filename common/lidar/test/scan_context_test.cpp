@@ -108,5 +108,23 @@ TEST(ScanContext, QuantisedDescriptorFitsTheWireBudgetAndMatchesAlike) {
   EXPECT_NEAR(m.distance, mq.distance, 0.01);
 }
 
+TEST(ScanContext, AViewFromBesideMatchesThePlaceSeenALaneAsideAndTurned) {
+  // The place seen from 3.5 m to the left of its sensor, turned by pi (the opposite lane, driving
+  // the other way): far from the original's descriptor, and matched by the original's view from there.
+  const std::vector<Eigen::Vector3f> here = place(11);
+  std::vector<Eigen::Vector3f> aside;
+  for (const auto& p : here) aside.push_back(p - Eigen::Vector3f(0, 3.5f, 0));
+  aside = rotated(aside, 3.1415927f);
+  const ScanContextParams sp;
+  const ScanContext other_lane = make_scan_context(aside, sp);
+  const ScanContextMatch plain = compare(other_lane, make_scan_context(here, sp));
+  const ScanContextMatch view = compare(other_lane, make_scan_context(here, sp, Eigen::Vector3f(0, 3.5f, 0)));
+  EXPECT_GT(plain.distance, 0.3);
+  EXPECT_LT(view.distance, 0.05);
+  EXPECT_NEAR(std::abs(view.yaw_rad), M_PI, 2 * M_PI / sp.sectors);
+  // The view from the sensor's own place is the plain descriptor.
+  EXPECT_EQ(make_scan_context(here, sp, Eigen::Vector3f::Zero()).cells, make_scan_context(here, sp).cells);
+}
+
 }  // namespace
 }  // namespace cdc::lidar

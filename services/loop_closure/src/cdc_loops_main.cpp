@@ -269,8 +269,12 @@ struct RunCommand {
 
 CLI::App* add_run_command(CLI::App& app, RunCommand& c) {
   RunOptions& o = c.run;
-  CLI::App* run =
-      app.add_subcommand("run", "loop closure over a cdc-sim dataset folder, judged against its ground truth");
+  CLI::App* run = app.add_subcommand(
+      "run",
+      "loop closure over a cdc-sim dataset folder, judged against its ground truth.\n"
+      "Splits whose robots revisit places driving the other way: cdc-sim generate --scenario\n"
+      "sim/scenarios/kitti08_3robots.yaml (08's own loops are driven in reverse), kitti05_3robots_reverse.yaml or\n"
+      "kitti00_3robots_reverse.yaml (robot 1 drives its piece backwards on the opposite lane: trajectories.reverse)");
   run->add_option("dataset", o.dataset, "dataset folder (cdc-sim generate)")->required()->check(CLI::ExistingDirectory);
   run->add_option("--out", o.out, "write keyframes.csv, loops.csv and report.json here");
   cdc::config::add_number_option(*run, "--keyframe-m", o.keyframe_m, "keyframe every this far [m]", 0.01, 1000);

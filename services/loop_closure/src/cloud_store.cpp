@@ -1,5 +1,7 @@
 #include "cdc/loop_closure/cloud_store.hpp"
 
+#include "cdc/lidar/ground.hpp"
+
 #include <algorithm>
 
 namespace cdc::loops {
@@ -25,6 +27,7 @@ void CloudStore::add_received(const KeyframeId& id, const std::vector<Eigen::Vec
   received_.push_back(id);
   while (received_.size() > cache_size_) {
     clouds_.erase(received_.front());
+    ground_.erase(received_.front());
     drop_prepared(received_.front());
     received_.pop_front();
   }
@@ -40,8 +43,14 @@ Eigen::Vector3d CloudStore::up(const KeyframeId& id) const {
   return it == up_.end() ? Eigen::Vector3d::UnitZ() : it->second;
 }
 
+std::optional<double> CloudStore::ground(const KeyframeId& id) const {
+  const auto it = ground_.find(id);
+  return it == ground_.end() ? std::nullopt : it->second;
+}
+
 void CloudStore::set_cloud(const KeyframeId& id, const std::vector<Eigen::Vector3f>& cloud) {
   clouds_[id] = odometry::voxel_centroids(cloud, voxel_m_);
+  ground_[id] = lidar::ground_height(clouds_[id], up(id));
   drop_prepared(id);
 }
 

@@ -3,7 +3,9 @@
 #include "cdc/config/reader.hpp"
 #include "cdc/config/scan_context.hpp"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <string>
 
 namespace cdc::loops {
@@ -22,6 +24,12 @@ void get_ms(Reader& r, const std::string& key, Nanos& out, int lo, int hi) {
 
 void read_retrieval(Reader& r, LoopParams& p) {
   r.get_count("retrieval.knn", p.knn, 1, 1000);
+  r.get<std::vector<double>>(
+      "retrieval.lane_views_m", p.lane_views_m,
+      [](const std::vector<double>& v) {
+        return v.size() <= 8 && std::all_of(v.begin(), v.end(), [](double y) { return y != 0 && std::abs(y) <= 20; });
+      },
+      "at most 8 offsets, each nonzero and within [-20, 20] m");
   r.get_count("retrieval.peer_request_spacing", p.peer_request_spacing, 0, 100000);
   r.get<bool>("retrieval.lower_robot_verifies", p.lower_robot_verifies);
   r.get_in("retrieval.reaim_max_m", p.reaim_max_m, 0.0, 1000.0);
@@ -33,6 +41,7 @@ void read_retrieval(Reader& r, LoopParams& p) {
 }
 
 void read_verification(Reader& r, LoopParams& p) {
+  r.get_in("verification.ground_guess_min_m", p.ground_guess_min_m, 0.0, 1000.0);
   r.get_in("verification.max_fitness_m2", p.max_fitness, 1e-6, 100.0);
   r.get_in("verification.min_overlap", p.min_overlap, 0.001, 1.0);
   r.get_in("verification.tilt_information_scale", p.tilt_information_scale, 0.0, 1.0);

@@ -28,8 +28,18 @@ LoopEvents LoopCore::add_keyframe_data(KeyframeIn kf, Nanos now) {
   pcm_.add_keyframe_odometry(kf.robot, kf.id, kf.T_prev, kf.information);
   retrieval_.add_odometry(kf.robot, kf.id, kf.T_prev);
   clouds_.add_local(me, kf.cloud, kf.T_odom.linear().transpose() * Eigen::Vector3d::UnitZ());
+  retrieval_.add_views(me, lane_views(kf.cloud));
   std::optional<DescriptorIn> waiting = retrieval_.take_deferred(me);
   return waiting ? add_descriptor(std::move(*waiting), now) : LoopEvents{};
+}
+
+std::vector<ShiftedView> LoopCore::lane_views(const std::vector<Eigen::Vector3f>& cloud) const {
+  std::vector<ShiftedView> views;
+  for (double y : p_.lane_views_m) {
+    const Eigen::Vector3d sensor(0, y, 0);
+    views.push_back({wire_form(lidar::make_scan_context(cloud, p_.scan_context, sensor.cast<float>())), sensor});
+  }
+  return views;
 }
 
 LoopEvents LoopCore::add_descriptor(DescriptorIn d, Nanos now) {

@@ -58,6 +58,10 @@ bool Retrieval::first_description(const KeyframeId& id) {
   return false;
 }
 
+void Retrieval::add_views(const KeyframeId& id, std::vector<ShiftedView> views) {
+  if (!views.empty()) views_[id] = std::move(views);
+}
+
 std::vector<VerificationJob> Retrieval::search(DescriptorIn d, bool keyframe_held) {
   const KeyframeId me{d.robot, d.id};
   const bool reverse = is_peer(d.robot);
@@ -68,19 +72,34 @@ std::vector<VerificationJob> Retrieval::search(DescriptorIn d, bool keyframe_hel
     matches = search_reverse(d);
   }
   add_to_database(me, std::move(d.context));
-  return take_candidates(matches, me, reverse);
+  if (auto v = views_.find(me); v != views_.end()) {
+    for (ShiftedView& view : v->second) add_to_database(me, std::move(view.context), view.sensor);
+    views_.erase(v);
+  }
+  return take_candidates(best_per_keyframe(std::move(matches)), me, reverse);
 }
 
+// The descriptor among every keyframe's (and views beside them); the keyframe's own views among
+// keyframes' descriptors (a view matched with a view would be two lanes aside, or none).
 std::vector<Retrieval::Match> Retrieval::search_forward(const DescriptorIn& d) {
   ++stats_.queries;
-  return db_.query(d.context, p_.knn, [&](size_t id) {
+  const auto allowed = [&](size_t id) {
     const auto& [robot, k] = owner_[id];
     if (robot != d.robot) return true;
     if (k + p_.exclude_recent >= d.id) return false;
     if (gate_.plausible({d.robot, d.id}, owner_[id])) return true;
     ++stats_.intra_gated;
     return false;
-  });
+  };
+  std::vector<Match> out;
+  for (const auto& c : db_.query(d.context, p_.knn, allowed)) out.push_back({c, Eigen::Vector3d::Zero()});
+  const auto views = views_.find({d.robot, d.id});
+  if (views == views_.end()) return out;
+  for (const ShiftedView& v : views->second) {
+    const auto original = [&](size_t id) { return sensor_[id].isZero() && allowed(id); };
+    for (const auto& c : db_.query(v.context, p_.knn, original)) out.push_back({c, v.sensor});
+  }
+  return out;
 }
 
 // Peers' descriptors arrive in bursts when a peer comes back in range (the history of everything it
@@ -88,18 +107,35 @@ std::vector<Retrieval::Match> Retrieval::search_forward(const DescriptorIn& d) {
 // robot passed there again.
 std::vector<Retrieval::Match> Retrieval::search_reverse(const DescriptorIn& d) {
   ++stats_.reverse_queries;
-  return db_.query(d.context, p_.knn, [&](size_t id) { return owner_[id].first == *query_robot_; });
+  std::vector<Match> out;
+  for (const auto& c : db_.query(d.context, p_.knn, [&](size_t id) { return owner_[id].first == *query_robot_; })) {
+    out.push_back({c, Eigen::Vector3d::Zero()});
+  }
+  return out;
 }
 
-void Retrieval::add_to_database(const KeyframeId& id, lidar::ScanContext context) {
+std::vector<Retrieval::Match> Retrieval::best_per_keyframe(std::vector<Match> matches) const {
+  std::stable_sort(matches.begin(), matches.end(),
+                   [](const Match& a, const Match& b) { return a.found.match.distance < b.found.match.distance; });
+  std::vector<Match> out;
+  std::set<KeyframeId> seen;
+  for (const Match& m : matches) {
+    if (seen.insert(owner_[m.found.id]).second) out.push_back(m);
+  }
+  return out;
+}
+
+void Retrieval::add_to_database(const KeyframeId& id, lidar::ScanContext context, const Eigen::Vector3d& sensor) {
   db_.add(std::move(context));
   owner_.push_back(id);
+  sensor_.push_back(sensor);
 }
 
 std::vector<VerificationJob> Retrieval::take_candidates(const std::vector<Match>& matches, const KeyframeId& me,
                                                         bool reverse) {
   std::vector<VerificationJob> jobs;
-  for (const Match& c : matches) {
+  for (const Match& m : matches) {
+    const lidar::ScanContextDatabase::Candidate& c = m.found;
     if (c.match.distance > p_.max_sc_distance || jobs.size() >= p_.max_verify) break;
     const uint32_t other = reverse ? me.first : owner_[c.id].first;
     if (p_.lower_robot_verifies && query_robot_ && other < *query_robot_) {
@@ -107,12 +143,15 @@ std::vector<VerificationJob> Retrieval::take_candidates(const std::vector<Match>
       continue;
     }
     ++stats_.candidates;
+    // The searched descriptor is rotated by yaw relative to the database's: the database entry's
+    // sensor sees the searched one at Rz(-yaw), each sensor where its keyframe's view put it.
+    const Eigen::Isometry3d T_entry_searched = Eigen::Translation3d(sensor_[c.id]) *
+                                               Eigen::AngleAxisd(-c.match.yaw_rad, Eigen::Vector3d::UnitZ()) *
+                                               Eigen::Translation3d(-m.searched_from);
     // The job's query is always one of this robot's keyframes and its candidate the other one: for
-    // a reverse search the roles swap, and so does the sign of the yaw between them.
-    const double yaw = reverse ? -c.match.yaw_rad : c.match.yaw_rad;
-    // The query is rotated by yaw relative to the candidate: T_candidate_query starts at Rz(-yaw).
+    // a reverse search the roles swap. Its guess is T_candidate_query.
     jobs.push_back({reverse ? owner_[c.id] : me, reverse ? me : owner_[c.id],
-                    Eigen::Isometry3d(Eigen::AngleAxisd(-yaw, Eigen::Vector3d::UnitZ()))});
+                    reverse ? T_entry_searched.inverse() : T_entry_searched});
   }
   return jobs;
 }

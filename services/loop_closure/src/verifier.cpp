@@ -2,6 +2,8 @@
 
 #include "cdc/graph/pose_graph.hpp"
 
+#include <cmath>
+
 namespace cdc::loops {
 
 std::optional<Verifier::Outcome> Verifier::verify(const VerificationJob& job, CloudStore& clouds) {
@@ -12,7 +14,8 @@ std::optional<Verifier::Outcome> Verifier::verify(const VerificationJob& job, Cl
   // verified in a burst.
   const auto target = clouds.prepared(job.candidate);
   const auto source = clouds.prepared(job.query);
-  const odometry::RegistrationResult r = odometry::register_gicp(*source, *target, job.guess, p_.registration);
+  const Eigen::Isometry3d guess = level_grounds(job, clouds);
+  const odometry::RegistrationResult r = odometry::register_gicp(*source, *target, guess, p_.registration);
   const auto [robot_a, kf_a] = job.candidate;
   const auto [robot_b, kf_b] = job.query;
   Outcome out;
@@ -24,8 +27,8 @@ std::optional<Verifier::Outcome> Verifier::verify(const VerificationJob& job, Cl
                             false,
                             r.fitness,
                             r.overlap,
-                            job.guess.translation().norm(),
-                            (job.guess.inverse() * r.T_target_source).translation().norm()};
+                            guess.translation().norm(),
+                            (guess.inverse() * r.T_target_source).translation().norm()};
   if (!passes(r)) {
     return out;
   }
@@ -35,6 +38,19 @@ std::optional<Verifier::Outcome> Verifier::verify(const VerificationJob& job, Cl
                                                                clouds.up(job.query), p_.tilt_information_scale);
   out.loop = LoopOut{robot_a, kf_a, robot_b, kf_b, r.T_target_source, information, r.fitness, false};
   return out;
+}
+
+Eigen::Isometry3d Verifier::level_grounds(const VerificationJob& job, const CloudStore& clouds) const {
+  const std::optional<double> ground_candidate = clouds.ground(job.candidate), ground_query = clouds.ground(job.query);
+  if (!ground_candidate || !ground_query) return job.guess;
+  // A query ground point at height g_q (query frame) lands at about g_q + up . t in the candidate's
+  // frame (both frames nearly level): t's height that meets the candidate's ground is g_c - g_q.
+  const Eigen::Vector3d up = clouds.up(job.candidate);
+  const double off = (*ground_candidate - *ground_query) - up.dot(job.guess.translation());
+  if (std::abs(off) <= p_.ground_guess_min_m) return job.guess;
+  Eigen::Isometry3d guess = job.guess;
+  guess.translation() += off * up;
+  return guess;
 }
 
 bool Verifier::passes(const odometry::RegistrationResult& r) {

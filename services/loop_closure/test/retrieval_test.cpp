@@ -192,3 +192,46 @@ TEST(Retrieval, OwnCandidatesTheOdometryPutsFarAwayAreGated) {
 
 }  // namespace
 }  // namespace cdc::loops
+
+namespace cdc::loops {
+namespace {
+
+// A view of the keyframe from `y` metres to its left, holding the descriptor of `place`.
+std::vector<ShiftedView> view_of(uint32_t place, double y) { return {{place_context(place), {0, y, 0}}}; }
+
+TEST(Retrieval, AViewBesideAKeyframeMatchesAPlaceSeenALaneAside) {
+  Retrieval r(params(), 0u);  // robot 0's service
+  describe(r, 0, 0, 2);
+  // Own keyframe 3 (place 3) seen from 3.5 m to its left looks like place 200: a peer's descriptor
+  // of place 200, turned, is searched in reverse and meets that view.
+  ASSERT_TRUE(r.first_description({0, 3}));
+  r.add_views({0, 3}, view_of(200, 3.5));
+  EXPECT_TRUE(r.search(descriptor(0, 3, 3), true).empty());
+  EXPECT_EQ(r.size(), 5u) << "the keyframe's descriptor and its view";
+  ASSERT_TRUE(r.first_description({1, 7}));
+  std::vector<VerificationJob> jobs = r.search(descriptor(1, 7, 200, 5), false);
+  ASSERT_EQ(jobs.size(), 1u);
+  EXPECT_EQ(jobs[0].query, (KeyframeId{0, 3}));
+  EXPECT_EQ(jobs[0].candidate, (KeyframeId{1, 7}));
+  // The view's sensor (3.5 m left of keyframe 3) sees the peer's at Rz(-yaw): T_peer_own is its inverse.
+  const double yaw = lidar::compare(place_context(200, 5), place_context(200)).yaw_rad;
+  const Eigen::Isometry3d T_own_peer =
+      Eigen::Translation3d(0, 3.5, 0) * Eigen::AngleAxisd(-yaw, Eigen::Vector3d::UnitZ());
+  EXPECT_TRUE(jobs[0].guess.isApprox(T_own_peer.inverse(), 1e-9));
+  // Own keyframe 8's view from 3.5 m to its right is the peer's place 200: the forward search
+  // finds the peer's keyframe through it (views are searched among descriptors only).
+  describe(r, 0, 4, 7);
+  ASSERT_TRUE(r.first_description({0, 8}));
+  r.add_views({0, 8}, view_of(200, -3.5));
+  jobs = r.search(descriptor(0, 8, 8), true);
+  ASSERT_EQ(jobs.size(), 1u);
+  EXPECT_EQ(jobs[0].query, (KeyframeId{0, 8}));
+  EXPECT_EQ(jobs[0].candidate, (KeyframeId{1, 7}));
+  const double yaw_f = lidar::compare(place_context(200), place_context(200, 5)).yaw_rad;
+  const Eigen::Isometry3d T_peer_own =
+      Eigen::AngleAxisd(-yaw_f, Eigen::Vector3d::UnitZ()) * Eigen::Translation3d(0, 3.5, 0);
+  EXPECT_TRUE(jobs[0].guess.isApprox(T_peer_own, 1e-9));
+}
+
+}  // namespace
+}  // namespace cdc::loops

@@ -97,6 +97,37 @@ TEST(Verifier, NothingHappensUntilBothCloudsAreHeld) {
   EXPECT_EQ(verifier.stats().verified, 0u);
 }
 
+// Two passes of one place whose elevations disagree by 4.3 m (as KITTI 08's ground truth does where
+// its robots drive a street the other way): the candidate's sensor sees the same ground 4.3 m further
+// down. The descriptor's guess is a yaw alone; the verification starts it level with both grounds.
+// (On the simulated KITTI 08 split, registration from the unlevelled guess slides to a wrong height
+// and passes: reverse_revisit_test.)
+TEST(Verifier, PassesAtDifferentHeightsAreRegisteredFromLevelGrounds) {
+  LoopParams p;
+  CloudStore store(p);
+  const std::vector<Eigen::Vector3f> scene = test::street_scene(1);
+  Eigen::Isometry3d candidate = planar(0.5, 3.5, M_PI);  // driving the other way, on the other lane
+  candidate.translation().z() = 4.3;
+  store.add_local(kQuery, scene, Eigen::Vector3d::UnitZ());
+  store.add_received(kCandidate, test::seen_from(scene, candidate));
+  ASSERT_TRUE(store.ground(kQuery) && store.ground(kCandidate));
+  EXPECT_NEAR(*store.ground(kCandidate) - *store.ground(kQuery), -4.3, 0.1);
+  const Eigen::Isometry3d truth = candidate.inverse();
+  const VerificationJob job{kQuery, kCandidate, Eigen::Isometry3d(truth.linear())};  // the descriptor's yaw
+  const auto out = Verifier(p).verify(job, store);
+  ASSERT_TRUE(out && out->loop);
+  const Eigen::Isometry3d e = truth.inverse() * out->loop->T_a_b;
+  EXPECT_LT(e.translation().norm(), 0.05);
+  EXPECT_LT(Eigen::AngleAxisd(e.rotation()).angle(), 0.5 * M_PI / 180);
+  // Grounds within ground_guess_min_m of the guess leave it as it is.
+  LoopParams never = p;
+  never.ground_guess_min_m = 10;
+  const auto unlevelled = Verifier(never).verify(job, store);
+  ASSERT_TRUE(unlevelled.has_value());
+  EXPECT_DOUBLE_EQ(unlevelled->record.guess_m, 0.0);
+  EXPECT_NEAR(out->record.guess_m, 4.3, 0.1);
+}
+
 TEST(Verifier, TheLoopsTiltInformationIsScaledInTheQuerysLevelFrame) {
   LoopParams p;
   p.tilt_information_scale = 1;  // as registered

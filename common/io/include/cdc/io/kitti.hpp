@@ -21,6 +21,12 @@ struct SplitOptions {
   int robots = 3;
   double overlap = 0.15;      // fraction of a piece shared with the next piece
   double time_shift_s = 0.0;  // robot k starts k * time_shift_s after robot 0
+  // Robots that drive their piece the other way: from its last pose to its first, heading turned
+  // by 180 deg about the sensor's z, moved reverse_lane_m to the left of the sequence's direction
+  // (the opposite lane). Their places then meet the other robots' (and the sequence's own revisits)
+  // driving the other way.
+  std::vector<int> reverse;
+  double reverse_lane_m = 0.0;  // [m]
 };
 
 // The index ranges [first, last) of a sequence of n samples that split_robots gives each robot.
@@ -32,7 +38,9 @@ std::vector<IndexRange> split_ranges(size_t n, const SplitOptions& options);
 // Cuts a trajectory into `robots` consecutive pieces of equal length, each sharing `overlap` of
 // itself with the next (so that neighbouring robots cover common ground), and re-times every piece
 // to start at k * time_shift_s: the robots drive simultaneously. Poses stay in the sequence's
-// world frame (robot 0's first pose is its origin only if the sequence's is).
+// world frame (robot 0's first pose is its origin only if the sequence's is). A robot in
+// options.reverse drives its piece backwards in time with its heading turned (SplitOptions::reverse).
+// Throws std::invalid_argument for a reversed robot that is not one of the robots.
 std::vector<geometry::Trajectory> split_robots(const geometry::Trajectory& sequence, const SplitOptions& options);
 
 enum class KittiPosesFrame {

@@ -28,6 +28,13 @@ struct ScanContext {
 
 ScanContext make_scan_context(const std::vector<Eigen::Vector3f>& points, const ScanContextParams& p);
 
+// The descriptor of the same points seen from a virtual sensor at `sensor` (in the points' frame,
+// same orientation): a place revisited a lane or two aside (driving the other way, on the opposite
+// lane) has its polar grid centred elsewhere, and its Scan Context differs from the original's far
+// more than a rotation does; the view from beside it matches (Scan Context++'s lateral augmentation).
+ScanContext make_scan_context(const std::vector<Eigen::Vector3f>& points, const ScanContextParams& p,
+                              const Eigen::Vector3f& sensor);
+
 // Sets sc.ring_key from its cells: each ring's mean height (rotation invariant).
 void compute_ring_key(ScanContext& sc);
 

@@ -14,6 +14,7 @@
 #include <deque>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <utility>
 #include <vector>
@@ -41,6 +42,8 @@ class CloudStore {
   const std::vector<Eigen::Vector3f>* find(const KeyframeId& id) const;
   // Up in a local keyframe's frame; +z for others.
   Eigen::Vector3d up(const KeyframeId& id) const;
+  // The ground's height along up() in a held cloud's frame (lidar::ground_height), or nullopt.
+  std::optional<double> ground(const KeyframeId& id) const;
   // A held cloud ready for registration (made ready now unless it is among the prepared_clouds kept).
   std::shared_ptr<const odometry::PreparedCloud> prepared(const KeyframeId& id);
 
@@ -56,6 +59,7 @@ class CloudStore {
   std::map<KeyframeId, std::vector<Eigen::Vector3f>> clouds_;
   std::set<KeyframeId> local_;
   std::map<KeyframeId, Eigen::Vector3d> up_;
+  std::map<KeyframeId, std::optional<double>> ground_;
   std::deque<KeyframeId> received_;  // peers' clouds held, oldest first
   // Clouds ready for registration, most recently used first.
   std::deque<std::pair<KeyframeId, std::shared_ptr<const odometry::PreparedCloud>>> prepared_;

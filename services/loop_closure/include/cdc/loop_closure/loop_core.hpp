@@ -95,6 +95,8 @@ class LoopCore {
   const lidar::ScanContextDatabase& database() const noexcept { return retrieval_.database(); }
 
  private:
+  // The keyframe's Scan Contexts from beside it (lane_views_m), in wire form.
+  std::vector<ShiftedView> lane_views(const std::vector<Eigen::Vector3f>& cloud) const;
   // A candidate from retrieval: verified now when its cloud is held, else verified against a
   // neighbour's cloud or made to wait for its own (CloudRequests).
   void route(const VerificationJob& job, Nanos now, LoopEvents& out);

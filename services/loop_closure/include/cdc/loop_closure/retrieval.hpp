@@ -4,7 +4,10 @@
 // waits until then); a peer's descriptor (a robot's service) is searched among this robot's own
 // keyframes instead (a reverse search), so that places both robots saw are found whichever robot
 // passed first. Same-robot candidates the robot's own odometry puts far away are left out
-// (IntraGate). Synchronous, no I/O.
+// (IntraGate). A keyframe held here is also described from beside itself (LoopParams::lane_views_m):
+// its forward search looks with those views too, and they enter the database, so that a peer's
+// descriptor searched in reverse meets them; a match through a view starts verification from the
+// view's offset. Synchronous, no I/O.
 #pragma once
 
 #include "cdc/lidar/scan_context.hpp"
@@ -64,6 +67,9 @@ class Retrieval {
   void defer(DescriptorIn d);
   std::optional<DescriptorIn> take_deferred(const KeyframeId& id);
 
+  // The keyframe's views from beside it (taken with its forward search, then kept in the database).
+  void add_views(const KeyframeId& id, std::vector<ShiftedView> views);
+
   // Marks the keyframe described; false (counted) when it was already.
   bool first_description(const KeyframeId& id);
   // Searches the descriptor (see the file comment), adds it to the database and returns the
@@ -78,20 +84,29 @@ class Retrieval {
   static constexpr size_t kMaxDeferred = 64;
 
  private:
-  using Match = lidar::ScanContextDatabase::Candidate;
+  // A database match, and where the searched descriptor's sensor sits in its keyframe's frame.
+  struct Match {
+    lidar::ScanContextDatabase::Candidate found;
+    Eigen::Vector3d searched_from = Eigen::Vector3d::Zero();
+  };
   bool is_query_robot(uint32_t robot) const { return !query_robot_ || *query_robot_ == robot; }
   std::vector<Match> search_forward(const DescriptorIn& d);
   std::vector<Match> search_reverse(const DescriptorIn& d);
-  void add_to_database(const KeyframeId& id, lidar::ScanContext context);
+  // The best match per keyframe, most similar first.
+  std::vector<Match> best_per_keyframe(std::vector<Match> matches) const;
+  void add_to_database(const KeyframeId& id, lidar::ScanContext context,
+                       const Eigen::Vector3d& sensor = Eigen::Vector3d::Zero());
   std::vector<VerificationJob> take_candidates(const std::vector<Match>& matches, const KeyframeId& me, bool reverse);
 
   LoopParams p_;
   std::optional<uint32_t> query_robot_;
   IntraGate gate_;
   lidar::ScanContextDatabase db_;
-  std::vector<KeyframeId> owner_;                // db id -> keyframe
-  std::set<KeyframeId> described_;               // keyframes with a descriptor
-  std::map<KeyframeId, DescriptorIn> deferred_;  // query descriptors waiting for their keyframe
+  std::vector<KeyframeId> owner_;                         // db id -> keyframe
+  std::vector<Eigen::Vector3d> sensor_;                   // db id -> its (virtual) sensor in the keyframe's frame
+  std::map<KeyframeId, std::vector<ShiftedView>> views_;  // views waiting for their keyframe's search
+  std::set<KeyframeId> described_;                        // keyframes with a descriptor
+  std::map<KeyframeId, DescriptorIn> deferred_;           // query descriptors waiting for their keyframe
   RetrievalStats stats_;
 };
 

@@ -1,5 +1,6 @@
 // Verification: a candidate's geometry checked by registering the query keyframe's cloud to the
-// candidate's (GICP from the job's guess). A registration that converges with a fitness within
+// candidate's (GICP from the job's guess, moved in height to put the two grounds level when they
+// disagree with it by more than ground_guess_min_m). A registration that converges with a fitness within
 // max_fitness and an overlap of min_overlap or more makes a loop, whose information is the
 // registration's x loop_information_scale with its tilt levelled in the query keyframe's frame
 // (tilt_information_scale). Synchronous, no I/O.
@@ -33,6 +34,9 @@ class Verifier {
   const VerificationStats& stats() const noexcept { return stats_; }
 
  private:
+  // The job's guess, moved in height to put the two clouds' grounds level when it leaves them more
+  // than ground_guess_min_m apart.
+  Eigen::Isometry3d level_grounds(const VerificationJob& job, const CloudStore& clouds) const;
   // Counts the failure under its first reason; true when the registration passed.
   bool passes(const odometry::RegistrationResult& r);
 
