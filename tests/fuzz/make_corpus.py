@@ -171,7 +171,13 @@ def compact(c):
     # Clouds: uint16 count, uint8 resolution [mm] - 1, then the packed planes of sorted Morton deltas.
     for name, res_mm, pts in [("cloud_line", 10, [(i, -2 * i, 3) for i in range(20)]),
                               ("cloud_box", 50, [(x, y, z) for x in (-3, 0, 5) for y in (-1, 2) for z in (0, 7)]),
-                              ("cloud_int16_ends", 64, [(-32768,) * 3, (32767,) * 3])]:
+                              ("cloud_int16_ends", 64, [(-32768,) * 3, (32767,) * 3]),
+                              # A keyframe's cloud as the peer optimiser packs it for the map (2 cm
+                              # grid): rings of points 5 to 40 m around the sensor.
+                              ("cloud_keyframe_2cm", 20,
+                               [(round(r * math.cos(math.radians(a)) / 0.02), round(r * math.sin(math.radians(a)) / 0.02),
+                                 round((-1.5 + 0.1 * k) / 0.02))
+                                for k, r in enumerate((5, 10, 20, 40)) for a in range(0, 360, 3)])]:
         codes = sorted(spread3(x & 0xFFFF ^ 0x8000) | spread3(y & 0xFFFF ^ 0x8000) << 1 |
                        spread3(z & 0xFFFF ^ 0x8000) << 2 for x, y, z in pts)
         deltas = [b - a for a, b in zip([0] + codes, codes)]

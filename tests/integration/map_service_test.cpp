@@ -1,6 +1,7 @@
-// cdc-map over DDS (loopback configuration): keyframes of two robots and the central's poses in;
-// SIGUSR1 writes the map while it runs, a malformed keyframe is rejected and counted, and
+// cdc-map over DDS (loopback configuration): packed keyframe clouds of two robots and the central's
+// poses in; SIGUSR1 writes the map while it runs, malformed clouds are rejected and counted, and
 // SIGTERM writes it again and exits cleanly.
+#include "cdc/dds/compact.hpp"
 #include "cdc/dds/convert.hpp"
 #include "cdc/dds/participant.hpp"
 #include "cdc/dds/pubsub.hpp"
@@ -34,9 +35,9 @@ TEST_F(MapService, BuildsAndWritesTheMapFromKeyframesAndCentralPoses) {
   const fs::path& dir = dir_;
   std::ofstream(dir / "map.yaml") << "robots: 2\n";
   dds::Participant& participant = *participant_;
-  dds::Topic<cdc_msg_Keyframe> t_kf(participant, dds::topics::kKeyframe);
+  dds::Topic<cdc_msg_KeyframeCloud> t_kf(participant, dds::topics::kKeyframeCloud);
   dds::Topic<cdc_msg_OptimizedPoses> t_opt(participant, dds::topics::kCentralOptimized);
-  dds::Writer<cdc_msg_Keyframe> w_kf(participant, t_kf, dds::qos::event_stream(4096));
+  dds::Writer<cdc_msg_KeyframeCloud> w_kf(participant, t_kf, dds::qos::event_stream(4096));
   dds::Writer<cdc_msg_OptimizedPoses> w_opt(participant, t_opt, dds::qos::monitored_writer(std::chrono::seconds(1)));
   test::ChildProcess map =
       test::ChildProcess::spawn({std::getenv("CDC_MAP_BIN"), "--config", (dir / "map.yaml").string(), "--out",
@@ -44,34 +45,34 @@ TEST_F(MapService, BuildsAndWritesTheMapFromKeyframesAndCentralPoses) {
                                 (dir / "map.log").string());
   ASSERT_TRUE(w_kf.wait_for_readers(1, 15s));
   ASSERT_TRUE(w_opt.wait_for_readers(1, 15s));
-  // Each keyframe: a 10 x 10 m wall of points 5 m ahead, 1,000 points.
-  std::vector<cdc_msg_PointXYZI> cloud;
+  // Each keyframe: a 10 x 6 m wall of points 5 m ahead, 1,000 points, packed on a 2 cm grid.
+  std::vector<Eigen::Vector3f> cloud;
   for (int i = 0; i < 40; ++i) {
     for (int j = 0; j < 25; ++j)
-      cloud.push_back(
-          cdc_msg_PointXYZI{5.0f, -5.0f + 0.25f * static_cast<float>(i), -2.0f + 0.25f * static_cast<float>(j), 0.5f});
+      cloud.emplace_back(5.0f, -5.0f + 0.25f * static_cast<float>(i), -2.0f + 0.25f * static_cast<float>(j));
   }
+  dds::compact::PackedCloud packed = dds::compact::pack_points(cloud, 0.02f);
+  ASSERT_EQ(packed.count, 1000u);
+  auto cloud_message = [&](uint32_t robot, uint32_t keyframe) {
+    cdc_msg_KeyframeCloud m{};
+    m.robot_id = robot;
+    m.keyframe_id = keyframe;
+    m.point_count = packed.count;
+    m.resolution_m = packed.resolution_m;
+    dds::borrow(m.packed_points, packed.bytes);
+    return m;
+  };
   for (uint32_t r = 0; r < 2; ++r) {
-    for (uint32_t k = 0; k < 5; ++k) {
-      cdc_msg_Keyframe m{};
-      m.robot_id = r;
-      m.keyframe_id = k;
-      m.T_odom_keyframe = dds::to_msg(Eigen::Isometry3d::Identity());
-      m.T_prev_keyframe = dds::to_msg(Eigen::Isometry3d::Identity());
-      dds::information_to_msg(dds::Matrix6d::Identity(), m.information);
-      m.point_count = static_cast<uint32_t>(cloud.size());
-      dds::borrow(m.cloud, cloud);
-      w_kf.write(m);
-    }
+    for (uint32_t k = 0; k < 5; ++k) w_kf.write(cloud_message(r, k));
   }
   {
-    cdc_msg_Keyframe bad{};  // a point count that disagrees with the cloud
-    bad.robot_id = 0;
-    bad.keyframe_id = 77;
-    bad.T_odom_keyframe = dds::to_msg(Eigen::Isometry3d::Identity());
-    bad.T_prev_keyframe = dds::to_msg(Eigen::Isometry3d::Identity());
-    dds::information_to_msg(dds::Matrix6d::Identity(), bad.information);
+    cdc_msg_KeyframeCloud bad = cloud_message(0, 77);  // a point count that disagrees with the packed bytes
     bad.point_count = 3;
+    w_kf.write(bad);
+    std::vector<uint8_t> corrupt = packed.bytes;  // bytes that do not inflate
+    for (size_t i = 2; i < corrupt.size(); i += 5) corrupt[i] ^= 0x5A;
+    bad = cloud_message(1, 78);
+    dds::borrow(bad.packed_points, corrupt);
     w_kf.write(bad);
   }
   std::vector<cdc_msg_KeyframePose> poses;
@@ -104,7 +105,7 @@ TEST_F(MapService, BuildsAndWritesTheMapFromKeyframesAndCentralPoses) {
   EXPECT_EQ(s["keyframes"].get<int>(), 10);
   EXPECT_EQ(s["placed"].get<int>(), 10);
   EXPECT_EQ(s["writes"].get<int>(), 2) << "one on SIGUSR1, one at shutdown";
-  EXPECT_EQ(s["rejected"][dds::topics::kKeyframe].get<int>(), 1);
+  EXPECT_EQ(s["rejected"][dds::topics::kKeyframeCloud].get<int>(), 2);
   // 10 walls of 10 x 6 m, disjoint: 10 x 40 x 25 points survive the 0.2 m voxel filter.
   std::ifstream pcd(dir / "out" / "map.pcd", std::ios::binary);
   std::string line;

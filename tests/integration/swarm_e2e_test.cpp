@@ -170,10 +170,16 @@ TEST_F(SwarmEndToEnd, ThreeRobotsSwitchOnLivelinessLapsesAndStayAccurate) {
     EXPECT_GT(counter(node, "descriptor", cdc::dds::topics::kDescriptor, "bytes_written"), 0u)
         << node << ": " << per_topic.dump();
     kf_written += counter(node, "peer_optimiser", cdc::dds::topics::kKeyframe, "bytes_written");
+    // Each keyframe's cloud goes to the central's map packed, apart from the keyframe.
+    EXPECT_GT(counter(node, "peer_optimiser", cdc::dds::topics::kKeyframeCloud, "bytes_written"), 0u)
+        << node << ": " << per_topic.dump();
   }
   const uint64_t kf_taken = counter("central", "central_optimiser", cdc::dds::topics::kKeyframe, "bytes_taken");
   EXPECT_GT(kf_taken, 0u);
   EXPECT_LE(kf_taken, kf_written);
+  // Keyframes reach the central optimiser without their clouds: a few hundred bytes each.
+  const uint64_t kf_samples = counter("central", "central_optimiser", cdc::dds::topics::kKeyframe, "samples_taken");
+  EXPECT_LE(kf_taken, kf_samples * 512u) << per_topic.dump();
   // The central's results reach only the robot they are for: the robots together take no more than it wrote.
   uint64_t results_taken = 0;
   for (const char* node : {"robot0", "robot1", "robot2"}) {

@@ -306,22 +306,35 @@ Validation validate(const cdc_msg_DescriptorSync& m, const ValidationLimits& lim
   return Validation::ok();
 }
 
-Validation validate(const cdc_msg_CloudReply& m, const ValidationLimits& limits) {
-  CDC_CHECK(validate_ends(m, limits));
-  if (m.point_count > limits.max_cloud_points) {
-    return Validation::fail("point_count: " + std::to_string(m.point_count) + " points exceed the limit of " +
+namespace {
+// A packed cloud (compact::pack_points) of `count` points: within the limits, no larger than the
+// codec can make it, and decodable.
+template <class Seq>
+Validation check_packed_points(uint32_t count, const Seq& packed, float resolution_m, const ValidationLimits& limits) {
+  if (count > limits.max_cloud_points) {
+    return Validation::fail("point_count: " + std::to_string(count) + " points exceed the limit of " +
                             std::to_string(limits.max_cloud_points));
   }
+  CDC_CHECK(
+      check_sequence_max(packed, static_cast<uint32_t>(compact::packed_bound(6 * size_t{count})), "packed_points"));
+  thread_local std::vector<Eigen::Vector3f> scratch;
+  const std::string err = compact::unpack_points(packed._buffer, packed._length, count, resolution_m, scratch);
+  if (!err.empty()) return Validation::fail("packed_points: " + err);
+  return Validation::ok();
+}
+}  // namespace
+
+Validation validate(const cdc_msg_CloudReply& m, const ValidationLimits& limits) {
+  CDC_CHECK(validate_ends(m, limits));
   if (!m.found && (m.point_count != 0 || m.packed_points._length != 0)) {
     return Validation::fail("packed_points: points in a reply that says the keyframe was not found");
   }
-  CDC_CHECK(check_sequence_max(m.packed_points, static_cast<uint32_t>(compact::packed_bound(6 * size_t{m.point_count})),
-                               "packed_points"));
-  thread_local std::vector<Eigen::Vector3f> scratch;
-  const std::string err =
-      compact::unpack_points(m.packed_points._buffer, m.packed_points._length, m.point_count, m.resolution_m, scratch);
-  if (!err.empty()) return Validation::fail("packed_points: " + err);
-  return Validation::ok();
+  return check_packed_points(m.point_count, m.packed_points, m.resolution_m, limits);
+}
+
+Validation validate(const cdc_msg_KeyframeCloud& m, const ValidationLimits& limits) {
+  CDC_CHECK(validate_robot_id(m.robot_id, "robot_id", limits));
+  return check_packed_points(m.point_count, m.packed_points, m.resolution_m, limits);
 }
 
 Validation validate(const cdc_msg_OptimizedPoses& m, const ValidationLimits& limits) {

@@ -30,6 +30,7 @@ const std::vector<Type>& all_types() {
       {"ConsumerProgress", &cdc_msg_ConsumerProgress_desc},
       {"Odometry", &cdc_msg_Odometry_desc},
       {"Keyframe", &cdc_msg_Keyframe_desc},
+      {"KeyframeCloud", &cdc_msg_KeyframeCloud_desc},
       {"Descriptor", &cdc_msg_Descriptor_desc},
       {"DescriptorSync", &cdc_msg_DescriptorSync_desc},
       {"LoopClosure", &cdc_msg_LoopClosure_desc},
@@ -105,6 +106,8 @@ TEST(Traffic, MessagesWithSequencesAreWalkedExactly) {
     expect_same_size_with<cdc_msg_RadioLink>(&cdc_msg_RadioState_desc, &cdc_msg_RadioState::links, n, "RadioState");
     expect_same_size_with<cdc_msg_PointXYZI>(&cdc_msg_Keyframe_desc, &cdc_msg_Keyframe::cloud, n, "Keyframe");
     expect_same_size_with<uint8_t>(&cdc_msg_CloudReply_desc, &cdc_msg_CloudReply::packed_points, n, "CloudReply");
+    expect_same_size_with<uint8_t>(&cdc_msg_KeyframeCloud_desc, &cdc_msg_KeyframeCloud::packed_points, n,
+                                   "KeyframeCloud");
     expect_same_size_with<cdc_msg_KeyframePose>(&cdc_msg_OptimizedPoses_desc, &cdc_msg_OptimizedPoses::poses, n,
                                                 "OptimizedPoses");
     expect_same_size_with<cdc_msg_KeyframePoseF>(&cdc_msg_SeparatorPoses_desc, &cdc_msg_SeparatorPoses::poses, n,

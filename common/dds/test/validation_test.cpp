@@ -203,6 +203,43 @@ TEST(Validation, CloudReplyPackedPoints) {
   EXPECT_THAT(validate(r, small).reason(), HasSubstr("point_count: 3 points exceed the limit of 2"));
 }
 
+TEST(Validation, KeyframeCloudPackedPoints) {
+  std::vector<Eigen::Vector3f> pts = {{1, 2, 3}, {-4.5f, 0.25f, 7}, {30, -20, 1}, {0, 0, 0}};
+  compact::PackedCloud pc = compact::pack_points(pts, 0.02f);
+  cdc_msg_KeyframeCloud c{};
+  c.robot_id = 2;
+  c.keyframe_id = 7;
+  c.point_count = pc.count;
+  c.resolution_m = pc.resolution_m;
+  borrow(c.packed_points, pc.bytes);
+  EXPECT_TRUE(validate(c, ValidationLimits{}));
+  c.point_count = 6;
+  EXPECT_THAT(validate(c, ValidationLimits{}).reason(), HasSubstr("packed_points: unpacks to 24 bytes, 36 expected"));
+  c.point_count = 4;
+  c.resolution_m = -0.02f;
+  EXPECT_THAT(validate(c, ValidationLimits{}).reason(), HasSubstr("resolution_m"));
+  c.resolution_m = 0.02f;
+  c.robot_id = 40;
+  EXPECT_THAT(validate(c, ValidationLimits{}).reason(), HasSubstr("robot_id"));
+  c.robot_id = 2;
+  ValidationLimits small;
+  small.max_cloud_points = 3;
+  EXPECT_THAT(validate(c, small).reason(), HasSubstr("point_count: 4 points exceed the limit of 3"));
+  // Bytes beyond what the codec can make of 4 points are refused before decoding.
+  std::vector<uint8_t> big(compact::packed_bound(24) + 1, 0x55);
+  borrow(c.packed_points, big);
+  EXPECT_THAT(validate(c, ValidationLimits{}).reason(), HasSubstr("packed_points"));
+  // Corrupt bytes are named, never a crash.
+  std::vector<uint8_t> corrupt = pc.bytes;
+  for (size_t i = 2; i < corrupt.size(); i += 3) corrupt[i] ^= 0xA5;
+  borrow(c.packed_points, corrupt);
+  EXPECT_THAT(validate(c, ValidationLimits{}).reason(), HasSubstr("packed_points: "));
+  // A keyframe with no points in range packs to no bytes and is valid.
+  c.point_count = 0;
+  c.packed_points = {};
+  EXPECT_TRUE(validate(c, ValidationLimits{}));
+}
+
 TEST(Validation, LoopClosureChecks) {
   cdc_msg_LoopClosure l{};
   l.robot_a = 0;

@@ -21,7 +21,7 @@ struct MapFlags {
 int main(int argc, char** argv) {
   namespace rt = cdc::runtime;
   const rt::ServiceSpec spec{
-      "cdc-map", R"(the map service. Places every robot's keyframe clouds (cdc/frontend/keyframe) with the central
+      "cdc-map", R"(the map service. Places every robot's keyframe clouds (cdc/map/keyframe_cloud) with the central
 optimiser's latest poses (cdc/central/optimized) into a global point cloud and an OctoMap; writes
 OUT/map.pcd and OUT/map.bt on SIGUSR1, every write_period_s and at shutdown (SIGINT/SIGTERM).)",
       "see services/map/config", rt::kStatsOption};

@@ -1,5 +1,6 @@
 #include "map_node.hpp"
 
+#include "cdc/dds/compact.hpp"
 #include "cdc/dds/convert.hpp"
 #include "cdc/dds/qos.hpp"
 #include "cdc/dds/shutdown.hpp"
@@ -16,8 +17,8 @@ MapNode::MapNode(const runtime::ServiceOptions& common, const MapNodeOptions& o)
     : o_(o),
       dir_(o.out_dir),
       service_(runtime::Domains::kSingle, common, runtime::swarm_limits(o.robots, {o.central_id})),
-      keyframes_(service_, service_.radio(), dds::topics::kKeyframe,
-                 dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader())),
+      clouds_(service_, service_.radio(), dds::topics::kKeyframeCloud,
+              dds::qos::event_stream(4096).partitions(dds::partitions::all_robots_reader())),
       poses_(service_, service_.radio(), dds::topics::kCentralOptimized,
              dds::qos::monitored_reader().partitions(dds::partitions::all_robots_reader())),
       core_(o.core),
@@ -26,7 +27,7 @@ MapNode::MapNode(const runtime::ServiceOptions& common, const MapNodeOptions& o)
   dds::ShutdownSignal::on_user_signal([this](int signal) {
     if (signal == SIGUSR1) write_requested_ = true;
   });
-  keyframes_.on([this](const cdc_msg_Keyframe& m) { on_keyframe(m); });
+  clouds_.on([this](const cdc_msg_KeyframeCloud& m) { on_cloud(m); });
   poses_.on([this](const cdc_msg_OptimizedPoses& m) { on_poses(m); });
   spdlog::info("map service up: cloud voxel {} m, OctoMap resolution {} m, writing to {}", o.core.voxel_m,
                o.core.octree_resolution_m, dir_.string());
@@ -36,7 +37,7 @@ MapNode::~MapNode() { dds::ShutdownSignal::on_user_signal({}); }
 
 void MapNode::spin() {
   while (service_.wait(std::chrono::milliseconds(200))) {
-    keyframes_.poll(64);
+    clouds_.poll(64);
     poses_.poll(16);
     const bool periodic = o_.write_period_s > 0 && std::chrono::steady_clock::now() - last_write_ >=
                                                        std::chrono::duration<double>(o_.write_period_s);
@@ -47,10 +48,15 @@ void MapNode::spin() {
   }
 }
 
-void MapNode::on_keyframe(const cdc_msg_Keyframe& m) {
-  cloud_.clear();
-  for (uint32_t i = 0; i < m.cloud._length; ++i)
-    cloud_.emplace_back(m.cloud._buffer[i].x, m.cloud._buffer[i].y, m.cloud._buffer[i].z);
+// The boundary has unpacked the cloud once to validate it; a failure here cannot happen, and is
+// refused like one at the boundary if it does.
+void MapNode::on_cloud(const cdc_msg_KeyframeCloud& m) {
+  const std::string err = dds::compact::unpack_points(m.packed_points._buffer, m.packed_points._length, m.point_count,
+                                                      m.resolution_m, cloud_);
+  if (!err.empty()) {
+    service_.boundary().refuse(dds::topics::kKeyframeCloud, dds::Validation::fail("packed_points: " + err));
+    return;
+  }
   core_.add_keyframe(m.robot_id, m.keyframe_id, cloud_);
 }
 

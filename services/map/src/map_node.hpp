@@ -1,6 +1,6 @@
-// DDS shell of the map service: every robot's keyframe clouds and the central optimiser's latest poses
-// in; OUT/map.pcd and OUT/map.bt written on request (SIGUSR1), every write period and at shutdown. The
-// map is MapCore's.
+// DDS shell of the map service: every robot's keyframe clouds (packed, cdc/map/keyframe_cloud) and the central
+// optimiser's latest poses in; OUT/map.pcd and OUT/map.bt written on request (SIGUSR1), every write period and at
+// shutdown. The map is MapCore's.
 #pragma once
 
 #include "map_config.hpp"
@@ -31,7 +31,7 @@ class MapNode {
   void finish();
 
  private:
-  void on_keyframe(const cdc_msg_Keyframe& m);
+  void on_cloud(const cdc_msg_KeyframeCloud& m);
   void on_poses(const cdc_msg_OptimizedPoses& m);
   void write();
 
@@ -39,7 +39,7 @@ class MapNode {
   std::filesystem::path dir_;
   std::atomic<bool> write_requested_{false};  // set on the signal thread, cleared by spin()
   runtime::Service service_;
-  runtime::Input<cdc_msg_Keyframe> keyframes_;
+  runtime::Input<cdc_msg_KeyframeCloud> clouds_;
   runtime::Input<cdc_msg_OptimizedPoses> poses_;
   MapCore core_;
   uint64_t writes_ = 0;

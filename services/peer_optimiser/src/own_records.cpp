@@ -2,13 +2,20 @@
 
 namespace cdc::peer {
 
-void OwnRecords::keep_cloud(const cdc_msg_Keyframe& m) {
-  clouds_.try_emplace(m.keyframe_id, m.cloud._buffer, m.cloud._buffer + m.cloud._length);
+dds::compact::PackedCloud& OwnRecords::keep_cloud(const cdc_msg_Keyframe& m, float resolution_m) {
+  auto it = clouds_.find(m.keyframe_id);
+  if (it != clouds_.end()) return it->second;
+  points_.clear();
+  for (uint32_t i = 0; i < m.cloud._length; ++i) {
+    const cdc_msg_PointXYZI& p = m.cloud._buffer[i];
+    points_.emplace_back(p.x, p.y, p.z);
+  }
+  return clouds_.emplace(m.keyframe_id, dds::compact::pack_points(points_, resolution_m)).first->second;
 }
 
 void OwnRecords::keep(const cdc_msg_LoopClosure& m) { loops_[m.loop_seq] = m; }
 
-std::vector<cdc_msg_PointXYZI>* OwnRecords::cloud(uint32_t id) {
+dds::compact::PackedCloud* OwnRecords::cloud(uint32_t id) {
   auto it = clouds_.find(id);
   return it == clouds_.end() ? nullptr : &it->second;
 }

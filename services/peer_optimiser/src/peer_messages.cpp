@@ -173,13 +173,27 @@ cdc_msg_LoopClosure loop_message(const LoopRecord& l) {
   return m;
 }
 
-cdc_msg_Keyframe keyframe_message(uint32_t robot, const OwnKeyframe& k, std::vector<cdc_msg_PointXYZI>& cloud) {
+cdc_msg_Keyframe keyframe_message(uint32_t robot, const OwnKeyframe& k) {
   cdc_msg_Keyframe m{};
   m.robot_id = robot;
   m.keyframe_id = k.id;
   m.incarnation = k.incarnation;
   m.stamp_ns = k.stamp_ns;
-  dds::keyframe_body_to_msg(k.T_odom, k.T_prev, k.information, cloud, m);
+  m.T_odom_keyframe = dds::to_msg(k.T_odom);
+  m.T_prev_keyframe = dds::to_msg(k.T_prev);
+  dds::information_to_msg(k.information, m.information);
+  return m;
+}
+
+cdc_msg_KeyframeCloud keyframe_cloud_message(uint32_t robot, const OwnKeyframe& k, dds::compact::PackedCloud& packed) {
+  cdc_msg_KeyframeCloud m{};
+  m.robot_id = robot;
+  m.keyframe_id = k.id;
+  m.incarnation = k.incarnation;
+  m.stamp_ns = k.stamp_ns;
+  m.point_count = packed.count;
+  m.resolution_m = packed.resolution_m;
+  dds::borrow(m.packed_points, packed.bytes);
   return m;
 }
 

@@ -2,6 +2,7 @@
 // core; what goes out, built from its state and output. No DDS entities here: the node writes them.
 #pragma once
 
+#include "cdc/dds/compact.hpp"
 #include "cdc/dds/types.hpp"
 #include "cdc/peer_optimiser/peer_core.hpp"
 
@@ -56,8 +57,12 @@ cdc_msg_SeparatorPoses separator_message(const Origin& o, const SeparatorOut& s,
                                          SeparatorStorage& storage);
 // A loop as the core holds it, for relaying (its stamp and fitness are not kept: both 0).
 cdc_msg_LoopClosure loop_message(const LoopRecord& l);
-// An own keyframe as the core holds it, with its cloud, for re-sending to the central.
-cdc_msg_Keyframe keyframe_message(uint32_t robot, const OwnKeyframe& k, std::vector<cdc_msg_PointXYZI>& cloud);
+// An own keyframe as the core holds it, for the central: no cloud (point_count 0), which crosses the
+// radio apart, packed (keyframe_cloud_message).
+cdc_msg_Keyframe keyframe_message(uint32_t robot, const OwnKeyframe& k);
+// An own keyframe's packed cloud for the central's map; borrows `packed`'s bytes: they must outlive
+// the write.
+cdc_msg_KeyframeCloud keyframe_cloud_message(uint32_t robot, const OwnKeyframe& k, dds::compact::PackedCloud& packed);
 // Where the robot's keyframe sequence stands: its newest keyframe (nullptr: none held yet).
 cdc_msg_KeyframeSequence keyframe_sequence(uint32_t robot, const OwnKeyframe* newest);
 // version: the correction's number (graph_version), counted by the node.

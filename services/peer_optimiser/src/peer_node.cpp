@@ -17,7 +17,8 @@ namespace cdc::peer {
 
 // Counters and state as --stats-out names them.
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(PeerNodeCounters, forwarded_keyframes, withheld_keyframes, keyframe_writer_discards,
-                                   resent_keyframes, resent_loops, corrections, separator_messages)
+                                   resent_keyframes, resent_loops, forwarded_cloud_bytes, resent_cloud_bytes,
+                                   cloud_points_dropped, corrections, separator_messages)
 NLOHMANN_DEFINE_TYPE_NON_INTRUSIVE(PeerNodeState, robot, mode, transitions, keyframes, keyframes_duplicate,
                                    keyframes_refused, distributed_rounds, radio_cuts, coarse_steps, own_loops_held_out,
                                    separator_poses, relayed_loops)
@@ -32,7 +33,8 @@ namespace partitions = dds::partitions;
 
 // The robot's own keyframes and loop closures, and its corrections, travel on its local domain when
 // it has one (see cdc/dds/robot_domains.hpp); the node then forwards keyframes to the central over
-// the radio, and takes loop closures from both domains (each counted once by the core).
+// the radio without their clouds, each cloud packed beside it for the central's map, and takes loop
+// closures from both domains (each counted once by the core).
 PeerNode::PeerNode(const runtime::ServiceOptions& common, const PeerNodeOptions& o)
     : o_(o),
       service_(runtime::Domains::kRobot, common, runtime::swarm_limits(o.core.robot_count, {o.central_id})),
@@ -59,6 +61,8 @@ PeerNode::PeerNode(const runtime::ServiceOptions& common, const PeerNodeOptions&
       w_sequence_(service_.secondary(), topics::kKeyframeSequence,
                   qos::keyed_state().partitions({partitions::robot(o.core.robot)})),
       w_kf_(service_.radio(), topics::kKeyframe, qos::event_stream(4096).partitions({partitions::robot(o.core.robot)})),
+      w_cloud_(service_.radio(), topics::kKeyframeCloud,
+               qos::event_stream(4096).partitions({partitions::robot(o.core.robot)})),
       // Own loops re-sent for the central: in the robot's partition, so that they do not cross to peers.
       w_loop_(service_.radio(), topics::kLoopClosure,
               qos::event_stream(4096).partitions({partitions::robot(o.core.robot)})),
@@ -129,25 +133,35 @@ void PeerNode::take_inputs() {
 }
 
 // The core decides whether the keyframe joins the robot's sequence; only then does the node keep its
-// cloud, tell a restarting front-end where the sequence stands, and forward it.
+// cloud (packed), tell a restarting front-end where the sequence stands, and forward it.
 void PeerNode::on_keyframe(const cdc_msg_Keyframe& m) {
-  const KeyframeAdmission a = core_.add_keyframe(own_keyframe(m), now_);
+  const OwnKeyframe k = own_keyframe(m);
+  const KeyframeAdmission a = core_.add_keyframe(k, now_);
   if (a.outcome == Admission::kRefused) service_.boundary().refuse(topics::kKeyframe, dds::Validation::fail(a.reason));
   if (a.outcome != Admission::kAccepted) return;
   incarnation_ = m.incarnation;
   sim_stamp_ns_ = std::max(sim_stamp_ns_, m.stamp_ns);
-  records_.keep_cloud(m);
+  dds::compact::PackedCloud& packed = records_.keep_cloud(m, o_.map_cloud_resolution_m);
+  counters_.cloud_points_dropped += packed.dropped;
   w_sequence_.write(keyframe_sequence(o_.core.robot, core_.newest_keyframe()));
   // The central (and its map) read keyframes on the SLAM domain. Only a CENTRALIZED robot sends
   // them: a DISTRIBUTED one exchanges descriptors and separators only, and its keyframes reach the
-  // central as the backlog it re-sends on rejoining (all the central has not acknowledged).
-  if (!service_.split()) return;
-  if (core_.forwards_keyframes()) {
-    w_kf_.write(m);
-    ++counters_.forwarded_keyframes;
-  } else {
+  // central as the backlog it re-sends on rejoining (all the central has not acknowledged). Without a
+  // local domain the front-end's keyframes reach the central themselves: only the cloud goes.
+  if (!core_.forwards_keyframes()) {
     ++counters_.withheld_keyframes;
+    return;
   }
+  counters_.forwarded_cloud_bytes += send_keyframe(k, packed, service_.split());
+  ++counters_.forwarded_keyframes;
+}
+
+// The keyframe for the central without its cloud (with_keyframe), and its packed cloud for the map.
+// Returns the packed cloud's bytes.
+uint64_t PeerNode::send_keyframe(const OwnKeyframe& k, dds::compact::PackedCloud& packed, bool with_keyframe) {
+  if (with_keyframe) w_kf_.write(keyframe_message(o_.core.robot, k));
+  w_cloud_.write(keyframe_cloud_message(o_.core.robot, k, packed));
+  return packed.bytes.size();
 }
 
 void PeerNode::on_loop(const cdc_msg_LoopClosure& m) {
@@ -214,6 +228,7 @@ void PeerNode::on_transition(const Transition& t, bool central_alive, bool drop_
     // unacknowledged: dropped here, they reach the central as the backlog re-sent on rejoining,
     // not by DDS as soon as the link returns while this robot is still DISTRIBUTED.
     w_kf_.discard_unacknowledged();
+    w_cloud_.discard_unacknowledged();
     ++counters_.keyframe_writer_discards;
   }
   mode_files_.transition(t, dds::now_ns(), sim_stamp_ns_, o_.core.robot, core_.keyframes_held());
@@ -227,9 +242,9 @@ void PeerNode::publish_mode(SwitchReason reason, std::optional<double> distance)
 void PeerNode::resend(const StepOutput& out) {
   for (uint32_t id : out.resend_keyframes) {
     const OwnKeyframe* k = core_.keyframe(id);
-    std::vector<cdc_msg_PointXYZI>* cloud = records_.cloud(id);
+    dds::compact::PackedCloud* cloud = records_.cloud(id);
     if (k == nullptr || cloud == nullptr) continue;
-    w_kf_.write(keyframe_message(o_.core.robot, *k, *cloud));
+    counters_.resent_cloud_bytes += send_keyframe(*k, *cloud, true);
     ++counters_.resent_keyframes;
   }
   for (uint32_t seq : out.resend_loops) {

@@ -29,10 +29,12 @@ namespace cdc::peer {
 
 // The node's own counters beside the state it reports (PeerNodeState).
 struct PeerNodeCounters {
-  uint64_t forwarded_keyframes = 0;  // own keyframes sent on to the central (a local domain, CENTRALIZED)
-  uint64_t withheld_keyframes = 0;   // ... and kept back (a local domain, DISTRIBUTED)
+  uint64_t forwarded_keyframes = 0;  // own keyframes sent on to the central (CENTRALIZED)
+  uint64_t withheld_keyframes = 0;   // ... and kept back (DISTRIBUTED; they go with the backlog)
   uint64_t keyframe_writer_discards = 0;
-  uint64_t resent_keyframes = 0, resent_loops = 0;
+  uint64_t resent_keyframes = 0, resent_loops = 0;             // the backlog the central had not acknowledged
+  uint64_t forwarded_cloud_bytes = 0, resent_cloud_bytes = 0;  // packed clouds (KeyframeCloud payload) [B]
+  uint64_t cloud_points_dropped = 0;  // points beyond the packing's int16 grid (compact::PackedCloud::dropped)
   uint64_t corrections = 0, separator_messages = 0;
 };
 
@@ -67,6 +69,7 @@ class PeerNode {
 
   void wire_inputs();
   void on_keyframe(const cdc_msg_Keyframe& m);
+  uint64_t send_keyframe(const OwnKeyframe& k, dds::compact::PackedCloud& packed, bool with_keyframe);
   void on_loop(const cdc_msg_LoopClosure& m);
   void on_central_result(const cdc_msg_OptimizedPoses& m);
   void on_ack(const cdc_msg_Acknowledgement& m);
@@ -104,6 +107,7 @@ class PeerNode {
   dds::TopicWriter<cdc_msg_WorldTransform> w_world_;
   dds::TopicWriter<cdc_msg_KeyframeSequence> w_sequence_;
   dds::TopicWriter<cdc_msg_Keyframe> w_kf_;
+  dds::TopicWriter<cdc_msg_KeyframeCloud> w_cloud_;
   dds::TopicWriter<cdc_msg_LoopClosure> w_loop_;
   dds::TopicWriter<cdc_msg_RobotStatus> w_status_;
   dds::GuardCondition liveliness_changed_;

@@ -52,6 +52,7 @@ PeerNodeOptions load_options(const std::string& path) {
   r.get_in("fusion.rot_max_deg", rot_deg, 0.01, 180.0);
   o.core.fusion.rot_max = rot_deg * M_PI / 180.0;
   r.get_count("central_id", o.central_id, 0, 254);
+  r.get_in("map_cloud_resolution_m", o.map_cloud_resolution_m, 0.001f, 0.5f);
   r.get_in("tick_ms", o.tick_ms, 1, 60000);
   r.get_in("status_period_ms", o.status_period_ms, 1, 60000);
   r.get_in("radio_status_period_ms", o.radio_status_period_ms, 1, 60000);

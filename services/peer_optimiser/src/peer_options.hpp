@@ -18,7 +18,10 @@ struct PeerNodeOptions {
   // The robot's status on the radio (cdc/status/robot: its pose for peers' peer_range_m); each
   // sample costs every peer in reach ~0.2 KB with its headers and acknowledgement.
   int radio_status_period_ms = 1000;
-  int mode_period_ms = 1000;   // the mode is re-published this often besides every transition
+  int mode_period_ms = 1000;  // the mode is re-published this often besides every transition
+  // Grid of the keyframe clouds packed for the central's map (cdc/map/keyframe_cloud) [m]: finer
+  // than the map's voxel (cdc-map cloud_voxel_m); rounding moves a point by at most half a step per axis.
+  float map_cloud_resolution_m = 0.02f;
   std::string mode_out;        // CSV of every mode transition, written as it happens
   std::string trajectory_out;  // TUM: own keyframes in W as last corrected, written at shutdown
   std::string graph_out;       // g2o: PeerCore::graph(), written at shutdown

@@ -54,13 +54,21 @@ TEST(PeerMessages, IncomingMessagesForTheCore) {
             std::make_tuple(4u, 2u, int64_t{41}, int64_t{-1}));
 }
 
-// A re-sent keyframe is the core's keyframe with the node's cloud; the sequence names the newest.
-TEST(PeerMessages, ResentKeyframesAndTheSequence) {
+// A keyframe for the central is the core's keyframe without a cloud, its cloud a KeyframeCloud that
+// names the same keyframe and lends the node's packed bytes; the sequence names the newest.
+TEST(PeerMessages, KeyframesForTheCentralAndTheSequence) {
   const OwnKeyframe k{9, 3, 456, pose(1.0, 0.1), pose(0.5, 0.0), Matrix6d::Identity() * 2.0};
-  std::vector<cdc_msg_PointXYZI> cloud(4, cdc_msg_PointXYZI{1.0f, 2.0f, 3.0f, 0.0f});
-  const cdc_msg_Keyframe m = keyframe_message(1, k, cloud);
+  const cdc_msg_Keyframe m = keyframe_message(1, k);
   EXPECT_EQ(std::make_tuple(m.robot_id, m.keyframe_id, m.incarnation, m.stamp_ns, m.point_count, m.cloud._length),
-            std::make_tuple(1u, 9u, 3u, int64_t{456}, 4u, 4u));
+            std::make_tuple(1u, 9u, 3u, int64_t{456}, 0u, 0u));
+  EXPECT_TRUE(dds::validate(m, dds::ValidationLimits{}));
+  dds::compact::PackedCloud packed = dds::compact::pack_points({{1.0f, 2.0f, 3.0f}, {-1.0f, 0.5f, 0.0f}}, 0.02f);
+  const cdc_msg_KeyframeCloud c = keyframe_cloud_message(1, k, packed);
+  EXPECT_EQ(std::make_tuple(c.robot_id, c.keyframe_id, c.incarnation, c.stamp_ns, c.point_count, c.resolution_m),
+            std::make_tuple(1u, 9u, 3u, int64_t{456}, 2u, 0.02f));
+  EXPECT_EQ(c.packed_points._buffer, packed.bytes.data());
+  EXPECT_EQ(c.packed_points._length, packed.bytes.size());
+  EXPECT_TRUE(dds::validate(c, dds::ValidationLimits{}));
   const OwnKeyframe back = own_keyframe(m);
   EXPECT_TRUE(back.T_odom.isApprox(k.T_odom, 1e-12));
   EXPECT_TRUE(back.T_prev.isApprox(k.T_prev, 1e-12));

@@ -53,6 +53,7 @@ TEST(PeerOptions, ShippedFileLoads) {
   EXPECT_EQ(o.tick_ms, 50);
   EXPECT_EQ(o.status_period_ms, 250);
   EXPECT_EQ(o.radio_status_period_ms, 1000);
+  EXPECT_FLOAT_EQ(o.map_cloud_resolution_m, 0.02f);
   EXPECT_EQ(o.log_level, "info");
 }
 
@@ -63,6 +64,7 @@ TEST(PeerOptions, BadValuesAndUnknownKeysAreNamed) {
             std::string::npos);
   EXPECT_NE(error_of("tick_msec: 5\n").find("tick_msec"), std::string::npos);
   EXPECT_EQ(error_of("central_id: 250\ntick_ms: 20\n"), "");
+  EXPECT_NE(error_of("map_cloud_resolution_m: 0\n").find("map_cloud_resolution_m"), std::string::npos);
 }
 
 // The flap damping keys have finite ranges like every other number in the file.

@@ -7,6 +7,8 @@ inline constexpr const char* kLidar = "cdc/sensor/lidar";
 inline constexpr const char* kImu = "cdc/sensor/imu";
 inline constexpr const char* kOdometry = "cdc/frontend/odometry";
 inline constexpr const char* kKeyframe = "cdc/frontend/keyframe";
+// A keyframe's packed cloud on the radio, for the central's map.
+inline constexpr const char* kKeyframeCloud = "cdc/map/keyframe_cloud";
 inline constexpr const char* kDescriptor = "cdc/place/descriptor";
 inline constexpr const char* kDescriptorSync = "cdc/place/descriptor_sync";
 inline constexpr const char* kLoopClosure = "cdc/loop/closure";

@@ -24,6 +24,7 @@ CDC_DDS_TYPE(cdc_msg_LidarScan);
 CDC_DDS_TYPE(cdc_msg_ImuBatch);
 CDC_DDS_TYPE(cdc_msg_Odometry);
 CDC_DDS_TYPE(cdc_msg_Keyframe);
+CDC_DDS_TYPE(cdc_msg_KeyframeCloud);
 CDC_DDS_TYPE(cdc_msg_Descriptor);
 CDC_DDS_TYPE(cdc_msg_DescriptorSync);
 CDC_DDS_TYPE(cdc_msg_LoopClosure);

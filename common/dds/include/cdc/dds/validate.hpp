@@ -52,6 +52,7 @@ Validation validate(const cdc_msg_LidarScan& m, const ValidationLimits& limits);
 Validation validate(const cdc_msg_ImuBatch& m, const ValidationLimits& limits);
 Validation validate(const cdc_msg_Odometry& m, const ValidationLimits& limits);
 Validation validate(const cdc_msg_Keyframe& m, const ValidationLimits& limits);
+Validation validate(const cdc_msg_KeyframeCloud& m, const ValidationLimits& limits);
 Validation validate(const cdc_msg_Descriptor& m, const ValidationLimits& limits);
 Validation validate(const cdc_msg_LoopClosure& m, const ValidationLimits& limits);
 Validation validate(const cdc_msg_CloudRequest& m, const ValidationLimits& limits);
