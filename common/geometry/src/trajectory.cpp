@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <iomanip>
+#include <limits>
 #include <sstream>
 
 namespace cdc::geometry {
@@ -144,10 +145,15 @@ std::optional<int64_t> parse_seconds_ns(const std::string& text) {
     if (ip.empty() && fp.empty()) {
       return std::nullopt;
     }
+    // Nanoseconds in int64 reach 9223372036.854775807 s (the year 2262): a stamp beyond is refused.
+    constexpr int64_t kMaxSeconds = (std::numeric_limits<int64_t>::max() - 999'999'999) / 1'000'000'000;
     if (ip.size() > 10) {
-      return std::nullopt;  // beyond year 2286 in ns: overflow
+      return std::nullopt;
     }
-    int64_t sec = ip.empty() ? 0 : std::stoll(ip);
+    const int64_t sec = ip.empty() ? 0 : std::stoll(ip);
+    if (sec > kMaxSeconds) {
+      return std::nullopt;
+    }
     fp.resize(9, '0');  // truncate below 1 ns
     const int64_t ns = std::stoll(fp.substr(0, 9));
     const int64_t v = sec * 1'000'000'000 + ns;

@@ -104,6 +104,13 @@ TEST(Trajectory, ParseSeconds) {
   EXPECT_FALSE(parse_seconds_ns("abc"));
   EXPECT_FALSE(parse_seconds_ns(""));
   EXPECT_FALSE(parse_seconds_ns("1.2.3"));
+  // The int64 nanosecond range ends at 9223372036.854775807 s: the last whole second fits, with
+  // any fraction; ten-digit stamps beyond are refused, not overflowed.
+  EXPECT_EQ(parse_seconds_ns("9223372035.999999999"), 9'223'372'035'999'999'999LL);
+  EXPECT_EQ(parse_seconds_ns("-9223372035.5"), -9'223'372'035'500'000'000LL);
+  EXPECT_FALSE(parse_seconds_ns("9223372036"));
+  EXPECT_FALSE(parse_seconds_ns("9999999999"));
+  EXPECT_FALSE(parse_seconds_ns("-9999999999.1"));
 }
 
 TEST(Trajectory, InterpolateAt) {
