@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <system_error>
@@ -34,6 +35,21 @@ void write_text(const fs::path& p, const std::string& text) {
   if (!out) throw std::runtime_error(p.string() + ": write failed");
 }
 
+// A count or id in dataset.json: a JSON integer within T's range (absent: `fallback`). A float or a
+// negative number would otherwise be cast to T unchecked.
+template <class T>
+T integer_field(const nlohmann::json& j, const char* key, T fallback, const fs::path& p) {
+  const auto it = j.find(key);
+  if (it == j.end()) return fallback;
+  constexpr uint64_t kMax = std::numeric_limits<T>::max();
+  if ((it->is_number_unsigned() && it->get<uint64_t>() <= kMax) ||
+      (it->is_number_integer() && it->get<int64_t>() >= 0 && static_cast<uint64_t>(it->get<int64_t>()) <= kMax)) {
+    return static_cast<T>(it->get<uint64_t>());
+  }
+  throw FormatError(p.string() + ": " + key + " must be an integer in [0, " + std::to_string(kMax) + "], found " +
+                    it->dump());
+}
+
 }  // namespace
 
 const char* to_string(PointTimes t) { return base::name_of(kPointTimesNames, t, "sensor"); }
@@ -49,11 +65,11 @@ DatasetInfo read_dataset_info(const fs::path& dir) {
     const nlohmann::json j = nlohmann::json::parse(in);
     info.name = j.value("name", info.name);
     info.source = j.value("source", info.source);
-    info.robots = j.value("robots", info.robots);
-    info.scans = j.value("scans", info.scans);
-    info.points = j.value("points", info.points);
-    info.central_id = j.value("central_id", info.central_id);
-    info.out_of_range_periods = j.value("out_of_range_periods", info.out_of_range_periods);
+    info.robots = integer_field(j, "robots", info.robots, p);
+    info.scans = integer_field(j, "scans", info.scans, p);
+    info.points = integer_field(j, "points", info.points, p);
+    info.central_id = integer_field(j, "central_id", info.central_id, p);
+    info.out_of_range_periods = integer_field(j, "out_of_range_periods", info.out_of_range_periods, p);
     info.sweep_period_s = j.value("sweep_period_s", info.sweep_period_s);
     info.radio = j.value("radio", info.radio);
     info.poses = j.value("poses", info.poses);

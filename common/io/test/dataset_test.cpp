@@ -134,6 +134,22 @@ TEST(Dataset, ReaderNamesWhatIsWrong) {
   }
   std::ofstream(root / "dataset.json") << "{\"point_times\": \"sometimes\"}";
   EXPECT_THROW(read_dataset_info(root), FormatError);
+  // Counts and ids are integers in their type's range: a float, a negative number or one too large
+  // is refused with the field's name, never cast.
+  for (const char* bad : {"{\"central_id\": 5.5e32}", "{\"central_id\": 4294967296}", "{\"robots\": -3}",
+                          "{\"scans\": 2.5}", "{\"points\": \"many\"}"}) {
+    std::ofstream(root / "dataset.json", std::ios::trunc) << bad;
+    try {
+      read_dataset_info(root);
+      FAIL() << bad << " was accepted";
+    } catch (const FormatError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("must be an integer"), std::string::npos) << what;
+    }
+  }
+  std::ofstream(root / "dataset.json", std::ios::trunc) << "{\"central_id\": 4294967295, \"robots\": 3}";
+  EXPECT_EQ(read_dataset_info(root).central_id, 4294967295u);
+  EXPECT_EQ(read_dataset_info(root).robots, 3u);
   fs::create_directories(root / "robot_0");
   std::ofstream(root / "robot_0" / "times.txt") << "0.0\n0.1\n";
   fs::create_directories(root / "robot_0" / "velodyne");
