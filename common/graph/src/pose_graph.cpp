@@ -42,16 +42,17 @@ std::map<Key, int> loop_counts(const PoseGraph& graph) {
   return counts;
 }
 
-void share_loop_information(PoseGraph& graph, const std::map<Key, int>& counts) {
+void share_loop_information(Factor& factor, const std::map<Key, int>& counts) {
+  if (factor.kind != FactorKind::kLoop) return;
   auto count_of = [&](Key k) {
     const auto it = counts.find(k);
     return it == counts.end() ? 1 : std::max(it->second, 1);
   };
-  for (Factor& f : graph.factors) {
-    if (f.kind == FactorKind::kLoop) {
-      f.information /= static_cast<double>(std::max(count_of(f.a), count_of(f.b)));
-    }
-  }
+  factor.information /= static_cast<double>(std::max(count_of(factor.a), count_of(factor.b)));
+}
+
+void share_loop_information(PoseGraph& graph, const std::map<Key, int>& counts) {
+  for (Factor& f : graph.factors) share_loop_information(f, counts);
 }
 
 Matrix6d level_information(const Matrix6d& information, const Eigen::Vector3d& up_b, double tilt_scale) {

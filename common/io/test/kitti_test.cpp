@@ -15,18 +15,24 @@ SplitOptions pieces(int robots, double overlap) {
   return o;
 }
 
-std::string data() {
-  const char* env = std::getenv("CDC_DATA_DIR");
-  return env != nullptr ? env : "../shared/data";
-}
-
-TEST(KittiSplit, SyntheticSequenceTilesWithTheRequestedOverlap) {
+// 1000 poses 1 m apart along x, one every 0.1 s.
+geometry::Trajectory straight_sequence() {
   geometry::Trajectory seq;
   for (int i = 0; i < 1000; ++i) {
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.translation() = Eigen::Vector3d(i, 0, 0);
     seq.push_back({i * 100'000'000LL, T});
   }
+  return seq;
+}
+
+std::string data() {
+  const char* env = std::getenv("CDC_DATA_DIR");
+  return env != nullptr ? env : "../shared/data";
+}
+
+TEST(KittiSplit, SyntheticSequenceTilesWithTheRequestedOverlap) {
+  const geometry::Trajectory seq = straight_sequence();
   SplitOptions o;
   o.robots = 3;
   o.overlap = 0.2;
@@ -45,12 +51,7 @@ TEST(KittiSplit, SyntheticSequenceTilesWithTheRequestedOverlap) {
 }
 
 TEST(KittiSplit, AReversedRobotDrivesItsPieceBackwardsOnTheOppositeLane) {
-  geometry::Trajectory seq;
-  for (int i = 0; i < 1000; ++i) {
-    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.translation() = Eigen::Vector3d(i, 0, 0);
-    seq.push_back({i * 100'000'000LL, T});
-  }
+  const geometry::Trajectory seq = straight_sequence();
   SplitOptions o;
   o.reverse = {1};
   o.reverse_lane_m = 3.5;

@@ -500,12 +500,7 @@ void CentralCore::review_loops(const graph::PoseGraph& pass, const std::vector<s
   for (size_t i = 0; i < outliers_.size(); ++i) {
     if (outliers_[i] == 0) continue;
     graph::Factor f = graph_.factors[i];
-    if (config_.share_loop_information) {
-      graph::PoseGraph one;
-      one.factors = {f};
-      graph::share_loop_information(one, loop_counts_);
-      f = one.factors.front();
-    }
+    if (config_.share_loop_information) graph::share_loop_information(f, loop_counts_);
     // Held out while wrong loops bent the graph, a true loop may sit a little beyond c^2 of the
     // graph without it and within c^2 with it: such loops take part in GNC again (a few times).
     const double s = graph::squared_residual(pass, f);

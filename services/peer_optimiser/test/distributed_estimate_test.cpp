@@ -24,6 +24,18 @@ LocalGraph straight_line(uint32_t robot, uint32_t count) {
   return g;
 }
 
+// A loop from robot_a's keyframe_a to robot_b's keyframe_b measuring T_a_b.
+LoopRecord loop(uint32_t robot_a, uint32_t keyframe_a, uint32_t robot_b, uint32_t keyframe_b,
+                const Eigen::Isometry3d& T_a_b) {
+  LoopRecord l;
+  l.robot_a = robot_a;
+  l.keyframe_a = keyframe_a;
+  l.robot_b = robot_b;
+  l.keyframe_b = keyframe_b;
+  l.T_a_b = T_a_b;
+  return l;
+}
+
 double x_of(const DistributedEstimate& e, uint32_t id) { return e.poses().at(id).translation().x(); }
 
 TEST(DistributedEstimate, SeedsFromTheCentralThenItsPredecessorThenTheWorldTransform) {
@@ -69,12 +81,7 @@ TEST(DistributedEstimate, TheLowestRobotKeepsItsOdometryFrame) {
 TEST(DistributedEstimate, PlacesTheRobotThroughALowerPeersSeparatorPose) {
   // Robot 1's keyframe 1 sees robot 0's keyframe 5 two metres ahead and turned by 0.5 rad.
   LocalGraph g = straight_line(1, 3);
-  LoopRecord l;
-  l.robot_a = 1;
-  l.keyframe_a = 1;
-  l.robot_b = 0;
-  l.keyframe_b = 5;
-  l.T_a_b = pose_at(2, 0, 0.5);
+  LoopRecord l = loop(1, 1, 0, 5, pose_at(2, 0, 0.5));
   g.add_loop(l);
   const Eigen::Isometry3d T_world_0_5 = pose_at(40, 30, 1.0);
   g.on_separator(0, {{5, T_world_0_5}});
@@ -114,12 +121,7 @@ TEST(DistributedEstimate, TheCoarseStepMovesAHigherRobotAndTheGaugeKeepsItsFirst
   // tenth of a radian off: the coarse step moves robot 1 onto the loop and robot 0 stays, its first
   // keyframe at its odometry pose.
   LocalGraph g = straight_line(0, 5);
-  LoopRecord l;
-  l.robot_a = 0;
-  l.keyframe_a = 4;
-  l.robot_b = 1;
-  l.keyframe_b = 2;
-  l.T_a_b = pose_at(1);
+  const LoopRecord l = loop(0, 4, 1, 2, pose_at(1));
   g.add_loop(l);
   g.on_separator(1, {{2, pose_at(8, 0, 0.1)}});
   g.on_coarse_view(1, 1, true);  // robot 1 has this one loop and runs the coarse step too

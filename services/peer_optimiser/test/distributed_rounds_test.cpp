@@ -80,19 +80,14 @@ Rounds run_group(const Group& g, PeerConfig base, int rounds) {
     cores.emplace_back(base);
     for (const OwnKeyframe& kf : g.keyframes[r]) cores.back().add_keyframe(kf, 0s);
   }
-  for (const LoopRecord& l : g.loops) {
-    cores[l.robot_a].add_loop(l, 0s);
-    if (l.robot_b != l.robot_a) cores[l.robot_b].add_loop(l, 0s);
-  }
+  for (const LoopRecord& l : g.loops) add_loop_to_its_robots(cores, l);
   Rounds out;
   Nanos t = 0s;
   for (int i = 0; i < rounds; ++i) {
     t += 100ms;
-    std::vector<StepOutput> steps;
-    for (PeerCore& c : cores) steps.push_back(c.step(t, false));
+    const std::vector<StepOutput> steps = exchange_round(cores, t);
     for (uint32_t r = 0; r < robots; ++r) {
       for (const SeparatorOut& s : steps[r].separators) {
-        cores[s.target].on_separator(r, s);
         out.poses[r] += s.poses.size();
         out.loops[r] += s.loops.size();
       }

@@ -41,8 +41,7 @@ SwarmRounds run_swarm_rounds(const test::SwarmStream& s, int rounds, const PeerC
     }
   }
   for (const auto& l : s.loops) {
-    cores[l.robot_a].add_loop(loop_from(l), 0s);
-    if (l.robot_b != l.robot_a) cores[l.robot_b].add_loop(loop_from(l), 0s);
+    add_loop_to_its_robots(cores, loop_from(l));
     central.add_between(graph::make_key(l.robot_a, l.keyframe_a), graph::make_key(l.robot_b, l.keyframe_b), l.T_a_b,
                         l.information);
   }
@@ -53,13 +52,9 @@ SwarmRounds run_swarm_rounds(const test::SwarmStream& s, int rounds, const PeerC
   Nanos t = 0s;
   for (int i = 0; i < rounds; ++i) {
     t += 100ms;
-    std::vector<StepOutput> out;
-    for (auto& c : cores) out.push_back(c.step(t, false));
+    const std::vector<StepOutput> out = exchange_round(cores, t);
     for (uint32_t r = 0; r < robots; ++r) {
-      for (const auto& sep : out[r].separators) {
-        cores[sep.target].on_separator(r, sep);
-        result.separator_poses += sep.poses.size();
-      }
+      for (const auto& sep : out[r].separators) result.separator_poses += sep.poses.size();
       if (out[r].correction) {  // in the frame of its T_world_robot, which has long caught up
         for (const auto& [id, T] : out[r].correction->poses) joint.poses[graph::make_key(r, id)] = T;
       }

@@ -64,6 +64,24 @@ inline CentralResult central_for(const test::SwarmStream& s, uint32_t robot, uin
   return r;
 }
 
+// Hands each of `cores` (robot r at index r) the loop once per robot it names, as the loop-closure
+// service sends it.
+inline void add_loop_to_its_robots(std::vector<PeerCore>& cores, const LoopRecord& l) {
+  cores[l.robot_a].add_loop(l, Nanos{0});
+  if (l.robot_b != l.robot_a) cores[l.robot_b].add_loop(l, Nanos{0});
+}
+
+// One distributed round of a swarm at time t: every core steps, then each separator message reaches
+// its target. Returns the steps (robot r's at index r).
+inline std::vector<StepOutput> exchange_round(std::vector<PeerCore>& cores, Nanos t) {
+  std::vector<StepOutput> steps;
+  for (PeerCore& c : cores) steps.push_back(c.step(t, false));
+  for (uint32_t r = 0; r < steps.size(); ++r) {
+    for (const SeparatorOut& s : steps[r].separators) cores[s.target].on_separator(r, s);
+  }
+  return steps;
+}
+
 inline test::SwarmStream three_robot_stream() {
   test::SwarmStreamOptions o;
   o.robots = 3;

@@ -49,6 +49,8 @@ std::map<Key, int> loop_counts(const PoseGraph& graph);
 // Divides each loop factor's information by n, the larger count of its two keys in `counts`. Pass
 // the counts of the whole graph when `graph` is a part of it (a local window).
 void share_loop_information(PoseGraph& graph, const std::map<Key, int>& counts);
+// The same for one factor (a loop; other factors are left as they are).
+void share_loop_information(Factor& factor, const std::map<Key, int>& counts);
 inline void share_loop_information(PoseGraph& graph) { share_loop_information(graph, loop_counts(graph)); }
 
 // Where the robots' front-ends hold roll and pitch with gravity, the odometry's tilt does not drift,
